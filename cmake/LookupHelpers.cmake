@@ -1,0 +1,55 @@
+# Small helpers shared by every folder of the project.
+
+# Adds every direct subfolder of DIR that holds a CMakeLists.txt.
+function(lookup_add_subdirectories dir)
+    file(GLOB children RELATIVE ${CMAKE_CURRENT_SOURCE_DIR}/${dir}
+         ${CMAKE_CURRENT_SOURCE_DIR}/${dir}/*/CMakeLists.txt)
+    list(SORT children)
+    foreach(child ${children})
+        get_filename_component(sub ${child} DIRECTORY)
+        add_subdirectory(${dir}/${sub})
+    endforeach()
+endfunction()
+
+# lookup_add_library(NAME <stage> SOURCES ... PUBLIC_DEPS ... PRIVATE_DEPS ...)
+# Creates target lookup_<stage> (alias lookup::<stage>) with public headers in include/.
+function(lookup_add_library)
+    cmake_parse_arguments(ARG "" "NAME" "SOURCES;PUBLIC_DEPS;PRIVATE_DEPS" ${ARGN})
+    set(target lookup_${ARG_NAME})
+    add_library(${target} ${ARG_SOURCES})
+    add_library(lookup::${ARG_NAME} ALIAS ${target})
+    target_include_directories(${target} PUBLIC
+        $<BUILD_INTERFACE:${CMAKE_CURRENT_SOURCE_DIR}/include>
+        $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>)
+    target_link_libraries(${target} PUBLIC ${ARG_PUBLIC_DEPS} PRIVATE ${ARG_PRIVATE_DEPS})
+    set_target_properties(${target} PROPERTIES EXPORT_NAME ${ARG_NAME})
+    install(TARGETS ${target} EXPORT lookupTargets
+            LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}
+            ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR})
+    install(DIRECTORY include/ DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
+endfunction()
+
+# lookup_add_executable(NAME <program> SOURCES ... DEPS ...)
+function(lookup_add_executable)
+    cmake_parse_arguments(ARG "" "NAME" "SOURCES;DEPS" ${ARGN})
+    add_executable(${ARG_NAME} ${ARG_SOURCES})
+    target_link_libraries(${ARG_NAME} PRIVATE ${ARG_DEPS})
+    target_compile_definitions(${ARG_NAME} PRIVATE
+        LOOKUP_SOURCE_SHARE_DIR="${LOOKUP_SOURCE_SHARE_DIR}"
+        LOOKUP_INSTALL_SHARE_DIR="${LOOKUP_INSTALL_SHARE_DIR}")
+    install(TARGETS ${ARG_NAME} RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
+endfunction()
+
+# lookup_add_test(NAME <unit>_test SOURCES ... DEPS ... [LABELS ...])
+# One GoogleTest executable per unit; each TEST becomes its own ctest entry.
+function(lookup_add_test)
+    cmake_parse_arguments(ARG "" "NAME" "SOURCES;DEPS;LABELS" ${ARGN})
+    add_executable(${ARG_NAME} ${ARG_SOURCES})
+    target_link_libraries(${ARG_NAME} PRIVATE ${ARG_DEPS} GTest::gtest GTest::gtest_main)
+    target_compile_definitions(${ARG_NAME} PRIVATE
+        LOOKUP_SOURCE_SHARE_DIR="${LOOKUP_SOURCE_SHARE_DIR}"
+        LOOKUP_BINARY_DIR="${CMAKE_BINARY_DIR}")
+    include(GoogleTest)
+    gtest_discover_tests(${ARG_NAME} DISCOVERY_TIMEOUT 60
+                         PROPERTIES LABELS "${ARG_LABELS}")
+endfunction()

@@ -1,0 +1,97 @@
+#include "lookup/common/pose_files.h"
+
+#include <mrpt/math/CQuaternion.h>
+#include <mrpt/system/datetime.h>
+
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+
+#include "lookup/common/config.h"
+
+namespace lookup::common {
+
+PoseTrack readPoseFile(const std::string& path) {
+    std::ifstream in(path);
+    if (!in) throw ConfigError(path + ": cannot open pose file");
+    PoseTrack track;
+    std::string line;
+    int line_no = 0;
+    std::size_t columns_seen = 0;
+    while (std::getline(in, line)) {
+        ++line_no;
+        const auto first = line.find_first_not_of(" \t\r");
+        if (first == std::string::npos || line[first] == '#' || line[first] == '%') continue;
+        std::istringstream row(line);
+        std::vector<double> v;
+        double x;
+        while (row >> x) v.push_back(x);
+        if (!row.eof()) {
+            throw ConfigError(path + ":" + std::to_string(line_no) + ": not a number in row");
+        }
+        if (v.size() != 7 && v.size() != 8) {
+            throw ConfigError(path + ":" + std::to_string(line_no) + ": expected 7 (MRPT) or " +
+                              "8 (TUM) columns, found " + std::to_string(v.size()));
+        }
+        if (columns_seen != 0 && v.size() != columns_seen) {
+            throw ConfigError(path + ":" + std::to_string(line_no) +
+                              ": column count changes within the file");
+        }
+        columns_seen = v.size();
+        StampedPose p;
+        p.time_s = v[0];
+        if (v.size() == 7) {
+            p.pose = mrpt::poses::CPose3D(v[1], v[2], v[3], v[4], v[5], v[6]);
+        } else {
+            const mrpt::math::CQuaternionDouble q(v[7], v[4], v[5], v[6]);  // w, x, y, z
+            p.pose = mrpt::poses::CPose3D(q, v[1], v[2], v[3]);
+        }
+        if (!track.empty() && p.time_s <= track.back().time_s) {
+            throw ConfigError(path + ":" + std::to_string(line_no) +
+                              ": time stamps must increase");
+        }
+        track.push_back(p);
+    }
+    if (track.empty()) throw ConfigError(path + ": no poses in file");
+    return track;
+}
+
+namespace {
+std::FILE* openForWrite(const std::string& path) {
+    std::FILE* f = std::fopen(path.c_str(), "w");
+    if (f == nullptr) throw ConfigError(path + ": cannot open for writing");
+    return f;
+}
+}  // namespace
+
+void writeMrptPoseFile(const std::string& path, const PoseTrack& track) {
+    std::FILE* f = openForWrite(path);
+    for (const auto& p : track) {
+        std::fprintf(f, "%.6f %.6f %.6f %.6f %.8f %.8f %.8f\n", p.time_s, p.pose.x(), p.pose.y(),
+                     p.pose.z(), p.pose.yaw(), p.pose.pitch(), p.pose.roll());
+    }
+    std::fclose(f);
+}
+
+void writeTumPoseFile(const std::string& path, const PoseTrack& track) {
+    std::FILE* f = openForWrite(path);
+    for (const auto& p : track) {
+        mrpt::math::CQuaternionDouble q;
+        p.pose.getAsQuaternion(q);
+        std::fprintf(f, "%.6f %.6f %.6f %.6f %.9f %.9f %.9f %.9f\n", p.time_s, p.pose.x(),
+                     p.pose.y(), p.pose.z(), q.x(), q.y(), q.z(), q.r());
+    }
+    std::fclose(f);
+}
+
+mrpt::poses::CPose3DInterpolator makeInterpolator(const PoseTrack& track, double max_gap_s) {
+    mrpt::poses::CPose3DInterpolator interp;
+    interp.setInterpolationMethod(mrpt::poses::imLinearSlerp);
+    interp.setMaxTimeInterpolation(std::chrono::microseconds(static_cast<int64_t>(max_gap_s * 1e6)));
+    for (const auto& p : track) {
+        interp.insert(mrpt::Clock::fromDouble(p.time_s), p.pose.asTPose());
+    }
+    return interp;
+}
+
+}  // namespace lookup::common

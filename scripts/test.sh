@@ -1,0 +1,13 @@
+#!/usr/bin/env bash
+# Installs dependencies, builds LookUP (Release) and runs the whole test suite with ctest.
+# Usage: bash scripts/test.sh [ctest arguments...]
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+bash scripts/install-deps.sh
+BUILD_DIR=${LOOKUP_BUILD_DIR:-build}
+JOBS=${LOOKUP_JOBS:-$(nproc)}
+cmake -S . -B "$BUILD_DIR" -G Ninja -DCMAKE_BUILD_TYPE=Release
+cmake --build "$BUILD_DIR" -j "$JOBS"
+cd "$BUILD_DIR"
+ctest --output-on-failure -j "$JOBS" "$@"
