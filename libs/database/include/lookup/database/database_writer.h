@@ -1,0 +1,65 @@
+#pragma once
+// Builds a reference database folder atomically: everything is written into a staging folder
+// `<out>.tmp-XXXXXX` beside the target and renamed onto `<out>` by commit(). A writer destroyed
+// without commit() (an exception, a failed survey) removes its staging folder, and an existing
+// database at `<out>` stays untouched until the new one is complete.
+
+#include <mrpt/maps/COccupancyGridMap2D.h>
+#include <mrpt/obs/CObservationImage.h>
+
+#include <memory>
+#include <string>
+
+#include "lookup/common/rawlog_io.h"
+#include "lookup/database/reference.h"
+
+namespace lookup::database {
+
+/// What the survey hands over for one reference.
+struct ReferenceInput {
+    std::string traverse;
+    /// Ceiling image (external file or in memory) with cameraParams and cameraPose.
+    mrpt::obs::CObservationImage::Ptr ceiling;
+    /// Forward image nearest in time (may be null).
+    mrpt::obs::CObservationImage::Ptr forward;
+    mrpt::poses::CPose3D vehicle_pose;          ///< at the ceiling image time, map frame
+    mrpt::math::CMatrixDouble33 vehicle_cov;    ///< (x, y, yaw)
+    mrpt::poses::CPose3D forward_vehicle_pose;  ///< at the forward image time, map frame
+    double sharpness = 0;
+    double mean_intensity = 0;
+    double travelled_m = 0;
+};
+
+class DatabaseWriter {
+  public:
+    /// Creates the staging folder beside `out_dir`. Throws DatabaseError if impossible.
+    explicit DatabaseWriter(const std::string& out_dir);
+    ~DatabaseWriter();
+    DatabaseWriter(const DatabaseWriter&) = delete;
+    DatabaseWriter& operator=(const DatabaseWriter&) = delete;
+
+    /// Appends one reference (copies its images into refs_Images/); returns its id.
+    uint32_t add(const ReferenceInput& in);
+    /// Stores the map as map.gridmap.gz and map.png.
+    void setMap(const mrpt::maps::COccupancyGridMap2D& map);
+    /// Writes a text file (e.g. the report) into the staging folder.
+    void writeTextFile(const std::string& name, const std::string& content);
+
+    /// Writes refs.tum and db.ini, closes refs.rawlog and renames the staging folder onto
+    /// `out_dir`, replacing an older database there. Throws DatabaseError on failure (the old
+    /// database is then kept).
+    void commit(DatabaseInfo info);
+
+    const std::string& stagingDir() const { return staging_; }
+    std::size_t size() const { return references_.size(); }
+
+  private:
+    std::string out_dir_;
+    std::string staging_;
+    std::unique_ptr<common::RawlogWriter> rawlog_;
+    std::vector<Reference> references_;
+    bool has_map_ = false;
+    bool committed_ = false;
+};
+
+}  // namespace lookup::database

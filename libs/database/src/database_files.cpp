@@ -1,0 +1,98 @@
+#include <mrpt/config/CConfigFile.h>
+#include <mrpt/config/CConfigFileMemory.h>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "lookup/common/config.h"
+#include "lookup/database/reference.h"
+
+namespace lookup::database {
+namespace {
+
+std::string join(const std::vector<std::string>& items) {
+    std::string out;
+    for (const auto& s : items) out += (out.empty() ? "" : ",") + s;
+    return out;
+}
+
+std::vector<std::string> split(const std::string& s) {
+    std::vector<std::string> out;
+    std::stringstream in(s);
+    std::string item;
+    while (std::getline(in, item, ',')) {
+        if (!item.empty()) out.push_back(item);
+    }
+    return out;
+}
+
+}  // namespace
+
+DatabaseInfo readDatabaseInfo(const std::string& path) {
+    if (!std::filesystem::is_regular_file(path)) {
+        throw DatabaseError(path + ": no such file (not a LookUP database?)");
+    }
+    mrpt::config::CConfigFile cfg(path);
+    DatabaseInfo info;
+    try {
+        common::IniSection db(cfg, "database", path);
+        db.rejectUnknownKeys({"format_version", "name", "reference_count", "ceiling_camera_label",
+                              "forward_camera_label", "ceiling_height_m", "pose_source", "map",
+                              "source_rawlogs"});
+        if (db.requireInt("format_version") != 1) {
+            throw DatabaseError(db.where("format_version") + "unsupported version");
+        }
+        info.name = db.getString("name", "");
+        const int count = db.requireInt("reference_count");
+        if (count < 0) throw DatabaseError(db.where("reference_count") + "negative");
+        info.reference_count = static_cast<std::size_t>(count);
+        info.ceiling_camera_label = db.requireString("ceiling_camera_label");
+        info.forward_camera_label = db.getString("forward_camera_label", "");
+        info.ceiling_height_m = db.requireDouble("ceiling_height_m");
+        info.pose_source = db.getString("pose_source", "");
+        info.map_file = db.getString("map", "");
+        info.source_rawlogs = split(db.getString("source_rawlogs", ""));
+        common::IniSection heat(cfg, "heatmaps", path);
+        info.heatmaps_dir = heat.getString("directory", "");
+    } catch (const common::ConfigError& e) {
+        throw DatabaseError(e.what());
+    }
+    try {
+        info.ceiling_camera.loadFromConfigFile("ceiling_camera", cfg);
+        if (cfg.sectionExists("forward_camera")) {
+            info.forward_camera.loadFromConfigFile("forward_camera", cfg);
+        }
+    } catch (const std::exception& e) {
+        throw DatabaseError(path + " [ceiling_camera]/[forward_camera]: " + e.what());
+    }
+    return info;
+}
+
+void writeDatabaseInfo(const std::string& path, const DatabaseInfo& info) {
+    mrpt::config::CConfigFileMemory cfg;
+    cfg.write("database", "format_version", 1);
+    cfg.write("database", "name", info.name);
+    cfg.write("database", "reference_count", static_cast<int>(info.reference_count));
+    cfg.write("database", "ceiling_camera_label", info.ceiling_camera_label);
+    cfg.write("database", "forward_camera_label", info.forward_camera_label);
+    cfg.write("database", "ceiling_height_m", info.ceiling_height_m);
+    cfg.write("database", "pose_source", info.pose_source);
+    cfg.write("database", "map", info.map_file);
+    cfg.write("database", "source_rawlogs", join(info.source_rawlogs));
+    info.ceiling_camera.saveToConfigFile("ceiling_camera", cfg);
+    info.forward_camera.saveToConfigFile("forward_camera", cfg);
+    std::ofstream out(path);
+    if (!out) throw DatabaseError(path + ": cannot open for writing");
+    out << "# LookUP reference database (written by lookup-survey; see docs/survey.md)\n";
+    out << cfg.getContent() << "\n";
+    out << "# Quality heat maps (paper Sec. III-C), one image per reference named <id>.png in\n"
+           "# this folder (relative to the database); filled in by lookup-train.\n"
+           "[heatmaps]\n"
+           "directory = "
+        << info.heatmaps_dir << "\n\n";
+    out << "# Options used to build the database\n" << info.options_ini << "\n";
+    if (!out) throw DatabaseError(path + ": write failed");
+}
+
+}  // namespace lookup::database

@@ -1,0 +1,209 @@
+#include "lookup/database/reference_database.h"
+
+#include <nanoflann.hpp>
+
+#include <algorithm>
+#include <array>
+#include <filesystem>
+
+#include "lookup/common/rawlog_io.h"
+#include "lookup/database/image_cache.h"
+#include "lookup/obs/observation_lookup_reference.h"
+#include "lookup/obs/register_classes.h"
+
+namespace lookup::database {
+namespace fs = std::filesystem;
+namespace {
+
+// nanoflann adaptor over the reference vehicle positions.
+struct PointCloud2D {
+    std::vector<std::array<double, 2>> points;
+    std::size_t kdtree_get_point_count() const { return points.size(); }
+    double kdtree_get_pt(std::size_t i, std::size_t dim) const { return points[i][dim]; }
+    template <class BBox>
+    bool kdtree_get_bbox(BBox&) const {
+        return false;
+    }
+};
+using KdTree =
+    nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<double, PointCloud2D>,
+                                        PointCloud2D, 2, std::size_t>;
+
+}  // namespace
+
+struct ReferenceDatabase::Impl {
+    std::string dir;
+    DatabaseInfo info;
+    std::vector<Reference> refs;
+    PointCloud2D cloud;
+    std::unique_ptr<KdTree> tree;
+    std::vector<std::size_t> by_time;  // reference indices sorted by time_s
+    std::vector<std::size_t> forward_sequence;
+    std::unique_ptr<ImageCache> cache;
+};
+
+ReferenceDatabase::ReferenceDatabase(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+ReferenceDatabase::ReferenceDatabase(ReferenceDatabase&&) noexcept = default;
+ReferenceDatabase& ReferenceDatabase::operator=(ReferenceDatabase&&) noexcept = default;
+ReferenceDatabase::~ReferenceDatabase() = default;
+
+ReferenceDatabase ReferenceDatabase::load(const std::string& dir, std::size_t cache_capacity) {
+    obs::registerClasses();
+    auto impl = std::make_unique<Impl>();
+    impl->dir = fs::absolute(dir).lexically_normal().string();
+    if (!fs::is_directory(dir)) throw DatabaseError(dir + ": no such database folder");
+    impl->info = readDatabaseInfo(impl->dir + "/" + kDbIni);
+
+    const std::string rawlog_path = impl->dir + "/" + kRefsRawlog;
+    const std::string images_dir = common::imagesDirectoryFor(rawlog_path);
+    try {
+        common::RawlogReader reader(rawlog_path);
+        mrpt::obs::CObservation::Ptr o;
+        while (reader.next(o)) {
+            auto rec = std::dynamic_pointer_cast<obs::CObservationLookupReference>(o);
+            if (!rec) continue;  // the image and pose records are for viewers
+            const auto where = [&] {
+                return rawlog_path + ": record " + std::to_string(reader.recordIndex()) + ": ";
+            };
+            if (rec->reference_id != impl->refs.size()) {
+                throw DatabaseError(where() + "reference id " + std::to_string(rec->reference_id) +
+                                    " out of sequence");
+            }
+            Reference r;
+            r.id = rec->reference_id;
+            r.traverse = rec->traverse;
+            r.time_s = mrpt::Clock::toDouble(rec->timestamp);
+            r.vehicle_pose = rec->vehicle_pose;
+            r.vehicle_cov = rec->vehicle_cov;
+            r.ceiling_camera_pose = rec->ceiling_camera_pose;
+            r.ceiling_camera_mount = rec->sensorPose;
+            r.ceiling_image_path = images_dir + "/" + rec->ceiling_image_file;
+            if (!fs::is_regular_file(r.ceiling_image_path)) {
+                throw DatabaseError(where() + "missing ceiling image " + r.ceiling_image_path);
+            }
+            r.has_forward = !rec->forward_image_file.empty();
+            if (r.has_forward) {
+                r.forward_time_s = rec->forward_time_s;
+                r.forward_image_path = images_dir + "/" + rec->forward_image_file;
+                r.forward_camera_pose = rec->forward_camera_pose;
+                if (!fs::is_regular_file(r.forward_image_path)) {
+                    throw DatabaseError(where() + "missing forward image " + r.forward_image_path);
+                }
+            }
+            r.sharpness = rec->sharpness;
+            r.mean_intensity = rec->mean_intensity;
+            r.travelled_m = rec->travelled_m;
+            impl->refs.push_back(std::move(r));
+        }
+    } catch (const common::RawlogError& e) {
+        throw DatabaseError(e.what());
+    }
+    if (impl->refs.size() != impl->info.reference_count) {
+        throw DatabaseError(rawlog_path + ": holds " + std::to_string(impl->refs.size()) +
+                            " references but " + kDbIni + " says " +
+                            std::to_string(impl->info.reference_count));
+    }
+
+    for (const auto& r : impl->refs) {
+        impl->cloud.points.push_back({r.vehicle_pose.x(), r.vehicle_pose.y()});
+    }
+    impl->tree =
+        std::make_unique<KdTree>(2, impl->cloud, nanoflann::KDTreeSingleIndexAdaptorParams(10));
+    impl->tree->buildIndex();
+
+    const auto& refs = impl->refs;
+    impl->by_time.resize(refs.size());
+    for (std::size_t i = 0; i < refs.size(); ++i) impl->by_time[i] = i;
+    std::stable_sort(impl->by_time.begin(), impl->by_time.end(),
+                     [&](std::size_t a, std::size_t b) { return refs[a].time_s < refs[b].time_s; });
+    for (std::size_t i = 0; i < refs.size(); ++i) {
+        if (refs[i].has_forward) impl->forward_sequence.push_back(i);
+    }
+    std::stable_sort(impl->forward_sequence.begin(), impl->forward_sequence.end(),
+                     [&](std::size_t a, std::size_t b) {
+                         return refs[a].forward_time_s < refs[b].forward_time_s;
+                     });
+    impl->cache = std::make_unique<ImageCache>(std::max<std::size_t>(1, cache_capacity));
+    return ReferenceDatabase(std::move(impl));
+}
+
+const std::string& ReferenceDatabase::directory() const { return impl_->dir; }
+const DatabaseInfo& ReferenceDatabase::info() const { return impl_->info; }
+std::size_t ReferenceDatabase::size() const { return impl_->refs.size(); }
+const Reference& ReferenceDatabase::reference(std::size_t i) const { return impl_->refs.at(i); }
+const std::vector<Reference>& ReferenceDatabase::references() const { return impl_->refs; }
+
+std::vector<Neighbour> ReferenceDatabase::nearest(const mrpt::math::TPoint2D& p,
+                                                  std::size_t k) const {
+    k = std::min(k, impl_->refs.size());
+    if (k == 0) return {};
+    std::vector<std::size_t> idx(k);
+    std::vector<double> d2(k);
+    const double query[2] = {p.x, p.y};
+    k = impl_->tree->knnSearch(query, k, idx.data(), d2.data());
+    std::vector<Neighbour> out(k);
+    for (std::size_t i = 0; i < k; ++i) out[i] = {idx[i], std::sqrt(d2[i])};
+    return out;
+}
+
+std::vector<Neighbour> ReferenceDatabase::nearest(const mrpt::poses::CPose3D& pose,
+                                                  std::size_t k) const {
+    return nearest(mrpt::math::TPoint2D(pose.x(), pose.y()), k);
+}
+
+std::vector<Neighbour> ReferenceDatabase::withinRadius(const mrpt::math::TPoint2D& p,
+                                                       double radius_m) const {
+    if (impl_->refs.empty() || !(radius_m >= 0)) return {};
+    std::vector<std::pair<std::size_t, double>> matches;
+    const double query[2] = {p.x, p.y};
+    nanoflann::SearchParams params;
+    params.sorted = true;
+    impl_->tree->radiusSearch(query, radius_m * radius_m, matches, params);
+    std::vector<Neighbour> out;
+    out.reserve(matches.size());
+    for (const auto& [i, d2] : matches) out.push_back({i, std::sqrt(d2)});
+    return out;
+}
+
+std::vector<Neighbour> ReferenceDatabase::nearestInTime(double t, std::size_t k) const {
+    const auto& order = impl_->by_time;
+    const auto& refs = impl_->refs;
+    // Merge outwards from the insertion point: the k nearest lie contiguously around it.
+    auto hi = static_cast<std::ptrdiff_t>(
+        std::lower_bound(order.begin(), order.end(), t,
+                         [&](std::size_t i, double v) { return refs[i].time_s < v; }) -
+        order.begin());
+    auto lo = hi - 1;
+    std::vector<Neighbour> out;
+    const auto n = static_cast<std::ptrdiff_t>(order.size());
+    while (out.size() < k && (lo >= 0 || hi < n)) {
+        const double dl = lo >= 0 ? t - refs[order[lo]].time_s : INFINITY;
+        const double dh = hi < n ? refs[order[hi]].time_s - t : INFINITY;
+        if (dl <= dh) {
+            out.push_back({order[lo--], dl});
+        } else {
+            out.push_back({order[hi++], dh});
+        }
+    }
+    return out;
+}
+
+const std::vector<std::size_t>& ReferenceDatabase::forwardSequence() const {
+    return impl_->forward_sequence;
+}
+
+cv::Mat ReferenceDatabase::ceilingImage(std::size_t i) const {
+    return impl_->cache->get(reference(i).ceiling_image_path);
+}
+
+cv::Mat ReferenceDatabase::forwardImage(std::size_t i) const {
+    const auto& r = reference(i);
+    if (!r.has_forward) return {};
+    return impl_->cache->get(r.forward_image_path);
+}
+
+std::size_t ReferenceDatabase::imagesInMemory() const { return impl_->cache->size(); }
+std::size_t ReferenceDatabase::imageDiskReads() const { return impl_->cache->diskReads(); }
+std::size_t ReferenceDatabase::imageCacheCapacity() const { return impl_->cache->capacity(); }
+
+}  // namespace lookup::database
