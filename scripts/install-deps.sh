@@ -9,7 +9,7 @@ packages=(
     libopencv-dev libceres-dev libeigen3-dev
     libtorch-dev
     libgtest-dev libgmock-dev libbenchmark-dev
-    gnuplot-nox
+    nlohmann-json3-dev gnuplot-nox
 )
 
 missing=()

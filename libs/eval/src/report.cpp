@@ -1,0 +1,143 @@
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <set>
+
+#include "lookup/common/config.h"
+#include "lookup/eval/evaluator.h"
+
+namespace lookup::eval {
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string fmt(const char* format, double v) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, format, v);
+    return buf;
+}
+
+void writeMarkdown(const Report& r, const std::string& path) {
+    std::ofstream out(path);
+    if (!out) throw common::ConfigError(path + ": cannot open for writing");
+    out << "# Localisation accuracy\n\n"
+        << "Position error of the emitted pose against ground truth. Frames whose coarse error "
+        << "exceeds " << r.options.coarse_exclusion_m
+        << " m are excluded (the paper's rule); `excluded` counts them.\n\n"
+        << "| traverse | method | frames | excluded | no pose | mean (m) | median (m) | p95 (m) "
+           "| max (m) | yaw (deg) | accepted | in 95% ellipse | frames/s |\n"
+        << "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
+    for (const auto& m : r.rows) {
+        const bool coarse = m.method == "coarse";
+        out << "| " << m.traverse << " | " << m.method << " | " << m.frames << " | " << m.excluded
+            << " | " << (coarse ? "" : std::to_string(m.without_pose)) << " | "
+            << fmt("%.3f", m.error.mean_m) << " | " << fmt("%.3f", m.error.median_m) << " | "
+            << fmt("%.3f", m.error.p95_m) << " | " << fmt("%.3f", m.error.max_m) << " | "
+            << (coarse ? "" : fmt("%.2f", m.yaw_error_mean_deg)) << " | "
+            << (coarse ? "" : fmt("%.1f %%", 100 * m.acceptance_share)) << " | "
+            << (coarse ? "" : fmt("%.1f %%", 100 * m.inside_95_share)) << " | "
+            << (coarse || m.frames_per_s <= 0 ? "" : fmt("%.1f", m.frames_per_s)) << " |\n";
+    }
+    for (const auto& w : r.warnings) out << "\nWarning: " << w << "\n";
+}
+
+void writeJson(const Report& r, const std::string& path) {
+    nlohmann::json j;
+    j["coarse_exclusion_m"] = r.options.coarse_exclusion_m;
+    j["warnings"] = r.warnings;
+    for (const auto& m : r.rows) {
+        j["rows"].push_back({{"traverse", m.traverse},
+                             {"method", m.method},
+                             {"run", m.run_directory},
+                             {"frames", m.frames},
+                             {"excluded", m.excluded},
+                             {"without_pose", m.without_pose},
+                             {"evaluated", m.error.count},
+                             {"mean_m", m.error.mean_m},
+                             {"median_m", m.error.median_m},
+                             {"p95_m", m.error.p95_m},
+                             {"max_m", m.error.max_m},
+                             {"yaw_error_mean_deg", m.yaw_error_mean_deg},
+                             {"acceptance_share", m.acceptance_share},
+                             {"inside_95_ellipse_share", m.inside_95_share},
+                             {"frames_per_s", m.frames_per_s},
+                             {"frames_dropped", m.frames_dropped}});
+    }
+    std::ofstream(path) << j.dump(2) << "\n";
+}
+
+/// Clustered bar chart of the mean error, like the paper's Fig. 8, drawn by gnuplot.
+bool plotMeanErrors(const Report& r, const std::string& out_dir, std::string& warning) {
+    if (std::system("command -v gnuplot >/dev/null 2>&1") != 0) {
+        warning = "gnuplot not installed: errors.png not drawn";
+        return false;
+    }
+    std::vector<std::string> traverses, methods;
+    std::map<std::pair<std::string, std::string>, double> mean;
+    for (const auto& m : r.rows) {
+        if (std::find(traverses.begin(), traverses.end(), m.traverse) == traverses.end())
+            traverses.push_back(m.traverse);
+        if (std::find(methods.begin(), methods.end(), m.method) == methods.end())
+            methods.push_back(m.method);
+        mean[{m.traverse, m.method}] = m.error.mean_m;
+    }
+    const std::string dat = out_dir + "/errors.dat", gp = out_dir + "/errors.gp";
+    {
+        std::ofstream d(dat);
+        d << "traverse";
+        for (const auto& me : methods) d << " \"" << me << "\"";
+        d << "\n";
+        for (const auto& t : traverses) {
+            d << "\"" << t << "\"";
+            for (const auto& me : methods) {
+                auto it = mean.find({t, me});
+                d << " " << (it == mean.end() ? std::string("NaN") : fmt("%.4f", it->second));
+            }
+            d << "\n";
+        }
+    }
+    {
+        std::ofstream g(gp);
+        g << "set terminal pngcairo size 900,500 noenhanced\n"
+          << "set output '" << out_dir << "/errors.png'\n"
+          << "set style data histogram\nset style histogram clustered gap 1\n"
+          << "set style fill solid 0.8 border -1\nset boxwidth 0.9\n"
+          << "set ylabel 'mean position error (m)'\nset logscale y\nset grid ytics\n"
+          << "set key outside right top\nset title 'Mean localisation error per traverse'\n"
+          << "plot for [i=2:" << methods.size() + 1 << "] '" << dat
+          << "' using i:xtic(1) title columnhead(i)\n";
+    }
+    if (std::system(("gnuplot '" + gp + "' 2>" + out_dir + "/gnuplot.log").c_str()) != 0) {
+        // pngcairo may be missing from a minimal gnuplot; fall back to the plain png terminal.
+        std::string script;
+        {
+            std::ifstream in(gp);
+            script.assign(std::istreambuf_iterator<char>(in), {});
+        }
+        script.replace(script.find("pngcairo"), 8, "png");
+        std::ofstream(gp) << script;
+        if (std::system(("gnuplot '" + gp + "' 2>>" + out_dir + "/gnuplot.log").c_str()) != 0) {
+            warning = "gnuplot failed, see " + out_dir + "/gnuplot.log";
+            return false;
+        }
+    }
+    return true;
+}
+
+}  // namespace
+
+void writeReport(const Report& report, const std::string& out_dir) {
+    std::error_code ec;
+    fs::create_directories(out_dir, ec);
+    if (ec) throw common::ConfigError(out_dir + ": cannot create: " + ec.message());
+    Report r = report;
+    std::string warning;
+    if (!plotMeanErrors(r, out_dir, warning)) r.warnings.push_back(warning);
+    writeMarkdown(r, out_dir + "/report.md");
+    writeJson(r, out_dir + "/report.json");
+}
+
+}  // namespace lookup::eval

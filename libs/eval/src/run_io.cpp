@@ -1,0 +1,148 @@
+#include "lookup/eval/run_io.h"
+
+#include <mrpt/config/CConfigFile.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "lookup/common/config.h"
+
+namespace lookup::eval {
+namespace fs = std::filesystem;
+using common::ConfigError;
+
+namespace {
+
+const char* const kColumns[] = {"time_s",     "status",       "reason",     "x",
+                                "y",          "yaw",          "cov_xx",     "cov_xy",
+                                "cov_yy",     "cov_tt",       "coarse_x",   "coarse_y",
+                                "coarse_yaw", "inlier_share", "references", "ms"};
+
+std::vector<std::string> splitCsv(const std::string& line) {
+    std::vector<std::string> out;
+    std::string cell;
+    std::istringstream in(line);
+    while (std::getline(in, cell, ',')) out.push_back(cell);
+    if (!line.empty() && line.back() == ',') out.emplace_back();
+    return out;
+}
+
+double parseNumber(const std::string& text, const std::string& where) {
+    char* end = nullptr;
+    const double v = std::strtod(text.c_str(), &end);
+    if (text.empty() || *end != '\0') throw ConfigError(where + "'" + text + "' is not a number");
+    return v;
+}
+
+}  // namespace
+
+Run loadRun(const std::string& directory) {
+    Run run;
+    run.directory = directory;
+    run.method = fs::path(directory).filename().string();
+
+    const std::string ini = directory + "/run.ini";
+    if (fs::exists(ini)) {
+        mrpt::config::CConfigFile cfg(ini);
+        run.method = common::IniSection(cfg, "run", ini).getString("method", run.method);
+    }
+    const std::string timing = directory + "/timing.json";
+    if (fs::exists(timing)) {
+        std::ifstream in(timing);
+        try {
+            const auto j = nlohmann::json::parse(in);
+            run.frames_per_s = j.value("frames_per_s", 0.0);
+            run.frames_dropped = j.value("frames_dropped", 0);
+        } catch (const std::exception& e) {
+            throw ConfigError(timing + ": malformed JSON: " + e.what());
+        }
+    }
+
+    const std::string csv = directory + "/frames.csv";
+    std::ifstream in(csv);
+    if (!in) throw ConfigError(csv + ": cannot open (is this a lookup-localize output folder?)");
+    std::string line;
+    if (!std::getline(in, line)) throw ConfigError(csv + ": empty file");
+    const auto header = splitCsv(line);
+    std::map<std::string, size_t> col;
+    for (size_t i = 0; i < header.size(); ++i) col[header[i]] = i;
+    for (const char* name : kColumns) {
+        if (!col.count(name)) throw ConfigError(csv + ":1: missing column '" + name + "'");
+    }
+    int line_no = 1;
+    while (std::getline(in, line)) {
+        ++line_no;
+        if (line.empty()) continue;
+        const auto cells = splitCsv(line);
+        const std::string where = csv + ":" + std::to_string(line_no) + ": ";
+        if (cells.size() != header.size()) {
+            throw ConfigError(where + "expected " + std::to_string(header.size()) +
+                              " columns, found " + std::to_string(cells.size()));
+        }
+        auto cell = [&](const char* name) -> const std::string& { return cells[col[name]]; };
+        auto number = [&](const char* name) {
+            return parseNumber(cell(name), where + name + ": ");
+        };
+        FrameRow r;
+        r.time_s = number("time_s");
+        r.status = cell("status");
+        r.reason = cell("reason");
+        r.has_pose = !cell("x").empty();
+        if (r.has_pose) {
+            r.x = number("x");
+            r.y = number("y");
+            r.yaw = number("yaw");
+            r.cov_xx = number("cov_xx");
+            r.cov_xy = number("cov_xy");
+            r.cov_yy = number("cov_yy");
+            r.cov_tt = number("cov_tt");
+        }
+        r.has_coarse = !cell("coarse_x").empty();
+        if (r.has_coarse) {
+            r.coarse_x = number("coarse_x");
+            r.coarse_y = number("coarse_y");
+            r.coarse_yaw = number("coarse_yaw");
+        }
+        r.inlier_share = cell("inlier_share").empty() ? 0 : number("inlier_share");
+        r.references = cell("references").empty() ? 0 : static_cast<int>(number("references"));
+        r.ms = cell("ms").empty() ? 0 : number("ms");
+        run.frames.push_back(std::move(r));
+    }
+    return run;
+}
+
+void writeFramesCsv(const std::string& path, const std::vector<FrameRow>& frames) {
+    std::FILE* f = std::fopen(path.c_str(), "w");
+    if (f == nullptr) throw ConfigError(path + ": cannot open for writing");
+    for (size_t i = 0; i < std::size(kColumns); ++i) {
+        std::fprintf(f, "%s%s", i ? "," : "", kColumns[i]);
+    }
+    std::fprintf(f, "\n");
+    for (const auto& r : frames) {
+        std::string reason = r.reason;  // the CSV has no quoting: keep reasons comma-free
+        for (char& c : reason) {
+            if (c == ',' || c == '\n') c = ';';
+        }
+        std::fprintf(f, "%.6f,%s,%s,", r.time_s, r.status.c_str(), reason.c_str());
+        if (r.has_pose) {
+            std::fprintf(f, "%.5f,%.5f,%.6f,%.4e,%.4e,%.4e,%.4e,", r.x, r.y, r.yaw, r.cov_xx,
+                         r.cov_xy, r.cov_yy, r.cov_tt);
+        } else {
+            std::fprintf(f, ",,,,,,,");
+        }
+        if (r.has_coarse) {
+            std::fprintf(f, "%.5f,%.5f,%.6f,", r.coarse_x, r.coarse_y, r.coarse_yaw);
+        } else {
+            std::fprintf(f, ",,,");
+        }
+        std::fprintf(f, "%.4f,%d,%.3f\n", r.inlier_share, r.references, r.ms);
+    }
+    std::fclose(f);
+}
+
+}  // namespace lookup::eval

@@ -1,0 +1,128 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
+#include "lookup/common/config.h"
+#include "lookup/eval/evaluator.h"
+
+namespace fs = std::filesystem;
+using namespace lookup::eval;
+
+namespace {
+
+// Straight drive along x at 1 m/s for 100 s from t = 5000 s: x = t - 5000.
+GroundTruth straightTruth() {
+    GroundTruth gt;
+    gt.traverse = "zigzag";
+    for (int i = 0; i <= 1000; ++i) {
+        const double t = 5000 + 0.1 * i;
+        gt.track.push_back({t, mrpt::poses::CPose3D(0.1 * i, 0, 0, 0, 0, 0)});
+    }
+    return gt;
+}
+
+Run runWithOffsets(const std::vector<double>& offsets_m, double coarse_offset_m) {
+    Run run;
+    run.method = "lookup-grid24";
+    run.directory = "memory";
+    for (size_t i = 0; i < offsets_m.size(); ++i) {
+        FrameRow f;
+        f.time_s = 5001 + i;  // truth x = 1 + i
+        f.status = "refined";
+        f.has_pose = true;
+        f.x = 1.0 + i + offsets_m[i];
+        f.cov_xx = f.cov_yy = 0.01;  // sigma 0.1 m
+        f.has_coarse = true;
+        f.coarse_x = 1.0 + i + coarse_offset_m;
+        run.frames.push_back(f);
+    }
+    return run;
+}
+
+}  // namespace
+
+TEST(Summarize, MeanMedianP95OfKnownErrors) {
+    std::vector<double> e;
+    for (int i = 1; i <= 100; ++i) e.push_back(i);
+    const auto s = summarize(e);
+    EXPECT_EQ(s.count, 100u);
+    EXPECT_DOUBLE_EQ(s.mean_m, 50.5);
+    EXPECT_DOUBLE_EQ(s.median_m, 50.5);
+    EXPECT_NEAR(s.p95_m, 95.05, 1e-9);
+    EXPECT_DOUBLE_EQ(s.max_m, 100);
+}
+
+TEST(Evaluate, ErrorsAgainstInterpolatedTruthAndEllipseShare) {
+    // 0.05 and 0.15 m are inside the 95 % ellipse of sigma 0.1 m (radius 0.245 m); 0.5 is not.
+    const auto report =
+        evaluate({straightTruth()}, {runWithOffsets({0.05, 0.15, 0.5, -0.05}, 2.0)}, {});
+    ASSERT_EQ(report.rows.size(), 2u);
+    const auto& coarse = report.rows[0];
+    const auto& lookup = report.rows[1];
+    EXPECT_EQ(coarse.method, "coarse");
+    EXPECT_NEAR(coarse.error.mean_m, 2.0, 1e-6);
+    EXPECT_EQ(lookup.traverse, "zigzag");
+    EXPECT_EQ(lookup.frames, 4u);
+    EXPECT_NEAR(lookup.error.mean_m, (0.05 + 0.15 + 0.5 + 0.05) / 4, 1e-6);
+    EXPECT_NEAR(lookup.error.max_m, 0.5, 1e-6);
+    EXPECT_DOUBLE_EQ(lookup.acceptance_share, 1.0);
+    EXPECT_DOUBLE_EQ(lookup.inside_95_share, 0.75);
+}
+
+TEST(Evaluate, ExcludesFramesWithCoarseErrorOverThreshold) {
+    auto run = runWithOffsets({0.1, 0.1, 0.1}, 0.0);
+    run.frames[1].coarse_x += 12.0;  // coarse 12 m off: excluded from every method
+    run.frames[2].status = "fallback";
+    const auto report = evaluate({straightTruth()}, {run}, {});
+    const auto& lookup = report.rows[1];
+    EXPECT_EQ(lookup.excluded, 1u);
+    EXPECT_EQ(lookup.error.count, 2u);
+    EXPECT_DOUBLE_EQ(lookup.acceptance_share, 0.5);
+}
+
+TEST(Evaluate, RunOutsideEveryTruthIsReportedNotMatched) {
+    auto run = runWithOffsets({0.1}, 0.0);
+    run.frames[0].time_s = 1.0;
+    const auto report = evaluate({straightTruth()}, {run}, {});
+    EXPECT_TRUE(report.rows.empty());
+    ASSERT_EQ(report.warnings.size(), 1u);
+}
+
+TEST(RunIo, RoundTripAndMalformedRowNamesFileAndLine) {
+    const auto dir = fs::temp_directory_path() / "lookup_eval_run";
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    auto run = runWithOffsets({0.1, 0.2}, 1.0);
+    run.frames[1].reason = "inliers 40%, below N_th";
+    writeFramesCsv((dir / "frames.csv").string(), run.frames);
+    std::ofstream(dir / "run.ini") << "[run]\nmethod = lookup-fcn12\n";
+    const auto back = loadRun(dir.string());
+    EXPECT_EQ(back.method, "lookup-fcn12");
+    ASSERT_EQ(back.frames.size(), 2u);
+    EXPECT_NEAR(back.frames[1].x, run.frames[1].x, 1e-5);
+    EXPECT_EQ(back.frames[1].reason, "inliers 40%; below N_th");
+
+    std::ofstream(dir / "frames.csv", std::ios::app) << "5003,refined,,abc,0,0,0,0,0,0,,,,0,0,0\n";
+    try {
+        loadRun(dir.string());
+        FAIL();
+    } catch (const lookup::common::ConfigError& e) {
+        EXPECT_NE(std::string(e.what()).find("frames.csv:4"), std::string::npos) << e.what();
+    }
+}
+
+TEST(Report, WritesMarkdownJsonAndChart) {
+    const auto dir = fs::temp_directory_path() / "lookup_eval_report";
+    fs::remove_all(dir);
+    writeReport(evaluate({straightTruth()}, {runWithOffsets({0.1, 0.2}, 1.0)}, {}), dir.string());
+    EXPECT_TRUE(fs::exists(dir / "report.md"));
+    EXPECT_TRUE(fs::exists(dir / "report.json"));
+    std::ifstream md(dir / "report.md");
+    std::string text((std::istreambuf_iterator<char>(md)), {});
+    EXPECT_NE(text.find("| zigzag | lookup-grid24 | 2 |"), std::string::npos) << text;
+    if (std::system("command -v gnuplot >/dev/null 2>&1") == 0) {
+        EXPECT_GT(fs::file_size(dir / "errors.png"), 1000u);
+    }
+}
