@@ -1,0 +1,66 @@
+#pragma once
+// Online SeqSLAM (Milford & Wyeth, ICRA 2012) over a reference sequence, one forward image at
+// a time, as the coarse stage of LookUP.
+//
+// Per frame: descriptor -> one new column of the confusion matrix D (reference x query, mean
+// absolute descriptor difference) -> local contrast enhancement of every buffered column over
+// +/- R_window references -> each candidate reference j is the end of straight paths through
+// the last d_s columns with slopes in [V_min, V_max] (or, with odometry and surveyed
+// references, paths that follow the travelled distance within a scale tolerance) -> best
+// path score vs the best score outside +/- exclusion_half_window gives the confidence.
+//
+// Cost: while tracking, only candidates within tracking_half_window of the predicted
+// reference are scored, and confusion entries are computed lazily and cached per buffered
+// column, so the work per frame does not depend on the reference length. A search over the
+// whole reference runs at start-up and whenever the windowed match is not confident
+// (kidnapping, leaving the surveyed route and coming back).
+
+#include <deque>
+#include <memory>
+
+#include "lookup/coarse/coarse_source.h"
+
+namespace lookup::coarse {
+
+class CoarseLocalizer : public CoarseSource {
+  public:
+    /// Throws common::ConfigError for invalid options, std::invalid_argument when the
+    /// references are empty or their descriptor layout differs from `options`.
+    CoarseLocalizer(std::shared_ptr<const ReferenceDescriptors> references,
+                    const CoarseOptions& options);
+
+    /// CoarseSource: needs query.forward_image (kInvalidInput without it).
+    CoarseResult locate(const CoarseQuery& query) override;
+    std::string name() const override { return "seqslam"; }
+
+    /// Same as locate() for an image; kInvalidInput when it is empty or its size differs from
+    /// the references' images.
+    CoarseResult process(const mrpt::img::CImage& image, double time_s,
+                         std::optional<double> travelled_m = std::nullopt);
+    /// With a descriptor computed by the caller (computeDescriptor with the same options).
+    CoarseResult processDescriptor(const Descriptor& descriptor, double time_s,
+                                   std::optional<double> travelled_m = std::nullopt);
+
+    /// Forgets the query history (next frame starts a global search).
+    void reset();
+
+    const CoarseOptions& options() const { return options_; }
+    const ReferenceDescriptors& references() const { return *references_; }
+
+  private:
+    struct Column;
+    struct Search;
+    void ensureComputed(Column& column, long lo, long hi, std::size_t& evaluated) const;
+    Search search(long candidate_lo, long candidate_hi, bool odometry,
+                  std::size_t& evaluated) const;
+
+    std::shared_ptr<const ReferenceDescriptors> references_;
+    CoarseOptions options_;
+    std::deque<std::shared_ptr<Column>> columns_;  ///< newest first, at most d_s
+    std::size_t queries_ = 0;
+    bool tracking_ = false;
+    std::size_t last_match_ = 0;
+    double last_velocity_ = 1.0;
+};
+
+}  // namespace lookup::coarse

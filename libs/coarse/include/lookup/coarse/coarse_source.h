@@ -1,0 +1,118 @@
+#pragma once
+// The coarse stage's interface to the rest of LookUP (paper Sec. III-D): for each query
+// frame, the time stamp of the matched reference image (and, where known, a coarse pose).
+// Any coarse localiser can be plugged in behind CoarseSource: the built-in SeqSLAM matcher
+// (CoarseLocalizer), a file of query -> reference time stamps, or coarse poses in TUM form.
+
+#include <mrpt/img/CImage.h>
+#include <mrpt/poses/CPose3D.h>
+
+#include <cstddef>
+#include <limits>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "lookup/coarse/reference_sequence.h"
+
+namespace lookup::coarse {
+
+enum class CoarseStatus {
+    kTracking,         ///< confident match found in the window around the previous match
+    kGlobal,           ///< confident match found by a search over the whole reference
+    kNotEnoughFrames,  ///< fewer than sequence_length frames seen: match from a shorter
+                       ///< sequence, not trusted
+    kLost,             ///< best match not confident (aliasing, unknown place, kidnapping)
+    kInvalidInput,     ///< the query frame could not be used (see reason)
+    kExternal,         ///< supplied by an external source (file), no confidence measure
+};
+
+/// "tracking", "global", "not_enough_frames", "lost", "invalid_input", "external".
+const char* toString(CoarseStatus status);
+
+struct CoarseQuery {
+    double time_s = 0;                                 ///< query time stamp [s]
+    const mrpt::img::CImage* forward_image = nullptr;  ///< needed by image-based sources
+    std::optional<double> travelled_m;  ///< odometry distance since the previous query [m]
+};
+
+struct CoarseResult {
+    CoarseStatus status = CoarseStatus::kLost;
+    std::string reason;  ///< why the status is not tracking/global/external (empty otherwise)
+
+    std::size_t query_index = 0;  ///< 0-based count of queries seen by the source
+    double query_time_s = 0;
+    static constexpr std::size_t kNone = std::numeric_limits<std::size_t>::max();
+    std::size_t reference_index = kNone;  ///< matched reference frame (kNone when none)
+    double reference_time_s = std::numeric_limits<double>::quiet_NaN();  ///< the interface
+    std::optional<mrpt::poses::CPose3D> coarse_pose;  ///< matched reference pose, if known
+
+    /// Sequence matcher: (second-best - best) sequence score divided by the sequence length,
+    /// in units of the locally enhanced confusion matrix (standard deviations); 0 when unknown.
+    double confidence = 0;
+    double velocity = 0;         ///< best path slope [reference frames / query frame]
+    bool used_odometry = false;  ///< speed hypotheses came from odometry
+
+    std::size_t evaluated_references = 0;  ///< descriptor differences computed for this frame
+    std::size_t searched_candidates = 0;   ///< reference frames scored as sequence ends
+    double descriptor_ms = 0;              ///< wall time of the descriptor [ms]
+    double search_ms = 0;                  ///< wall time of the sequence search [ms]
+
+    bool hasMatch() const { return reference_index != kNone; }
+    /// A match that LookUP may refine: tracking, global or external.
+    bool usable() const {
+        return hasMatch() && (status == CoarseStatus::kTracking ||
+                              status == CoarseStatus::kGlobal || status == CoarseStatus::kExternal);
+    }
+};
+
+class CoarseSource {
+  public:
+    virtual ~CoarseSource() = default;
+    /// One query frame, in time order. Never throws for bad frames: the result says why.
+    virtual CoarseResult locate(const CoarseQuery& query) = 0;
+    virtual std::string name() const = 0;
+};
+
+/// Reference time stamps from a text file of `query_time reference_time` rows (seconds;
+/// '#' comments and blank lines skipped; rows in increasing query time). A query gets the row
+/// nearest in query time, or kLost when none is within `max_time_gap_s`. With `references`,
+/// the matched reference index (nearest in time) and its pose are filled in too.
+class MatchFileSource : public CoarseSource {
+  public:
+    /// Throws DescriptorFileError naming the file and line for a missing file or a bad row.
+    MatchFileSource(const std::string& path, double max_time_gap_s,
+                    std::shared_ptr<const ReferenceDescriptors> references = nullptr);
+    CoarseResult locate(const CoarseQuery& query) override;
+    std::string name() const override { return "match-file:" + path_; }
+
+  private:
+    std::string path_;
+    double max_time_gap_s_;
+    std::shared_ptr<const ReferenceDescriptors> references_;
+    std::vector<std::pair<double, double>> rows_;
+    std::size_t queries_ = 0;
+};
+
+/// Coarse poses from a TUM (or MRPT 7-column) pose file, interpolated at the query time. With
+/// `references` that carry poses, the nearest reference (in space) and its time stamp are
+/// filled in, so LookUP can use the paper's time-stamp interface.
+class PoseFileSource : public CoarseSource {
+  public:
+    /// Throws common::ConfigError naming the file and line for a bad file.
+    PoseFileSource(const std::string& path, double max_gap_s,
+                   std::shared_ptr<const ReferenceDescriptors> references = nullptr);
+    CoarseResult locate(const CoarseQuery& query) override;
+    std::string name() const override { return "pose-file:" + path_; }
+
+  private:
+    std::string path_;
+    double max_gap_s_;
+    std::shared_ptr<const ReferenceDescriptors> references_;
+    common::PoseTrack track_;
+    mrpt::poses::CPose3DInterpolator interpolator_;
+    std::size_t queries_ = 0;
+};
+
+}  // namespace lookup::coarse

@@ -1,0 +1,59 @@
+#include "lookup/coarse/descriptor.h"
+
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include <stdexcept>
+#include <string>
+
+namespace lookup::coarse {
+
+Descriptor computeDescriptor(const mrpt::img::CImage& image, const CoarseOptions& options) {
+    // Externally stored images report isEmpty() until loaded (MRPT 2.5): load, then look.
+    if (image.isExternallyStored()) image.forceLoad();
+    const cv::Mat& input = image.asCvMatRef();
+    if (input.empty()) throw std::invalid_argument("computeDescriptor: empty image");
+    cv::Mat grey;
+    if (input.channels() == 1) {
+        grey = input;
+    } else if (input.channels() == 3) {
+        cv::cvtColor(input, grey, cv::COLOR_BGR2GRAY);
+    } else {
+        cv::cvtColor(input, grey, cv::COLOR_BGRA2GRAY);
+    }
+    cv::Mat thumb;
+    cv::resize(grey, thumb, cv::Size(options.thumb_width_px, options.thumb_height_px), 0, 0,
+               cv::INTER_AREA);
+    thumb.convertTo(thumb, CV_32F);
+
+    Descriptor out(static_cast<std::size_t>(options.thumb_width_px) * options.thumb_height_px);
+    cv::Mat out_mat(options.thumb_height_px, options.thumb_width_px, CV_8U, out.data());
+    const int p = options.patch_size_px;
+    for (int y = 0; y < thumb.rows; y += p) {
+        for (int x = 0; x < thumb.cols; x += p) {
+            const cv::Rect roi(x, y, p, p);
+            cv::Scalar mean, stddev;
+            cv::meanStdDev(thumb(roi), mean, stddev);
+            // Nearly flat patches carry no structure, only noise: leave them neutral.
+            if (stddev[0] < 0.5) {
+                out_mat(roi).setTo(128);
+                continue;
+            }
+            const double gain = 32.0 / stddev[0];
+            thumb(roi).convertTo(out_mat(roi), CV_8U, gain, 128.0 - gain * mean[0]);
+        }
+    }
+    return out;
+}
+
+float descriptorDifference(const Descriptor& a, const Descriptor& b) {
+    if (a.size() != b.size() || a.empty()) {
+        throw std::invalid_argument("descriptorDifference: lengths " + std::to_string(a.size()) +
+                                    " and " + std::to_string(b.size()) + " differ");
+    }
+    const cv::Mat ma(1, static_cast<int>(a.size()), CV_8U, const_cast<std::uint8_t*>(a.data()));
+    const cv::Mat mb(1, static_cast<int>(b.size()), CV_8U, const_cast<std::uint8_t*>(b.data()));
+    return static_cast<float>(cv::norm(ma, mb, cv::NORM_L1) / static_cast<double>(a.size()));
+}
+
+}  // namespace lookup::coarse
