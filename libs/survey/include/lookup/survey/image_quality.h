@@ -1,0 +1,18 @@
+#pragma once
+// Ceiling image quality used to skip bad keyframes: blur (variance of the Laplacian, Pech-Pacheco
+// et al. 2000) and exposure (mean grey level, share of clipped pixels).
+
+#include <opencv2/core/mat.hpp>
+
+namespace lookup::survey {
+
+struct ImageQuality {
+    double sharpness = 0;         ///< variance of the Laplacian [grey^2]; low = blurred
+    double mean_intensity = 0;    ///< mean grey level [0..255]
+    double clipped_fraction = 0;  ///< share of pixels <= 2 or >= 253 [0..1]
+};
+
+/// Measures a grey or colour 8-bit image (colour is converted to grey first).
+ImageQuality measureImageQuality(const cv::Mat& image);
+
+}  // namespace lookup::survey

@@ -1,0 +1,98 @@
+#pragma once
+// The survey: rawlogs in, reference database out (paper Sec. III-A, "reference database"),
+// with laser-derived poses (ICP-SLAM map + MCL per traverse, see laser_poses.h) or a surveyed
+// pose file, a pose per ceiling image by time (vehicle pose ⊕ camera mounting pose), keyframes
+// by travel, and a report with reference-pose errors when ground truth exists.
+
+#include <mrpt/config/CConfigFileMemory.h>
+
+#include <string>
+#include <vector>
+
+#include "lookup/survey/laser_poses.h"
+#include "lookup/survey/survey_options.h"
+
+namespace lookup::survey {
+
+/// One input traverse.
+struct TraverseSpec {
+    std::string name;          ///< e.g. "middle"
+    std::string rawlog;        ///< path of the rawlog
+    std::string ground_truth;  ///< MRPT .GT.txt or TUM ("" = none); only for the report
+    bool mapping = true;       ///< used to build the map (the first such traverse is)
+    bool reference = true;     ///< its ceiling images become references
+};
+
+struct SurveyInputs {
+    std::vector<TraverseSpec> traverses;
+    std::string out_dir;         ///< database folder to (re)create
+    std::string poses_file;      ///< surveyed poses replacing the laser stage ("" = laser)
+    std::string map_file;        ///< existing grid map replacing ICP-SLAM ("" = build one)
+    std::string name;            ///< database name (e.g. the dataset's)
+    double ceiling_height_m = 0; ///< from the dataset; 0 = SurveyOptions::ceiling_height_m
+    bool show_progress = false;  ///< progress bar on stderr
+};
+
+/// Reference-pose error against ground truth (planar position and heading).
+struct PoseErrorStats {
+    std::size_t count = 0;
+    double mean_m = 0, p95_m = 0, max_m = 0;  ///< position error [m]
+    double mean_yaw_deg = 0;                  ///< |heading error| mean [deg]
+};
+
+/// A stretch of a traverse (by distance travelled) and its reference-pose error.
+struct SegmentError {
+    double from_m = 0, to_m = 0;  ///< travelled distance range [m]
+    double x = 0, y = 0;          ///< map position at the segment's middle reference [m]
+    PoseErrorStats error;
+};
+
+struct TraverseReport {
+    std::string name;
+    std::size_t ceiling_frames = 0;       ///< ceiling images in the rawlog
+    std::size_t frames_without_pose = 0;  ///< outside the pose track (dropped)
+    std::size_t references = 0;           ///< kept as references
+    std::size_t rejected_blur = 0;
+    std::size_t rejected_exposure = 0;
+    std::size_t without_forward = 0;      ///< references with no forward image in time
+    double localisation_time_s = 0;       ///< MCL (or ICP-SLAM) wall time for this traverse
+    bool has_ground_truth = false;
+    PoseErrorStats error;                 ///< over the references (when ground truth)
+    std::vector<SegmentError> segments;   ///< error per 10 m of travel (when ground truth)
+};
+
+enum class SurveyStatus { Ok, Failed };
+
+struct SurveyResult {
+    SurveyStatus status = SurveyStatus::Failed;
+    std::string reason;  ///< why it failed (file, record, reason)
+    std::string out_dir;
+    std::string pose_source;  ///< "laser", "laser+map:<file>" or "file:<path>"
+    std::size_t references = 0;
+    double total_time_s = 0, mapping_time_s = 0, localisation_time_s = 0, writing_time_s = 0;
+    std::uint64_t size_bytes = 0;  ///< database folder size
+    std::vector<TraverseReport> traverses;
+
+    bool ok() const { return status == SurveyStatus::Ok; }
+    /// The one-line summary lookup-survey prints.
+    std::string summaryLine() const;
+    /// survey_report.json contents.
+    std::string toJson() const;
+};
+
+class Survey {
+public:
+    /// `config`: the whole .ini (the [survey] section must already be in `options`; the MRPT
+    /// sections of the laser stage are read from here).
+    Survey(SurveyOptions options, const mrpt::config::CConfigFileBase& config);
+
+    /// Runs the survey. Never throws for bad input: a failure is returned with its reason,
+    /// and leaves no database folder behind (and an existing one intact).
+    SurveyResult run(const SurveyInputs& inputs) const;
+
+private:
+    SurveyOptions options_;
+    mrpt::config::CConfigFileMemory config_;
+};
+
+}  // namespace lookup::survey

@@ -1,0 +1,39 @@
+#pragma once
+// lookup-survey's command line over Survey (a thin main calls initialize() then run()).
+//
+//   lookup-survey --dataset DATASET/dataset.ini --out DB [--ini survey.ini] [--poses F] [--map F]
+//   lookup-survey --rawlogs A.rawlog[,B.rawlog...] [--ini survey.ini] --out DB [--poses F]
+//
+// With --rawlogs every rawlog is a mapping and reference traverse (the first one builds the
+// map) and `<rawlog>.GT.txt` is used for the report when it exists.
+
+#include <string>
+
+#include "lookup/survey/survey.h"
+
+namespace lookup::survey {
+
+class SurveyApp {
+public:
+    /// Parses the command line and the .ini files. Returns false (after printing help or the
+    /// error to stderr) when the program should exit; `exitCode()` then tells how.
+    bool initialize(int argc, const char* const* argv);
+    /// Runs the survey, prints the summary line on stdout. Returns the process exit code.
+    int run();
+
+    int exitCode() const { return exit_code_; }
+    const SurveyResult& result() const { return result_; }
+    const SurveyInputs& inputs() const { return inputs_; }
+
+private:
+    SurveyInputs inputs_;
+    SurveyOptions options_;
+    mrpt::config::CConfigFileMemory config_;
+    SurveyResult result_;
+    int exit_code_ = 0;
+};
+
+/// The default survey.ini: share/lookup/survey.ini from the source or install tree.
+std::string defaultSurveyIni();
+
+}  // namespace lookup::survey

@@ -1,0 +1,23 @@
+#include "lookup/survey/image_quality.h"
+
+#include <opencv2/imgproc.hpp>
+
+namespace lookup::survey {
+
+ImageQuality measureImageQuality(const cv::Mat& image) {
+    ImageQuality q;
+    if (image.empty()) return q;
+    cv::Mat grey = image;
+    if (image.channels() == 3) cv::cvtColor(image, grey, cv::COLOR_BGR2GRAY);
+    cv::Mat lap;
+    cv::Laplacian(grey, lap, CV_64F);
+    cv::Scalar mean, stddev;
+    cv::meanStdDev(lap, mean, stddev);
+    q.sharpness = stddev[0] * stddev[0];
+    q.mean_intensity = cv::mean(grey)[0];
+    const double clipped = cv::countNonZero(grey <= 2) + cv::countNonZero(grey >= 253);
+    q.clipped_fraction = clipped / static_cast<double>(grey.total());
+    return q;
+}
+
+}  // namespace lookup::survey

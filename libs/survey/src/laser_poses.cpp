@@ -1,0 +1,136 @@
+#include "lookup/survey/laser_poses.h"
+
+#include <mrpt/bayes/CParticleFilter.h>
+#include <mrpt/io/CFileGZInputStream.h>
+#include <mrpt/maps/CMultiMetricMap.h>
+#include <mrpt/maps/CSimpleMap.h>
+#include <mrpt/obs/CActionCollection.h>
+#include <mrpt/obs/CActionRobotMovement2D.h>
+#include <mrpt/obs/CObservation2DRangeScan.h>
+#include <mrpt/obs/CObservationOdometry.h>
+#include <mrpt/obs/CSensoryFrame.h>
+#include <mrpt/poses/CPosePDFGaussian.h>
+#include <mrpt/random/RandomGenerators.h>
+#include <mrpt/serialization/CArchive.h>
+#include <mrpt/slam/CMetricMapBuilderICP.h>
+#include <mrpt/slam/CMonteCarloLocalization2D.h>
+
+#include <filesystem>
+#include <stdexcept>
+
+namespace lookup::survey {
+
+LaserMap buildMapIcpSlam(const TraverseData& traverse, const mrpt::config::CConfigFileBase& config,
+                         const mrpt::poses::CPose2D& start, const ProgressFn& progress) {
+    mrpt::slam::CMetricMapBuilderICP builder;
+    builder.setVerbosityLevel(mrpt::system::LVL_ERROR);
+    builder.ICP_options.loadFromConfigFile(config, "MappingApplication");
+    builder.ICP_params.loadFromConfigFile(config, "ICP");
+    const mrpt::poses::CPosePDFGaussian x0(start);
+    builder.initialize(mrpt::maps::CSimpleMap(), &x0);
+
+    LaserMap out;
+    const std::size_t n = traverse.laser_sequence.size();
+    for (std::size_t i = 0; i < n; ++i) {
+        const auto& o = traverse.laser_sequence[i];
+        builder.processObservation(o);
+        if (IS_CLASS(*o, mrpt::obs::CObservation2DRangeScan)) {
+            const auto pdf = builder.getCurrentPoseEstimation();
+            mrpt::poses::CPose3D mean;
+            pdf->getMean(mean);
+            out.icp_track.poses.push_back({mrpt::Clock::toDouble(o->timestamp), mean});
+            mrpt::math::CMatrixDouble33 cov;
+            cov.setZero();
+            out.icp_track.covs.push_back(cov);
+        }
+        if (progress && (i % 64 == 0 || i + 1 == n)) progress(double(i + 1) / double(n));
+    }
+    const auto* maps = builder.getCurrentlyBuiltMetricMap();
+    auto grid = maps ? maps->mapByClass<mrpt::maps::COccupancyGridMap2D>() : nullptr;
+    if (!grid) {
+        throw std::runtime_error(
+            "[MappingApplication]: the ICP-SLAM map definition has no occupancy grid "
+            "(occupancyGrid_count = 1 expected)");
+    }
+    out.grid = *grid;
+    return out;
+}
+
+LaserTrack localizeMcl(const TraverseData& traverse, const mrpt::maps::COccupancyGridMap2D& grid,
+                       const mrpt::config::CConfigFileBase& config, const SurveyOptions& options,
+                       const mrpt::poses::CPose2D& start, const ProgressFn& progress) {
+    auto map = std::make_shared<mrpt::maps::COccupancyGridMap2D>(grid);
+    if (config.sectionExists("LikelihoodOptions")) {
+        map->likelihoodOptions.loadFromConfigFile(config, "LikelihoodOptions");
+    }
+    mrpt::bayes::CParticleFilter pf;
+    pf.m_options.loadFromConfigFile(config, "PF_options");
+    mrpt::slam::CMonteCarloLocalization2D pdf(options.mcl_particles);
+    pdf.options.metricMap = map;
+    if (config.sectionExists("KLD_options")) {
+        pdf.options.KLD_params.loadFromConfigFile(config, "KLD_options");
+    }
+    // Deterministic runs: the same input gives the same database.
+    mrpt::random::getRandomGenerator().randomize(1234);
+    const double s_xy = options.mcl_init_std_xy_m;
+    const double s_yaw = mrpt::DEG2RAD(options.mcl_init_std_yaw_deg);
+    pdf.resetUniform(start.x() - s_xy, start.x() + s_xy, start.y() - s_xy, start.y() + s_xy,
+                     start.phi() - s_yaw, start.phi() + s_yaw, options.mcl_particles);
+
+    mrpt::obs::CActionRobotMovement2D::TMotionModelOptions motion;
+    motion.modelSelection = mrpt::obs::CActionRobotMovement2D::mmGaussian;
+    motion.gaussianModel.minStdXY = options.odometry_min_std_xy_m;
+    motion.gaussianModel.minStdPHI = mrpt::DEG2RAD(options.odometry_min_std_yaw_deg);
+
+    LaserTrack out;
+    bool have_odometry = false;
+    mrpt::poses::CPose2D last_used_odometry, latest_odometry;
+    const std::size_t n = traverse.laser_sequence.size();
+    for (std::size_t i = 0; i < n; ++i) {
+        const auto& o = traverse.laser_sequence[i];
+        if (auto odo = std::dynamic_pointer_cast<mrpt::obs::CObservationOdometry>(o)) {
+            latest_odometry = odo->odometry;
+            if (!have_odometry) last_used_odometry = latest_odometry;
+            have_odometry = true;
+            continue;
+        }
+        // A scan: odometry increment since the previous scan as the action, the scan as the SF.
+        mrpt::obs::CActionRobotMovement2D move;
+        move.timestamp = o->timestamp;
+        move.computeFromOdometry(latest_odometry - last_used_odometry, motion);
+        last_used_odometry = latest_odometry;
+        mrpt::obs::CActionCollection action;
+        action.insert(move);
+        mrpt::obs::CSensoryFrame sf;
+        sf.insert(o);
+        pf.executeOn(pdf, &action, &sf);
+
+        const auto [cov, mean] = pdf.getCovarianceAndMean();
+        out.poses.push_back({mrpt::Clock::toDouble(o->timestamp), mrpt::poses::CPose3D(mean)});
+        out.covs.push_back(cov);
+        if (progress && (i % 64 == 0 || i + 1 == n)) progress(double(i + 1) / double(n));
+    }
+    return out;
+}
+
+mrpt::maps::COccupancyGridMap2D loadGridMap(const std::string& path) {
+    if (!std::filesystem::is_regular_file(path)) {
+        throw std::runtime_error(path + ": no such map file");
+    }
+    mrpt::maps::COccupancyGridMap2D grid;
+    try {
+        mrpt::io::CFileGZInputStream f(path);
+        auto arch = mrpt::serialization::archiveFrom(f);
+        arch >> grid;
+    } catch (const std::exception& e) {
+        throw std::runtime_error(path + ": unreadable map (expected a COccupancyGridMap2D "
+                                        "serialization): " +
+                                 std::string(e.what()).substr(0, 300));
+    }
+    if (grid.getSizeX() == 0 || grid.getSizeY() == 0) {
+        throw std::runtime_error(path + ": empty map");
+    }
+    return grid;
+}
+
+}  // namespace lookup::survey

@@ -1,0 +1,430 @@
+#include "lookup/survey/survey.h"
+
+#include <mrpt/obs/CObservationImage.h>
+#include <mrpt/system/CTicTac.h>
+#include <mrpt/system/progress.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <optional>
+#include <sstream>
+
+#include <opencv2/imgcodecs.hpp>
+
+#include "lookup/common/config.h"
+#include "lookup/common/rawlog_io.h"
+#include "lookup/database/database_writer.h"
+#include "lookup/survey/keyframes.h"
+#include "lookup/survey/traverse.h"
+
+namespace lookup::survey {
+namespace fs = std::filesystem;
+namespace {
+
+PoseErrorStats statsOf(std::vector<double> err_m, const std::vector<double>& yaw_deg) {
+    PoseErrorStats s;
+    s.count = err_m.size();
+    if (err_m.empty()) return s;
+    double sum = 0;
+    for (double e : err_m) sum += e;
+    s.mean_m = sum / err_m.size();
+    double ysum = 0;
+    for (double e : yaw_deg) ysum += e;
+    s.mean_yaw_deg = yaw_deg.empty() ? 0 : ysum / yaw_deg.size();
+    std::sort(err_m.begin(), err_m.end());
+    s.max_m = err_m.back();
+    s.p95_m = err_m[std::min(err_m.size() - 1,
+                             static_cast<std::size_t>(std::ceil(0.95 * err_m.size())) - 1)];
+    return s;
+}
+
+std::optional<mrpt::poses::CPose3D> poseAt(const mrpt::poses::CPose3DInterpolator& interp,
+                                           double t) {
+    mrpt::math::TPose3D p;
+    bool valid = false;
+    interp.interpolate(mrpt::Clock::fromDouble(t), p, valid);
+    if (!valid) return std::nullopt;
+    return mrpt::poses::CPose3D(p);
+}
+
+// Index of the element of sorted `times` nearest to t.
+std::size_t nearestIndex(const std::vector<double>& times, double t) {
+    auto it = std::lower_bound(times.begin(), times.end(), t);
+    if (it == times.end()) return times.size() - 1;
+    if (it == times.begin()) return 0;
+    const auto hi = static_cast<std::size_t>(it - times.begin());
+    return (t - times[hi - 1] <= times[hi] - t) ? hi - 1 : hi;
+}
+
+cv::Mat loadGrey(const mrpt::obs::CObservationImage& obs) {
+    if (obs.image.isExternallyStored()) {
+        const std::string path = obs.image.getExternalStorageFileAbsolutePath();
+        cv::Mat m = cv::imread(path, cv::IMREAD_GRAYSCALE);
+        if (m.empty()) throw std::runtime_error(path + ": cannot read image");
+        return m;
+    }
+    cv::Mat m;
+    obs.image.asCvMat(m, mrpt::img::DEEP_COPY);
+    if (m.channels() == 3) return m;  // measureImageQuality converts
+    return m;
+}
+
+std::uint64_t folderSize(const std::string& dir) {
+    std::uint64_t total = 0;
+    for (const auto& e : fs::recursive_directory_iterator(dir)) {
+        if (e.is_regular_file()) total += e.file_size();
+    }
+    return total;
+}
+
+class ProgressBar {
+public:
+    ProgressBar(bool enabled, std::string stage) : enabled_(enabled), stage_(std::move(stage)) {}
+    void operator()(double ratio) const {
+        if (!enabled_) return;
+        std::cerr << "\r" << stage_ << " " << mrpt::system::progress(ratio, 30) << std::flush;
+        if (ratio >= 1.0) std::cerr << "\n";
+    }
+
+private:
+    bool enabled_;
+    std::string stage_;
+};
+
+std::string jsonEscape(const std::string& s) {
+    std::string o;
+    for (char c : s) {
+        if (c == '"' || c == '\\') {
+            o += '\\';
+            o += c;
+        } else if (static_cast<unsigned char>(c) < 0x20) {
+            o += ' ';
+        } else {
+            o += c;
+        }
+    }
+    return o;
+}
+
+std::string statsJson(const PoseErrorStats& s) {
+    char buf[200];
+    std::snprintf(buf, sizeof(buf),
+                  "{\"count\": %zu, \"mean_m\": %.4f, \"p95_m\": %.4f, \"max_m\": %.4f, "
+                  "\"mean_yaw_deg\": %.3f}",
+                  s.count, s.mean_m, s.p95_m, s.max_m, s.mean_yaw_deg);
+    return buf;
+}
+
+}  // namespace
+
+std::string SurveyResult::summaryLine() const {
+    std::ostringstream o;
+    if (!ok()) {
+        o << "lookup-survey: FAILED: " << reason;
+        return o.str();
+    }
+    o.setf(std::ios::fixed);
+    o.precision(2);
+    o << "lookup-survey: " << references << " references in " << out_dir << " ("
+      << size_bytes / 1.0e6 << " MB, " << total_time_s << " s, poses: " << pose_source << ")";
+    for (const auto& t : traverses) {
+        if (!t.has_ground_truth) continue;
+        o.precision(3);
+        o << "; " << t.name << " error mean " << t.error.mean_m << " p95 " << t.error.p95_m
+          << " max " << t.error.max_m << " m";
+    }
+    return o.str();
+}
+
+std::string SurveyResult::toJson() const {
+    std::ostringstream o;
+    o << "{\n  \"status\": \"" << (ok() ? "ok" : "failed") << "\",\n";
+    o << "  \"reason\": \"" << jsonEscape(reason) << "\",\n";
+    o << "  \"database\": \"" << jsonEscape(out_dir) << "\",\n";
+    o << "  \"pose_source\": \"" << jsonEscape(pose_source) << "\",\n";
+    o << "  \"references\": " << references << ",\n";
+    o << "  \"size_bytes\": " << size_bytes << ",\n";
+    o << "  \"time_s\": {\"total\": " << total_time_s << ", \"mapping\": " << mapping_time_s
+      << ", \"localisation\": " << localisation_time_s << ", \"writing\": " << writing_time_s
+      << "},\n";
+    o << "  \"traverses\": [";
+    for (std::size_t i = 0; i < traverses.size(); ++i) {
+        const auto& t = traverses[i];
+        o << (i ? "," : "") << "\n    {\"name\": \"" << jsonEscape(t.name)
+          << "\", \"ceiling_frames\": " << t.ceiling_frames
+          << ", \"frames_without_pose\": " << t.frames_without_pose
+          << ", \"references\": " << t.references << ", \"rejected_blur\": " << t.rejected_blur
+          << ", \"rejected_exposure\": " << t.rejected_exposure
+          << ", \"without_forward\": " << t.without_forward
+          << ", \"localisation_time_s\": " << t.localisation_time_s
+          << ", \"has_ground_truth\": " << (t.has_ground_truth ? "true" : "false");
+        if (t.has_ground_truth) {
+            o << ",\n     \"error\": " << statsJson(t.error) << ",\n     \"segments\": [";
+            for (std::size_t k = 0; k < t.segments.size(); ++k) {
+                const auto& s = t.segments[k];
+                char buf[160];
+                std::snprintf(buf, sizeof(buf),
+                              "{\"from_m\": %.1f, \"to_m\": %.1f, \"x\": %.2f, \"y\": %.2f, ",
+                              s.from_m, s.to_m, s.x, s.y);
+                o << (k ? ",\n       " : "\n       ") << buf
+                  << "\"error\": " << statsJson(s.error) << "}";
+            }
+            o << "]";
+        }
+        o << "}";
+    }
+    o << "\n  ]\n}\n";
+    return o.str();
+}
+
+Survey::Survey(SurveyOptions options, const mrpt::config::CConfigFileBase& config)
+    : options_(std::move(options)) {
+    options_.check();
+    std::vector<std::string> sections;
+    config.getAllSections(sections);
+    for (const auto& s : sections) {
+        std::vector<std::string> keys;
+        config.getAllKeys(s, keys);
+        for (const auto& k : keys) config_.write(s, k, config.read_string(s, k, ""));
+    }
+}
+
+SurveyResult Survey::run(const SurveyInputs& in) const {
+    SurveyResult result;
+    mrpt::system::CTicTac total;
+    result.out_dir = fs::absolute(in.out_dir).lexically_normal().string();
+    try {
+        if (in.traverses.empty()) throw std::runtime_error("no input traverses");
+        if (in.out_dir.empty()) throw std::runtime_error("no output folder given");
+        const bool laser = in.poses_file.empty();
+
+        // 1. Read every traverse (image headers, odometry, scans) and its ground truth.
+        std::vector<TraverseData> data;
+        std::vector<std::optional<mrpt::poses::CPose3DInterpolator>> gt;
+        for (const auto& spec : in.traverses) {
+            data.push_back(readTraverse(spec.rawlog, options_, laser && spec.reference));
+            if (!spec.ground_truth.empty()) {
+                gt.emplace_back(common::makeInterpolator(common::readPoseFile(spec.ground_truth),
+                                                         options_.max_pose_gap_s));
+            } else {
+                gt.emplace_back(std::nullopt);
+            }
+        }
+
+        // 2. Vehicle poses per traverse.
+        std::vector<LaserTrack> tracks(data.size());
+        std::optional<mrpt::maps::COccupancyGridMap2D> grid;
+        mrpt::system::CTicTac timer;
+        if (!laser) {
+            result.pose_source = "file:" + fs::absolute(in.poses_file).string();
+            LaserTrack file_track;
+            file_track.poses = common::readPoseFile(in.poses_file);
+            mrpt::math::CMatrixDouble33 cov;
+            cov.setZero();
+            cov(0, 0) = cov(1, 1) = std::pow(options_.pose_file_std_xy_m, 2);
+            cov(2, 2) = std::pow(mrpt::DEG2RAD(options_.pose_file_std_yaw_deg), 2);
+            file_track.covs.assign(file_track.poses.size(), cov);
+            for (auto& t : tracks) t = file_track;
+            if (!in.map_file.empty()) grid = loadGridMap(in.map_file);
+        } else {
+            const auto startOf = [&](std::size_t i,
+                                     const mrpt::poses::CPose2D& fallback) -> mrpt::poses::CPose2D {
+                if (!options_.start_at_ground_truth || !gt[i]) return fallback;
+                const auto& seq = data[i].laser_sequence;
+                const double t0 = mrpt::Clock::toDouble(seq.front()->timestamp);
+                if (auto p = poseAt(*gt[i], t0)) return mrpt::poses::CPose2D(*p);
+                return fallback;
+            };
+            std::size_t mapping = data.size();
+            for (std::size_t i = 0; i < data.size(); ++i) {
+                if (in.traverses[i].mapping) {
+                    mapping = i;
+                    break;
+                }
+            }
+            mrpt::poses::CPose2D map_origin;
+            if (!in.map_file.empty()) {
+                result.pose_source = "laser+map:" + fs::absolute(in.map_file).string();
+                grid = loadGridMap(in.map_file);
+            } else {
+                if (mapping == data.size()) throw std::runtime_error("no mapping traverse");
+                // The mapping traverse needs lidar + odometry even if it is not a reference.
+                if (data[mapping].scan_count == 0 || data[mapping].odometry_count == 0) {
+                    data[mapping] = readTraverse(in.traverses[mapping].rawlog, options_, true);
+                }
+                result.pose_source = "laser";
+                map_origin = startOf(mapping, mrpt::poses::CPose2D());
+                timer.Tic();
+                ProgressBar bar(in.show_progress, "ICP-SLAM " + in.traverses[mapping].name);
+                grid = buildMapIcpSlam(data[mapping], config_, map_origin, bar).grid;
+                result.mapping_time_s = timer.Tac();
+            }
+            for (std::size_t i = 0; i < data.size(); ++i) {
+                if (!in.traverses[i].reference) continue;
+                timer.Tic();
+                ProgressBar bar(in.show_progress, "MCL " + in.traverses[i].name);
+                tracks[i] = localizeMcl(data[i], *grid, config_, options_,
+                                        startOf(i, map_origin), bar);
+                result.localisation_time_s += timer.Tac();
+            }
+        }
+
+        // 3. References: pose per ceiling image, keyframes, forward image, database records.
+        timer.Tic();
+        database::DatabaseWriter writer(in.out_dir);
+        if (grid) writer.setMap(*grid);
+        database::DatabaseInfo info;
+        info.name = in.name;
+        info.ceiling_camera_label = options_.ceiling_camera_label;
+        info.forward_camera_label = options_.forward_camera_label;
+        info.ceiling_height_m =
+            in.ceiling_height_m > 0 ? in.ceiling_height_m : options_.ceiling_height_m;
+        info.pose_source = result.pose_source;
+        {
+            mrpt::config::CConfigFileMemory used;
+            options_.saveToConfigFile(used, "survey");
+            info.options_ini = used.getContent();
+        }
+        bool have_intrinsics = false, have_forward_intrinsics = false;
+        for (std::size_t i = 0; i < data.size(); ++i) {
+            const auto& spec = in.traverses[i];
+            info.source_rawlogs.push_back(fs::absolute(spec.rawlog).string());
+            if (!spec.reference) continue;
+            const auto& d = data[i];
+            TraverseReport rep;
+            rep.name = spec.name;
+            rep.ceiling_frames = d.ceiling.size();
+            rep.has_ground_truth = gt[i].has_value();
+            const auto& track = tracks[i];
+            if (track.poses.empty()) {
+                throw common::RawlogError(d.rawlog, "no vehicle poses (no lidar scans localised)");
+            }
+            const auto interp = common::makeInterpolator(track.poses, options_.max_pose_gap_s);
+            std::vector<double> track_times;
+            for (const auto& p : track.poses) track_times.push_back(p.time_s);
+
+            std::vector<KeyframeCandidate> candidates;
+            std::vector<std::size_t> frame_of;  // candidate -> ceiling frame
+            std::optional<std::size_t> first_outside;
+            for (std::size_t f = 0; f < d.ceiling.size(); ++f) {
+                const double t = mrpt::Clock::toDouble(d.ceiling[f]->timestamp);
+                if (auto p = poseAt(interp, t)) {
+                    candidates.push_back({t, *p});
+                    frame_of.push_back(f);
+                } else {
+                    ++rep.frames_without_pose;
+                    if (!first_outside) first_outside = f;
+                }
+            }
+            if (rep.frames_without_pose > options_.max_outside_fraction * d.ceiling.size()) {
+                const std::size_t f = *first_outside;
+                throw common::RawlogError(
+                    d.rawlog, d.ceiling_records[f],
+                    "mismatched time stamps: " + std::to_string(rep.frames_without_pose) + " of " +
+                        std::to_string(d.ceiling.size()) + " " + options_.ceiling_camera_label +
+                        " images (first at t=" +
+                        std::to_string(mrpt::Clock::toDouble(d.ceiling[f]->timestamp)) +
+                        " s) have no pose in [" + std::to_string(track_times.front()) + ", " +
+                        std::to_string(track_times.back()) + "] s of " +
+                        (laser ? std::string("the laser track") : in.poses_file));
+            }
+            const auto selection = selectKeyframes(candidates, options_, [&](std::size_t c) {
+                return measureImageQuality(loadGrey(*d.ceiling[frame_of[c]]));
+            });
+            rep.rejected_blur = selection.rejected_blur;
+            rep.rejected_exposure = selection.rejected_exposure;
+
+            std::vector<double> forward_times;
+            for (const auto& fw : d.forward) forward_times.push_back(mrpt::Clock::toDouble(fw->timestamp));
+
+            std::vector<double> err_m, err_yaw, travelled;
+            std::vector<mrpt::poses::CPose3D> ref_poses;
+            for (std::size_t k = 0; k < selection.kept.size(); ++k) {
+                const std::size_t c = selection.kept[k];
+                const auto& ceiling = d.ceiling[frame_of[c]];
+                database::ReferenceInput ref;
+                ref.traverse = spec.name;
+                ref.ceiling = ceiling;
+                ref.vehicle_pose = candidates[c].vehicle_pose;
+                ref.vehicle_cov = track.covs[nearestIndex(track_times, candidates[c].time_s)];
+                ref.sharpness = selection.kept_quality[k].sharpness;
+                ref.mean_intensity = selection.kept_quality[k].mean_intensity;
+                ref.travelled_m = selection.kept_travelled_m[k];
+                if (!forward_times.empty()) {
+                    const std::size_t fi = nearestIndex(forward_times, candidates[c].time_s);
+                    if (std::abs(forward_times[fi] - candidates[c].time_s) <=
+                        options_.forward_max_dt_s) {
+                        ref.forward = d.forward[fi];
+                        ref.forward_vehicle_pose =
+                            poseAt(interp, forward_times[fi]).value_or(ref.vehicle_pose);
+                        if (!have_forward_intrinsics) {
+                            info.forward_camera = ref.forward->cameraParams;
+                            have_forward_intrinsics = true;
+                        }
+                    }
+                }
+                if (!ref.forward) ++rep.without_forward;
+                if (!have_intrinsics) {
+                    info.ceiling_camera = ceiling->cameraParams;
+                    have_intrinsics = true;
+                }
+                writer.add(ref);
+                if (gt[i]) {
+                    if (auto truth = poseAt(*gt[i], candidates[c].time_s)) {
+                        const double dx = truth->x() - ref.vehicle_pose.x();
+                        const double dy = truth->y() - ref.vehicle_pose.y();
+                        err_m.push_back(std::hypot(dx, dy));
+                        err_yaw.push_back(std::abs(mrpt::RAD2DEG(
+                            mrpt::math::wrapToPi(truth->yaw() - ref.vehicle_pose.yaw()))));
+                        travelled.push_back(ref.travelled_m);
+                        ref_poses.push_back(ref.vehicle_pose);
+                    }
+                }
+            }
+            rep.references = selection.kept.size();
+            if (gt[i]) {
+                rep.error = statsOf(err_m, err_yaw);
+                // Per 10 m of travel, to show where the laser poses degrade.
+                constexpr double kSegment_m = 10.0;
+                std::size_t b = 0;
+                while (b < err_m.size()) {
+                    const double from = std::floor(travelled[b] / kSegment_m) * kSegment_m;
+                    std::size_t e = b;
+                    while (e < err_m.size() && travelled[e] < from + kSegment_m) ++e;
+                    SegmentError seg;
+                    seg.from_m = from;
+                    seg.to_m = from + kSegment_m;
+                    const auto& mid = ref_poses[(b + e) / 2];
+                    seg.x = mid.x();
+                    seg.y = mid.y();
+                    seg.error = statsOf({err_m.begin() + b, err_m.begin() + e},
+                                        {err_yaw.begin() + b, err_yaw.begin() + e});
+                    rep.segments.push_back(seg);
+                    b = e;
+                }
+            }
+            result.traverses.push_back(rep);
+        }
+        result.references = writer.size();
+        if (result.references == 0) {
+            throw std::runtime_error("no references kept (all frames rejected or without pose)");
+        }
+        result.writing_time_s = timer.Tac();
+        result.status = SurveyStatus::Ok;
+        result.size_bytes = folderSize(writer.stagingDir());
+        result.total_time_s = total.Tac();
+        writer.writeTextFile(database::kReport, result.toJson());
+        writer.commit(info);
+    } catch (const std::exception& e) {
+        result.status = SurveyStatus::Failed;
+        result.reason = e.what();
+        result.references = 0;
+    }
+    result.total_time_s = total.Tac();
+    return result;
+}
+
+}  // namespace lookup::survey

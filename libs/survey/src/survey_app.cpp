@@ -1,0 +1,165 @@
+#include "lookup/survey/survey_app.h"
+
+#include <mrpt/3rdparty/tclap/CmdLine.h>
+#include <mrpt/config/CConfigFile.h>
+
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+
+#include "lookup/common/config.h"
+
+namespace lookup::survey {
+namespace fs = std::filesystem;
+namespace {
+
+std::vector<std::string> splitList(const std::string& s) {
+    std::vector<std::string> out;
+    std::stringstream in(s);
+    std::string item;
+    while (std::getline(in, item, ',')) {
+        const auto b = item.find_first_not_of(" \t");
+        const auto e = item.find_last_not_of(" \t");
+        if (b != std::string::npos) out.push_back(item.substr(b, e - b + 1));
+    }
+    return out;
+}
+
+std::string resolve(const fs::path& base, const std::string& p) {
+    if (p.empty()) return p;
+    return fs::path(p).is_absolute() ? p : (base / p).lexically_normal().string();
+}
+
+// Reads a lookup-sim dataset.ini (docs/dataset-format.md) into `inputs` and the labels of
+// `options`.
+void readDataset(const std::string& path, SurveyInputs& inputs, SurveyOptions& options) {
+    if (!fs::is_regular_file(path)) throw common::ConfigError(path + ": no such dataset file");
+    mrpt::config::CConfigFile cfg(path);
+    const fs::path base = fs::absolute(path).parent_path();
+    common::IniSection ds(cfg, "dataset", path);
+    if (!ds.exists()) throw common::ConfigError(path + ": no [dataset] section");
+    inputs.name = ds.getString("name", "");
+    inputs.ceiling_height_m = ds.getDouble("ceiling_height_m", 0);
+    options.ceiling_camera_label = ds.getString("ceiling_camera_label", options.ceiling_camera_label);
+    options.forward_camera_label = ds.getString("forward_camera_label", options.forward_camera_label);
+    options.lidar_label = ds.getString("lidar_label", options.lidar_label);
+    options.odometry_label = ds.getString("odometry_label", options.odometry_label);
+    const int count = ds.requireInt("traverse_count");
+    for (int i = 0; i < count; ++i) {
+        common::IniSection t(cfg, "traverse_" + std::to_string(i), path);
+        if (!t.exists()) {
+            throw common::ConfigError(path + ": missing section [traverse_" + std::to_string(i) +
+                                      "]");
+        }
+        TraverseSpec spec;
+        spec.name = t.getString("name", "traverse_" + std::to_string(i));
+        spec.rawlog = resolve(base, t.requireString("rawlog"));
+        spec.ground_truth = resolve(base, t.getString("ground_truth", ""));
+        const auto roles = splitList(t.getString("roles", "mapping,reference"));
+        spec.mapping = std::find(roles.begin(), roles.end(), "mapping") != roles.end();
+        spec.reference = std::find(roles.begin(), roles.end(), "reference") != roles.end();
+        for (const auto& r : roles) {
+            if (r != "mapping" && r != "reference" && r != "query") {
+                throw common::ConfigError(t.where("roles") + "unknown role '" + r + "'");
+            }
+        }
+        if (spec.mapping || spec.reference) inputs.traverses.push_back(spec);
+    }
+}
+
+}  // namespace
+
+std::string defaultSurveyIni() {
+    for (const std::string dir : {LOOKUP_SOURCE_SHARE_DIR, LOOKUP_INSTALL_SHARE_DIR}) {
+        const std::string p = dir + "/survey.ini";
+        if (fs::is_regular_file(p)) return p;
+    }
+    return "";
+}
+
+bool SurveyApp::initialize(int argc, const char* const* argv) {
+    TCLAP::CmdLine cmd("lookup-survey: builds a LookUP reference database from survey rawlogs",
+                       ' ', "0.1");
+    TCLAP::ValueArg<std::string> dataset("d", "dataset", "lookup-sim dataset.ini", false, "",
+                                         "DATASET.ini", cmd);
+    TCLAP::ValueArg<std::string> rawlogs("r", "rawlogs", "comma-separated survey rawlogs", false,
+                                         "", "A.rawlog[,B.rawlog...]", cmd);
+    TCLAP::ValueArg<std::string> ini("i", "ini",
+                                     "survey .ini ([survey] and the MRPT ICP-SLAM / MCL sections)",
+                                     false, "", "survey.ini", cmd);
+    TCLAP::ValueArg<std::string> out("o", "out", "database folder to create", true, "", "DB",
+                                     cmd);
+    TCLAP::ValueArg<std::string> poses("p", "poses",
+                                       "surveyed vehicle poses (MRPT .GT.txt or TUM) replacing "
+                                       "the laser stage",
+                                       false, "", "FILE", cmd);
+    TCLAP::ValueArg<std::string> map("m", "map", "existing grid map replacing ICP-SLAM", false,
+                                     "", "FILE.gridmap[.gz]", cmd);
+    TCLAP::SwitchArg quiet("q", "quiet", "no progress bar", cmd, false);
+    std::vector<const char*> args(argv, argv + argc);
+    if (!cmd.parse(argc, args.data())) {
+        // TCLAP printed the help, the version or the error.
+        bool asked = false;
+        for (int i = 1; i < argc; ++i) {
+            const std::string a = argv[i];
+            asked = asked || a == "-h" || a == "--help" || a == "--version";
+        }
+        exit_code_ = asked ? 0 : 2;
+        return false;
+    }
+    try {
+        if (dataset.isSet() == rawlogs.isSet()) {
+            throw common::ConfigError("give exactly one of --dataset and --rawlogs");
+        }
+        const std::string ini_path = ini.isSet() ? ini.getValue() : defaultSurveyIni();
+        if (!ini_path.empty()) {
+            if (!fs::is_regular_file(ini_path)) {
+                throw common::ConfigError(ini_path + ": no such .ini file");
+            }
+            std::ifstream file(ini_path);
+            std::stringstream text;
+            text << file.rdbuf();
+            config_.setContent(text.str());
+            if (config_.sectionExists("survey")) {
+                // IniSection errors name "survey options"; say which file.
+                try {
+                    options_.loadFromConfigFile(config_, "survey");
+                } catch (const common::ConfigError& e) {
+                    throw common::ConfigError(ini_path + ": " + e.what());
+                }
+            }
+        }
+        if (dataset.isSet()) {
+            readDataset(dataset.getValue(), inputs_, options_);
+        } else {
+            for (const auto& r : splitList(rawlogs.getValue())) {
+                TraverseSpec spec;
+                spec.name = fs::path(r).stem().string();
+                spec.rawlog = r;
+                if (fs::is_regular_file(r + ".GT.txt")) spec.ground_truth = r + ".GT.txt";
+                inputs_.traverses.push_back(spec);
+            }
+        }
+        options_.check();
+        inputs_.out_dir = out.getValue();
+        inputs_.poses_file = poses.getValue();
+        inputs_.map_file = map.getValue();
+        inputs_.show_progress = !quiet.getValue();
+    } catch (const std::exception& e) {
+        std::cerr << "lookup-survey: " << e.what() << "\n";
+        exit_code_ = 2;
+        return false;
+    }
+    return true;
+}
+
+int SurveyApp::run() {
+    Survey survey(options_, config_);
+    result_ = survey.run(inputs_);
+    std::cout << result_.summaryLine() << std::endl;
+    exit_code_ = result_.ok() ? 0 : 1;
+    return exit_code_;
+}
+
+}  // namespace lookup::survey

@@ -1,0 +1,92 @@
+#include "lookup/survey/survey_options.h"
+
+#include "lookup/common/config.h"
+
+namespace lookup::survey {
+
+void SurveyOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
+                                       const std::string& section) {
+    common::IniSection s(source, section, "survey options");
+    s.rejectUnknownKeys({"ceiling_camera_label", "forward_camera_label", "lidar_label",
+                         "odometry_label", "keyframe_spacing_m", "min_sharpness",
+                         "min_mean_intensity", "max_mean_intensity", "max_clipped_fraction",
+                         "forward_max_dt_s", "max_pose_gap_s", "max_outside_fraction",
+                         "ceiling_height_m", "mcl_particles", "mcl_init_std_xy_m",
+                         "mcl_init_std_yaw_deg", "odometry_min_std_xy_m",
+                         "odometry_min_std_yaw_deg", "start_at_ground_truth",
+                         "pose_file_std_xy_m", "pose_file_std_yaw_deg"});
+    ceiling_camera_label = s.getString("ceiling_camera_label", ceiling_camera_label);
+    forward_camera_label = s.getString("forward_camera_label", forward_camera_label);
+    lidar_label = s.getString("lidar_label", lidar_label);
+    odometry_label = s.getString("odometry_label", odometry_label);
+    keyframe_spacing_m = s.getDouble("keyframe_spacing_m", keyframe_spacing_m);
+    min_sharpness = s.getDouble("min_sharpness", min_sharpness);
+    min_mean_intensity = s.getDouble("min_mean_intensity", min_mean_intensity);
+    max_mean_intensity = s.getDouble("max_mean_intensity", max_mean_intensity);
+    max_clipped_fraction = s.getDouble("max_clipped_fraction", max_clipped_fraction);
+    forward_max_dt_s = s.getDouble("forward_max_dt_s", forward_max_dt_s);
+    max_pose_gap_s = s.getDouble("max_pose_gap_s", max_pose_gap_s);
+    max_outside_fraction = s.getDouble("max_outside_fraction", max_outside_fraction);
+    ceiling_height_m = s.getDouble("ceiling_height_m", ceiling_height_m);
+    mcl_particles = s.getInt("mcl_particles", mcl_particles);
+    mcl_init_std_xy_m = s.getDouble("mcl_init_std_xy_m", mcl_init_std_xy_m);
+    mcl_init_std_yaw_deg = s.getDouble("mcl_init_std_yaw_deg", mcl_init_std_yaw_deg);
+    odometry_min_std_xy_m = s.getDouble("odometry_min_std_xy_m", odometry_min_std_xy_m);
+    odometry_min_std_yaw_deg = s.getDouble("odometry_min_std_yaw_deg", odometry_min_std_yaw_deg);
+    start_at_ground_truth = s.getBool("start_at_ground_truth", start_at_ground_truth);
+    pose_file_std_xy_m = s.getDouble("pose_file_std_xy_m", pose_file_std_xy_m);
+    pose_file_std_yaw_deg = s.getDouble("pose_file_std_yaw_deg", pose_file_std_yaw_deg);
+    check();
+}
+
+void SurveyOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
+                                     const std::string& section) const {
+    c.write(section, "ceiling_camera_label", ceiling_camera_label);
+    c.write(section, "forward_camera_label", forward_camera_label);
+    c.write(section, "lidar_label", lidar_label);
+    c.write(section, "odometry_label", odometry_label);
+    c.write(section, "keyframe_spacing_m", keyframe_spacing_m);
+    c.write(section, "min_sharpness", min_sharpness);
+    c.write(section, "min_mean_intensity", min_mean_intensity);
+    c.write(section, "max_mean_intensity", max_mean_intensity);
+    c.write(section, "max_clipped_fraction", max_clipped_fraction);
+    c.write(section, "forward_max_dt_s", forward_max_dt_s);
+    c.write(section, "max_pose_gap_s", max_pose_gap_s);
+    c.write(section, "max_outside_fraction", max_outside_fraction);
+    c.write(section, "ceiling_height_m", ceiling_height_m);
+    c.write(section, "mcl_particles", mcl_particles);
+    c.write(section, "mcl_init_std_xy_m", mcl_init_std_xy_m);
+    c.write(section, "mcl_init_std_yaw_deg", mcl_init_std_yaw_deg);
+    c.write(section, "odometry_min_std_xy_m", odometry_min_std_xy_m);
+    c.write(section, "odometry_min_std_yaw_deg", odometry_min_std_yaw_deg);
+    c.write(section, "start_at_ground_truth", start_at_ground_truth);
+    c.write(section, "pose_file_std_xy_m", pose_file_std_xy_m);
+    c.write(section, "pose_file_std_yaw_deg", pose_file_std_yaw_deg);
+}
+
+void SurveyOptions::check() const {
+    common::OptionsCheck c("survey");
+    c.require(!ceiling_camera_label.empty(), "ceiling_camera_label", "not empty");
+    c.require(keyframe_spacing_m > 0, "keyframe_spacing_m", "> 0");
+    c.require(min_sharpness >= 0, "min_sharpness", ">= 0");
+    c.require(min_mean_intensity >= 0 && min_mean_intensity < max_mean_intensity,
+              "min_mean_intensity", ">= 0 and < max_mean_intensity");
+    c.require(max_mean_intensity <= 255, "max_mean_intensity", "<= 255");
+    c.require(max_clipped_fraction >= 0 && max_clipped_fraction <= 1, "max_clipped_fraction",
+              "in [0, 1]");
+    c.require(forward_max_dt_s > 0, "forward_max_dt_s", "> 0");
+    c.require(max_pose_gap_s > 0, "max_pose_gap_s", "> 0");
+    c.require(max_outside_fraction >= 0 && max_outside_fraction <= 1, "max_outside_fraction",
+              "in [0, 1]");
+    c.require(ceiling_height_m > 0, "ceiling_height_m", "> 0");
+    c.require(mcl_particles >= 10, "mcl_particles", ">= 10");
+    c.require(mcl_init_std_xy_m >= 0, "mcl_init_std_xy_m", ">= 0");
+    c.require(mcl_init_std_yaw_deg >= 0, "mcl_init_std_yaw_deg", ">= 0");
+    c.require(odometry_min_std_xy_m > 0, "odometry_min_std_xy_m", "> 0");
+    c.require(odometry_min_std_yaw_deg > 0, "odometry_min_std_yaw_deg", "> 0");
+    c.require(pose_file_std_xy_m >= 0, "pose_file_std_xy_m", ">= 0");
+    c.require(pose_file_std_yaw_deg >= 0, "pose_file_std_yaw_deg", ">= 0");
+    c.throwIfFailed();
+}
+
+}  // namespace lookup::survey
