@@ -1,0 +1,214 @@
+#include "lookup/coarse/coarse_localizer.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "synthetic_route.h"
+
+namespace lookup::coarse {
+namespace {
+
+using testing::SyntheticRoute;
+
+CoarseOptions testOptions() {
+    CoarseOptions o;  // defaults: 64x48 thumbnails (identity resize on the 64x48 test images)
+    return o;
+}
+
+/// One reference per tile at positions 0, 1, 2, ... with their true pose (x = position).
+std::shared_ptr<ReferenceDescriptors> makeReferences(SyntheticRoute& route, int count,
+                                                     const CoarseOptions& o,
+                                                     bool with_poses = false) {
+    auto refs = std::make_shared<ReferenceDescriptors>(o);
+    refs->setImageSize(SyntheticRoute::kW, SyntheticRoute::kH);
+    for (int i = 0; i < count; ++i) {
+        std::optional<mrpt::poses::CPose3D> pose;
+        if (with_poses) pose = mrpt::poses::CPose3D(i, 0, 0, 0, 0, 0);
+        refs->add(i, computeDescriptor(route.image(i, 4.0), o), pose);
+    }
+    return refs;
+}
+
+struct RunStats {
+    int full = 0;            ///< frames with a full buffer
+    int seq_correct = 0;     ///< sequence match within 1 place of the truth
+    int single_correct = 0;  ///< single-frame best match within 1 place
+    std::size_t max_tracking_evaluated = 0;
+    std::size_t max_tracking_candidates = 0;
+    int tracking = 0;
+};
+
+/// Query traverse starting at `x0`, `speed` tiles per frame, darker and noisier than the
+/// references; compares every full-buffer result with the truth and with single-frame matching.
+RunStats runQuery(SyntheticRoute& route, CoarseLocalizer& loc, double x0, double speed, int frames,
+                  bool odometry = false) {
+    RunStats s;
+    const auto& refs = loc.references();
+    for (int t = 0; t < frames; ++t) {
+        const double x = x0 + speed * t;
+        const auto image = route.image(x, 8.0, 0.7, 25.0);
+        const auto r = loc.process(image, 1000.0 + t,
+                                   odometry && t > 0 ? std::optional<double>(speed) : std::nullopt);
+        if (t < loc.options().sequence_length - 1) {
+            EXPECT_EQ(r.status, CoarseStatus::kNotEnoughFrames) << "frame " << t;
+            continue;
+        }
+        ++s.full;
+        const long truth = std::lround(x);
+        if (r.hasMatch() && std::abs(static_cast<long>(r.reference_index) - truth) <= 1 &&
+            r.usable()) {
+            ++s.seq_correct;
+        }
+        const auto d = computeDescriptor(image, loc.options());
+        std::size_t best = 0;
+        float best_d = 1e9f;
+        for (std::size_t i = 0; i < refs.size(); ++i) {
+            const float v = descriptorDifference(d, refs.descriptor(i));
+            if (v < best_d) best_d = v, best = i;
+        }
+        if (std::abs(static_cast<long>(best) - truth) <= 1) ++s.single_correct;
+        if (r.status == CoarseStatus::kTracking) {
+            ++s.tracking;
+            s.max_tracking_evaluated = std::max(s.max_tracking_evaluated, r.evaluated_references);
+            s.max_tracking_candidates = std::max(s.max_tracking_candidates, r.searched_candidates);
+        }
+    }
+    return s;
+}
+
+TEST(CoarseLocalizer, SequenceBeatsSingleFrameUnderAliasing) {
+    SyntheticRoute route(300, 3, 7);  // 3 tile types: every frame has ~100 look-alikes
+    const auto o = testOptions();
+    CoarseLocalizer loc(makeReferences(route, 300, o), o);
+    const auto s = runQuery(route, loc, 40.3, 1.0, 120);
+    ASSERT_EQ(s.full, 120 - o.sequence_length + 1);
+    EXPECT_GE(s.seq_correct, 0.95 * s.full);
+    EXPECT_LE(s.single_correct, 0.30 * s.full);  // single frames alias
+    EXPECT_GT(s.tracking, s.full / 2);
+}
+
+TEST(CoarseLocalizer, MatchesAtTwiceAndHalfTheReferenceSpeed) {
+    SyntheticRoute route(400, 3, 11);
+    const auto o = testOptions();
+    auto refs = makeReferences(route, 400, o);
+    {
+        CoarseLocalizer loc(refs, o);
+        const auto s = runQuery(route, loc, 10.0, 2.0, 90);
+        EXPECT_GE(s.seq_correct, 0.95 * s.full) << "2x speed";
+    }
+    {
+        CoarseLocalizer loc(refs, o);
+        const auto s = runQuery(route, loc, 200.0, 0.5, 90);
+        EXPECT_GE(s.seq_correct, 0.90 * s.full) << "0.5x speed";
+    }
+}
+
+TEST(CoarseLocalizer, TrackingWorkDoesNotGrowWithTheDatabase) {
+    const auto o = testOptions();
+    std::size_t evaluated[2], candidates[2];
+    const int sizes[2] = {200, 2000};
+    for (int k = 0; k < 2; ++k) {
+        SyntheticRoute route(sizes[k], 3, 5);
+        CoarseLocalizer loc(makeReferences(route, sizes[k], o), o);
+        const auto s = runQuery(route, loc, 60.0, 1.0, 80);
+        ASSERT_GT(s.tracking, 40) << "database of " << sizes[k];
+        EXPECT_GE(s.seq_correct, 0.95 * s.full);
+        evaluated[k] = s.max_tracking_evaluated;
+        candidates[k] = s.max_tracking_candidates;
+    }
+    // Candidates: the tracking window only. Evaluations: a few new entries per buffered column.
+    EXPECT_LE(candidates[1], static_cast<std::size_t>(2 * o.tracking_half_window_refs + 1));
+    EXPECT_EQ(candidates[0], candidates[1]);
+    EXPECT_LE(evaluated[1], evaluated[0] + 5);
+    EXPECT_LT(evaluated[1], 200u);  // far fewer than the 2000 references
+}
+
+TEST(CoarseLocalizer, RecoversFromKidnapping) {
+    SyntheticRoute route(400, 3, 3);
+    const auto o = testOptions();
+    CoarseLocalizer loc(makeReferences(route, 400, o), o);
+    // Track from 30 for 40 frames, then jump to 250.
+    for (int t = 0; t < 40; ++t) loc.process(route.image(30.0 + t, 8.0), t);
+    int recovered_after = -1;
+    for (int t = 0; t < 60; ++t) {
+        const double x = 250.0 + t;
+        const auto r = loc.process(route.image(x, 8.0), 40.0 + t);
+        const bool right =
+            r.usable() && std::abs(static_cast<long>(r.reference_index) - std::lround(x)) <= 1;
+        if (right && recovered_after < 0) recovered_after = t;
+        if (recovered_after >= 0 && t > recovered_after + 2) {
+            EXPECT_TRUE(right) << "lost again at frame " << t << " after the jump";
+        }
+        // Until the buffer holds mostly post-jump frames the old trajectory may still win
+        // (inherent to sequence matching); after that a confident wrong answer must not happen.
+        if (t >= o.sequence_length && r.usable() && !right) {
+            ADD_FAILURE() << "confident wrong match at frame " << t << ": " << r.reference_index
+                          << " vs " << x;
+        }
+    }
+    ASSERT_GE(recovered_after, 0);
+    EXPECT_LE(recovered_after, o.sequence_length + 5);
+}
+
+TEST(CoarseLocalizer, OdometryWidensTheSpeedRangeWhenReferencesArePosed) {
+    // 3.5 tiles per frame is outside [V_min, V_max] = [0.4, 2.5]: only odometry finds it.
+    SyntheticRoute route(600, 3, 13);
+    const auto o = testOptions();
+    auto refs = makeReferences(route, 600, o, /*with_poses=*/true);
+    CoarseLocalizer with(refs, o);
+    const auto a = runQuery(route, with, 20.0, 3.5, 60, /*odometry=*/true);
+    EXPECT_GE(a.seq_correct, 0.95 * a.full);
+    CoarseLocalizer without(refs, o);
+    const auto b = runQuery(route, without, 20.0, 3.5, 60, /*odometry=*/false);
+    EXPECT_LT(b.seq_correct, 0.5 * b.full);
+}
+
+TEST(CoarseLocalizer, BadInputGivesReasonsNotCrashes) {
+    SyntheticRoute route(50, 3, 1);
+    const auto o = testOptions();
+    // Empty and too-short references: a clear error at construction.
+    EXPECT_THROW(CoarseLocalizer(std::make_shared<ReferenceDescriptors>(o), o),
+                 std::invalid_argument);
+    try {
+        CoarseLocalizer(makeReferences(route, 5, o), o);
+        ADD_FAILURE() << "5 references accepted";
+    } catch (const std::invalid_argument& e) {
+        EXPECT_NE(std::string(e.what()).find("sequence_length"), std::string::npos);
+    }
+    CoarseOptions other = o;
+    other.thumb_width_px = 32;
+    EXPECT_THROW(CoarseLocalizer(makeReferences(route, 50, o), other), std::invalid_argument);
+
+    CoarseLocalizer loc(makeReferences(route, 50, o), o);
+    // A single query frame: a best guess, flagged as not enough frames, with a reason.
+    auto r = loc.process(route.image(3, 4.0), 0);
+    EXPECT_EQ(r.status, CoarseStatus::kNotEnoughFrames);
+    EXPECT_FALSE(r.usable());
+    EXPECT_NE(r.reason.find("sequence_length"), std::string::npos);
+    // A query image of another size.
+    cv::Mat big(96, 128, CV_8U, cv::Scalar(100));
+    r = loc.process(mrpt::img::CImage(big, mrpt::img::DEEP_COPY), 1);
+    EXPECT_EQ(r.status, CoarseStatus::kInvalidInput);
+    EXPECT_NE(r.reason.find("128x96"), std::string::npos);
+    EXPECT_NE(r.reason.find("64x48"), std::string::npos);
+    // An empty image and a missing one.
+    r = loc.process(mrpt::img::CImage(), 2);
+    EXPECT_EQ(r.status, CoarseStatus::kInvalidInput);
+    CoarseQuery q;
+    q.time_s = 3;
+    EXPECT_EQ(loc.locate(q).status, CoarseStatus::kInvalidInput);
+    // A descriptor of the wrong length.
+    r = loc.processDescriptor(Descriptor(10, 128), 4);
+    EXPECT_EQ(r.status, CoarseStatus::kInvalidInput);
+    // A featureless query stream (lens covered): never a confident match.
+    cv::Mat flat(48, 64, CV_8U, cv::Scalar(90));
+    for (int t = 0; t < 30; ++t) {
+        r = loc.process(mrpt::img::CImage(flat, mrpt::img::DEEP_COPY), 10 + t);
+        EXPECT_FALSE(r.usable()) << "frame " << t;
+    }
+}
+
+}  // namespace
+}  // namespace lookup::coarse
