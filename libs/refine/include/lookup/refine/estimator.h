@@ -1,0 +1,56 @@
+#pragma once
+// Joint pose-and-scale estimate (paper Sec. III-D, done as one least-squares problem here):
+// every inlier reference pixel is back-projected through its surveyed camera onto the ceiling
+// plane z = h and projected into the query camera; Ceres minimises the pixel residuals over
+// the query vehicle pose (x, y, yaw, small pitch and roll; z held at `vehicle_z`) and h, with
+// a Huber loss, a prior on h (so one reference suffices) and a prior on pitch/roll. With two
+// or more references at different surveyed positions h is observable from the images.
+// The start comes in closed form: a 2-D rigid alignment (Umeyama) of the back-projected points.
+
+#include <mrpt/math/CMatrixFixed.h>
+#include <mrpt/poses/CPose3D.h>
+#include <mrpt/poses/CPosePDFGaussian.h>
+
+#include <string>
+#include <vector>
+
+#include "lookup/refine/geometry.h"
+#include "lookup/refine/options.h"
+
+namespace lookup::refine {
+
+/// Inlier correspondences of one reference.
+struct ReferenceView {
+    Pinhole camera;
+    mrpt::poses::CPose3D camera_in_map;     ///< surveyed
+    std::vector<cv::Point2d> reference_px;  ///< rectified pixels
+    std::vector<cv::Point2d> query_px;      ///< matching query pixels
+};
+
+struct EstimatorInput {
+    std::vector<ReferenceView> views;
+    Pinhole query_camera;
+    mrpt::poses::CPose3D query_camera_on_vehicle;
+    double vehicle_z = 0.0;        ///< query vehicle z [m], held fixed
+    double prior_pitch_rad = 0.0;  ///< centre of the tilt prior
+    double prior_roll_rad = 0.0;
+    double ceiling_height_m = 5.0;  ///< centre of the h prior [m]
+};
+
+/// Covariance order of `covariance`: x, y, yaw, pitch, roll, h.
+struct PoseEstimate {
+    bool ok = false;
+    std::string reason;
+    mrpt::poses::CPose3D vehicle_in_map;
+    mrpt::poses::CPosePDFGaussian pose;  ///< (x, y, yaw) with its 3x3 covariance
+    mrpt::math::CMatrixDouble66 covariance;
+    double ceiling_height_m = 0.0;
+    double ceiling_height_sigma_m = 0.0;
+    double rms_residual_px = 0.0;  ///< over all correspondences at the solution
+    int correspondences = 0;
+    int iterations = 0;
+};
+
+PoseEstimate estimateQueryPose(const EstimatorInput& input, const EstimatorOptions& options);
+
+}  // namespace lookup::refine

@@ -1,0 +1,137 @@
+#pragma once
+// Options of the refinement stages (paper Sec. III, Table I). Each struct is an MRPT
+// CLoadableOptions read strictly (unknown keys and malformed values are refused, naming the
+// file, section and key) and validated by check(), which names every failing field.
+// Defaults are the paper's Mine A values; share/lookup/refiner.ini also holds a Mine B preset.
+
+#include <mrpt/config/CLoadableOptions.h>
+
+#include <string>
+
+namespace lookup::refine {
+
+/// Where the sample points of a reference come from (paper Sec. III-B).
+enum class SamplingMode {
+    Grid,     ///< regular grid of grid_points points
+    HeatMap,  ///< greedy selection on the reference's quality heat map (FCN)
+    Auto      ///< heat map when the reference has one, grid otherwise
+};
+
+/// Sample Point Selector (paper Sec. III-B).
+struct SamplerOptions : public mrpt::config::CLoadableOptions {
+    SamplingMode mode = SamplingMode::Auto;
+    int grid_points = 24;        ///< points on the regular grid (paper: 24)
+    int heat_map_points = 12;    ///< points taken from a heat map (paper: 12, FCN)
+    double damping_ratio = 0.5;  ///< rho: factor applied around a chosen point, in (0, 1)
+    int damping_side_px = 10;    ///< l_n: side of the damped neighbourhood [px] (Mine B: 20)
+    int border_margin_px = 20;   ///< points stay this far from the image border [px];
+                                 ///< at least l_patch / 2 (checked by RefinerOptions)
+
+    void loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
+                            const std::string& section) override;
+    void saveToConfigFile(mrpt::config::CConfigFileBase& target,
+                          const std::string& section) const override;
+    /// Throws common::ConfigError naming every invalid field.
+    void check() const;
+};
+
+/// Sub-pixel interpolation of the SAD minimum.
+enum class SubpixelMethod {
+    None,        ///< integer peak
+    Parabola,    ///< 1-D parabola through the minimum and its two neighbours, per axis
+    Equiangular  ///< V-shaped (equiangular line) fit, less biased for SAD (Shimizu 2005)
+};
+
+/// Pixel Correspondence Matcher (paper Sec. III-A).
+struct MatcherOptions : public mrpt::config::CLoadableOptions {
+    int search_range_px = 40;  ///< L_SR: side of the square query search window [px]
+                               ///< (offsets -L_SR/2 .. +L_SR/2 inclusive); Mine B: 70
+    int patch_px = 40;         ///< l_patch: side of the square reference patch [px]; Mine B: 60
+    int pyramid_levels = 2;    ///< coarse-to-fine: exhaustive search at 1/2^levels resolution,
+                               ///< then +-refine_radius_px per finer level; 0 = exhaustive
+    int min_top_patch_px = 8;  ///< levels are dropped while the coarsest patch would be smaller
+    int refine_radius_px = 2;  ///< half side of the local search at each finer level [px]
+    double min_texture = 2.0;  ///< minimum mean absolute deviation of the reference patch
+                               ///< [grey levels]; flatter patches are rejected
+    double min_distinctiveness = 0.02;  ///< minimum 1 - best/second-best SAD (second best
+                                        ///< outside exclusion_radius_px, coarsest level)
+    int exclusion_radius_px = 2;        ///< exclusion radius around the best, at the coarsest level
+    SubpixelMethod subpixel = SubpixelMethod::Equiangular;
+    bool use_simd = true;  ///< false forces the scalar SAD (verification)
+
+    void loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
+                            const std::string& section) override;
+    void saveToConfigFile(mrpt::config::CConfigFileBase& target,
+                          const std::string& section) const override;
+    void check() const;
+};
+
+/// Homography Estimator (paper Sec. III-C).
+struct HomographyOptions : public mrpt::config::CLoadableOptions {
+    int ransac_min_points = 10;        ///< RANSAC only when more points than this (paper: 10)
+    double ransac_threshold_px = 2.0;  ///< inlier reprojection threshold [px]
+    int ransac_max_iterations = 2000;
+    double ransac_confidence = 0.995;
+
+    void loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
+                            const std::string& section) override;
+    void saveToConfigFile(mrpt::config::CConfigFileBase& target,
+                          const std::string& section) const override;
+    void check() const;
+};
+
+/// Joint pose-and-scale estimate (paper Sec. III-D, done jointly with Ceres here).
+struct EstimatorOptions : public mrpt::config::CLoadableOptions {
+    double ceiling_height_m = 5.0;        ///< h prior: ceiling plane height above the map z = 0 [m]
+                                          ///< (datasets: dataset.ini ceiling_height_m)
+    double ceiling_height_sigma_m = 0.5;  ///< h prior standard deviation [m]
+    double tilt_sigma_deg = 2.0;          ///< prior sigma of the query's roll and pitch about the
+                                          ///< coarse (or zero) attitude [deg]
+    double pixel_sigma_px = 0.5;          ///< matched-pixel noise used to scale residuals [px]
+    double huber_loss_px = 2.0;           ///< Huber loss threshold on pixel residuals [px]
+    int max_iterations = 50;              ///< Ceres iterations
+    int min_inliers = 6;                  ///< fewer inliers over all references: no estimate
+
+    void loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
+                            const std::string& section) override;
+    void saveToConfigFile(mrpt::config::CConfigFileBase& target,
+                          const std::string& section) const override;
+    void check() const;
+};
+
+/// Acceptance filters (paper Sec. III-E).
+struct AcceptanceOptions : public mrpt::config::CLoadableOptions {
+    double min_inlier_share = 0.6;     ///< N_th: inliers / sample points, over all references
+    double max_offset_m = 2.0;         ///< d_th: max |refined - coarse (or reference)| in x, y [m]
+    double fallback_sigma_xy_m = 2.0;  ///< sigma reported with a fallback pose [m]
+    double fallback_sigma_yaw_deg = 10.0;  ///< sigma reported with a fallback pose [deg]
+
+    void loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
+                            const std::string& section) override;
+    void saveToConfigFile(mrpt::config::CConfigFileBase& target,
+                          const std::string& section) const override;
+    void check() const;
+};
+
+/// Everything the Refiner uses. Sections are `<prefix>.sampler`, `<prefix>.matcher`,
+/// `<prefix>.homography`, `<prefix>.estimator`, `<prefix>.acceptance`.
+struct RefinerOptions : public mrpt::config::CLoadableOptions {
+    SamplerOptions sampler;
+    MatcherOptions matcher;
+    HomographyOptions homography;
+    EstimatorOptions estimator;
+    AcceptanceOptions acceptance;
+
+    /// `section` is the prefix (e.g. "refine" reads [refine.sampler] ...).
+    void loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
+                            const std::string& section) override;
+    void saveToConfigFile(mrpt::config::CConfigFileBase& target,
+                          const std::string& section) const override;
+    /// Checks every stage and the cross-stage constraints.
+    void check() const;
+
+    /// Table I, Mine B: L_SR 70, l_patch 60, l_n 20, border margin 30.
+    static RefinerOptions mineB();
+};
+
+}  // namespace lookup::refine

@@ -1,0 +1,88 @@
+#pragma once
+// Data handed between the refinement stages: image pyramids, references, the coarse hint and
+// per-point matches.
+//
+// Images are cv::Mat (8-bit grey) rather than mrpt::img::CImage in the reference set: the
+// database loads a reference once and the matcher then reads raw rows many times per second,
+// so a plain, always-loaded, contiguous buffer avoids CImage's lazy loading of external files
+// (not thread-safe) and its per-access checks. CImage wraps the same cv::Mat, so conversion is
+// free (Reference::fromObservation). The query stays an mrpt::obs::CObservationImage.
+
+#include <mrpt/img/TCamera.h>
+#include <mrpt/obs/CObservationImage.h>
+#include <mrpt/poses/CPose3D.h>
+
+#include <cstdint>
+#include <memory>
+#include <opencv2/core.hpp>
+#include <optional>
+#include <vector>
+
+namespace lookup::refine {
+
+/// Grey image pyramid for the coarse-to-fine matcher. levels[0] is full resolution, each
+/// further level is cv::pyrDown of the previous. Every level is CV_8UC1 and has at least
+/// 32 readable bytes after the end of each row (SIMD loads may overrun a patch row).
+struct ImagePyramid {
+    std::vector<cv::Mat> levels;
+
+    /// `grey` must be CV_8UC1 (CV_8UC3 is converted); `extra_levels` coarser levels are added.
+    static ImagePyramid build(const cv::Mat& grey, int extra_levels);
+    bool empty() const { return levels.empty() || levels[0].empty(); }
+};
+
+/// One surveyed reference image (paper Sec. III: "database of images with known camera
+/// poses").
+struct Reference {
+    std::int64_t id = -1;
+    mrpt::Clock::time_point timestamp{};
+    cv::Mat image;                           ///< CV_8UC1 ceiling image
+    mrpt::img::TCamera camera;               ///< intrinsics of `image` (rectified pinhole)
+    mrpt::poses::CPose3D vehicle_in_map;     ///< surveyed vehicle (base) pose
+    mrpt::poses::CPose3D camera_on_vehicle;  ///< as CObservationImage::cameraPose
+    cv::Mat heat_map;  ///< optional CV_32FC1 sample-quality map, same size as `image`, >= 0
+
+    /// Optional cache built by prepare(); built on the fly per query when absent.
+    std::shared_ptr<const ImagePyramid> pyramid;
+
+    /// Builds the matcher's pyramid once so queries do not rebuild it.
+    void prepare(int pyramid_levels);
+
+    mrpt::poses::CPose3D cameraInMap() const { return vehicle_in_map + camera_on_vehicle; }
+
+    /// From a ceiling-camera observation (image converted to grey, loaded if external).
+    static Reference fromObservation(std::int64_t id, const mrpt::obs::CObservationImage& obs,
+                                     const mrpt::poses::CPose3D& vehicle_in_map);
+};
+
+/// What the coarse stage tells the refiner (paper Sec. III-E: the matched reference time
+/// stamp; here reference ids and/or a pose).
+struct CoarseHint {
+    std::vector<std::int64_t> reference_ids;           ///< references to use; empty = all given
+    std::optional<mrpt::poses::CPose3D> vehicle_pose;  ///< coarse query vehicle pose in map
+    std::optional<double> ceiling_height_m;  ///< overrides EstimatorOptions::ceiling_height_m
+};
+
+/// Why the matcher kept or dropped a point.
+enum class MatchStatus {
+    Matched,
+    LowTexture,      ///< reference patch too flat to match
+    NotDistinctive,  ///< second-best SAD too close to the best (repetitive texture)
+    BorderPeak,      ///< best SAD on the border of the search window (true match may be outside)
+    OutOfImage       ///< patch or search window outside the image
+};
+const char* toString(MatchStatus s);
+
+/// One sample point and its correspondence (paper Sec. III-A "optical flow" vector).
+struct PointMatch {
+    cv::Point2f reference_px;  ///< sample point in the reference image [px]
+    cv::Point2f query_px;      ///< sub-pixel match in the query image [px] (valid if Matched)
+    float quality = 0.f;       ///< 1 - best/second-best SAD at the coarsest level, in [0, 1]
+    float sad_per_px = 0.f;    ///< best SAD / patch area at full resolution [grey levels]
+    MatchStatus status = MatchStatus::OutOfImage;
+    bool inlier = false;  ///< set by the homography RANSAC
+
+    bool matched() const { return status == MatchStatus::Matched; }
+};
+
+}  // namespace lookup::refine

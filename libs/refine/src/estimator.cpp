@@ -1,0 +1,200 @@
+#include "lookup/refine/estimator.h"
+
+#include <ceres/ceres.h>
+#include <ceres/rotation.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+
+namespace lookup::refine {
+namespace {
+
+// Pixel residual of one correspondence. The reference ray meets the ceiling at
+// P(h) = origin + (h - origin.z) / dir.z * dir = A + h * B (fixed camera, so linear in h).
+struct ReprojectionCost {
+    ReprojectionCost(const Eigen::Vector3d& A, const Eigen::Vector3d& B, const cv::Point2d& q,
+                     const Pinhole& cam, const Eigen::Matrix3d& R_cv, const Eigen::Vector3d& t_cv,
+                     double vehicle_z, double sigma)
+        : A(A), B(B), q(q), cam(cam), R_cv(R_cv), t_cv(t_cv), z(vehicle_z), inv_sigma(1 / sigma) {}
+
+    template <typename T>
+    bool operator()(const T* pose, const T* h, T* residual) const {
+        // pose = x, y, yaw, pitch, roll; vehicle rotation Rz(yaw) Ry(pitch) Rx(roll) (MRPT).
+        const T P[3] = {T(A[0]) + h[0] * B[0], T(A[1]) + h[0] * B[1], T(A[2]) + h[0] * B[2]};
+        const T d[3] = {P[0] - pose[0], P[1] - pose[1], P[2] - T(z)};
+        const T cy = cos(pose[2]), sy = sin(pose[2]);
+        const T cp = cos(pose[3]), sp = sin(pose[3]);
+        const T cr = cos(pose[4]), sr = sin(pose[4]);
+        // R_v^T d, with R_v = Rz Ry Rx.
+        const T a0 = cy * d[0] + sy * d[1];
+        const T a1 = -sy * d[0] + cy * d[1];
+        const T a2 = d[2];
+        const T b0 = cp * a0 - sp * a2;
+        const T b2 = sp * a0 + cp * a2;
+        const T v[3] = {b0, cr * a1 + sr * b2, -sr * a1 + cr * b2};  // point in vehicle frame
+        T c[3];
+        for (int i = 0; i < 3; ++i) {
+            c[i] = R_cv(0, i) * (v[0] - t_cv[0]) + R_cv(1, i) * (v[1] - t_cv[1]) +
+                   R_cv(2, i) * (v[2] - t_cv[2]);
+        }
+        residual[0] = (T(cam.fx) * c[0] / c[2] + T(cam.cx) - T(q.x)) * T(inv_sigma);
+        residual[1] = (T(cam.fy) * c[1] / c[2] + T(cam.cy) - T(q.y)) * T(inv_sigma);
+        return true;
+    }
+
+    Eigen::Vector3d A, B;
+    cv::Point2d q;
+    Pinhole cam;
+    Eigen::Matrix3d R_cv;
+    Eigen::Vector3d t_cv;
+    double z, inv_sigma;
+};
+
+struct PriorCost {
+    double h0, pitch0, roll0, inv_sigma_h, inv_sigma_tilt;
+    template <typename T>
+    bool operator()(const T* pose, const T* h, T* residual) const {
+        residual[0] = (h[0] - T(h0)) * T(inv_sigma_h);
+        residual[1] = (pose[3] - T(pitch0)) * T(inv_sigma_tilt);
+        residual[2] = (pose[4] - T(roll0)) * T(inv_sigma_tilt);
+        return true;
+    }
+};
+
+Eigen::Matrix3d rotationOf(const mrpt::poses::CPose3D& p) {
+    return p.getRotationMatrix().asEigen();
+}
+
+}  // namespace
+
+PoseEstimate estimateQueryPose(const EstimatorInput& in, const EstimatorOptions& o) {
+    PoseEstimate out;
+    const double h0 = in.ceiling_height_m;
+    if (!std::isfinite(h0)) {
+        out.reason = "ceiling height prior is not finite";
+        return out;
+    }
+
+    // Closed-form start at the prior h: ceiling points from the references (map frame) against
+    // the same points from the query camera with the vehicle at the origin, yaw 0.
+    const mrpt::poses::CPose3D query_cam_at_origin =
+        mrpt::poses::CPose3D(0, 0, in.vehicle_z, 0, in.prior_pitch_rad, in.prior_roll_rad) +
+        in.query_camera_on_vehicle;
+    std::vector<Eigen::Vector3d> As, Bs;
+    std::vector<cv::Point2d> qs;
+    std::vector<const ReferenceView*> owner;
+    Eigen::Matrix2Xd src(2, 0), dst(2, 0);
+    for (const auto& view : in.views) {
+        const auto R = rotationOf(view.camera_in_map);
+        const Eigen::Vector3d t(view.camera_in_map.x(), view.camera_in_map.y(),
+                                view.camera_in_map.z());
+        for (std::size_t i = 0; i < view.reference_px.size(); ++i) {
+            const auto& r = view.reference_px[i];
+            const Eigen::Vector3d dir =
+                R * Eigen::Vector3d((r.x - view.camera.cx) / view.camera.fx,
+                                    (r.y - view.camera.cy) / view.camera.fy, 1.0);
+            if (std::abs(dir.z()) < 1e-9) continue;
+            const auto p_ref = backProjectToCeiling(view.camera, view.camera_in_map, r, h0);
+            const auto p_qry =
+                backProjectToCeiling(in.query_camera, query_cam_at_origin, view.query_px[i], h0);
+            if (!p_ref || !p_qry) continue;
+            As.push_back(t - t.z() / dir.z() * dir);
+            Bs.push_back(dir / dir.z());
+            qs.push_back(view.query_px[i]);
+            src.conservativeResize(2, src.cols() + 1);
+            dst.conservativeResize(2, dst.cols() + 1);
+            src.col(src.cols() - 1) << p_qry->x, p_qry->y;
+            dst.col(dst.cols() - 1) << p_ref->x, p_ref->y;
+        }
+    }
+    out.correspondences = int(qs.size());
+    if (out.correspondences < o.min_inliers) {
+        out.reason = "only " + std::to_string(out.correspondences) +
+                     " usable correspondences (min_inliers = " + std::to_string(o.min_inliers) +
+                     ")";
+        return out;
+    }
+    // 2-D rigid fit dst = R(yaw) src + t (closed form, Umeyama without scale).
+    const Eigen::Vector2d src_mean = src.rowwise().mean(), dst_mean = dst.rowwise().mean();
+    double dot = 0.0, cross = 0.0;
+    for (Eigen::Index i = 0; i < src.cols(); ++i) {
+        const Eigen::Vector2d a = src.col(i) - src_mean, b = dst.col(i) - dst_mean;
+        dot += a.dot(b);
+        cross += a.x() * b.y() - a.y() * b.x();
+    }
+    const double yaw0 = std::atan2(cross, dot);
+    const Eigen::Vector2d t0 = dst_mean - Eigen::Rotation2Dd(yaw0) * src_mean;
+    double pose[5] = {t0.x(), t0.y(), yaw0, in.prior_pitch_rad, in.prior_roll_rad};
+    double h[1] = {h0};
+
+    ceres::Problem problem;
+    const Eigen::Matrix3d R_cv = rotationOf(in.query_camera_on_vehicle);
+    const Eigen::Vector3d t_cv(in.query_camera_on_vehicle.x(), in.query_camera_on_vehicle.y(),
+                               in.query_camera_on_vehicle.z());
+    const double huber = o.huber_loss_px / o.pixel_sigma_px;  // residuals are in sigmas
+    for (std::size_t i = 0; i < qs.size(); ++i) {
+        auto* cost =
+            new ceres::AutoDiffCostFunction<ReprojectionCost, 2, 5, 1>(new ReprojectionCost(
+                As[i], Bs[i], qs[i], in.query_camera, R_cv, t_cv, in.vehicle_z, o.pixel_sigma_px));
+        problem.AddResidualBlock(cost, new ceres::HuberLoss(huber), pose, h);
+    }
+    const double tilt_sigma = o.tilt_sigma_deg * M_PI / 180.0;
+    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<PriorCost, 3, 5, 1>(
+                                 new PriorCost{h0, in.prior_pitch_rad, in.prior_roll_rad,
+                                               1.0 / o.ceiling_height_sigma_m, 1.0 / tilt_sigma}),
+                             nullptr, pose, h);
+
+    ceres::Solver::Options solver;
+    solver.linear_solver_type = ceres::DENSE_QR;
+    solver.max_num_iterations = o.max_iterations;
+    solver.num_threads = 1;
+    solver.logging_type = ceres::SILENT;
+    ceres::Solver::Summary summary;
+    ceres::Solve(solver, &problem, &summary);
+    out.iterations = int(summary.iterations.size());
+    if (!summary.IsSolutionUsable()) {
+        out.reason = "Ceres: " + summary.message;
+        return out;
+    }
+
+    ceres::Covariance::Options cov_options;
+    cov_options.num_threads = 1;
+    ceres::Covariance covariance(cov_options);
+    const std::vector<std::pair<const double*, const double*>> blocks = {
+        {pose, pose}, {pose, h}, {h, h}};
+    if (!covariance.Compute(blocks, &problem)) {
+        out.reason = "Ceres covariance is rank deficient (pose not observable from the matches)";
+        return out;
+    }
+    double c_pp[25], c_ph[5], c_hh[1];
+    covariance.GetCovarianceBlock(pose, pose, c_pp);
+    covariance.GetCovarianceBlock(pose, h, c_ph);
+    covariance.GetCovarianceBlock(h, h, c_hh);
+    for (int i = 0; i < 5; ++i) {
+        for (int j = 0; j < 5; ++j) out.covariance(i, j) = c_pp[i * 5 + j];
+        out.covariance(i, 5) = out.covariance(5, i) = c_ph[i];
+    }
+    out.covariance(5, 5) = c_hh[0];
+
+    out.vehicle_in_map =
+        mrpt::poses::CPose3D(pose[0], pose[1], in.vehicle_z, pose[2], pose[3], pose[4]);
+    mrpt::math::CMatrixDouble33 c3;
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) c3(i, j) = out.covariance(i, j);
+    out.pose = mrpt::poses::CPosePDFGaussian(mrpt::poses::CPose2D(pose[0], pose[1], pose[2]), c3);
+    out.ceiling_height_m = h[0];
+    out.ceiling_height_sigma_m = std::sqrt(std::max(0.0, c_hh[0]));
+
+    double sq = 0.0;
+    for (std::size_t i = 0; i < qs.size(); ++i) {
+        ReprojectionCost f(As[i], Bs[i], qs[i], in.query_camera, R_cv, t_cv, in.vehicle_z, 1.0);
+        double r[2];
+        f(pose, h, r);
+        sq += r[0] * r[0] + r[1] * r[1];
+    }
+    out.rms_residual_px = std::sqrt(sq / double(qs.size()));
+    out.ok = true;
+    return out;
+}
+
+}  // namespace lookup::refine

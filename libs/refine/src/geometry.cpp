@@ -1,0 +1,67 @@
+#include "lookup/refine/geometry.h"
+
+#include <cmath>
+
+namespace lookup::refine {
+
+bool pinholeFrom(const mrpt::img::TCamera& camera, Pinhole& out, std::string* why) {
+    out = {camera.fx(), camera.fy(), camera.cx(), camera.cy()};
+    const bool finite = std::isfinite(out.fx) && std::isfinite(out.fy) && std::isfinite(out.cx) &&
+                        std::isfinite(out.cy);
+    if (!finite || out.fx <= 0.0 || out.fy <= 0.0) {
+        if (why) {
+            *why = "invalid intrinsics (fx=" + std::to_string(out.fx) +
+                   ", fy=" + std::to_string(out.fy) + ", cx=" + std::to_string(out.cx) +
+                   ", cy=" + std::to_string(out.cy) + ")";
+        }
+        return false;
+    }
+    return true;
+}
+
+bool hasDistortion(const mrpt::img::TCamera& camera) {
+    for (double d : camera.dist) {
+        if (d != 0.0) return true;
+    }
+    return false;
+}
+
+std::optional<cv::Point3d> backProjectToCeiling(const Pinhole& c,
+                                                const mrpt::poses::CPose3D& camera_in_map,
+                                                const cv::Point2d& px, double h) {
+    const auto R = camera_in_map.getRotationMatrix();
+    const double rx = (px.x - c.cx) / c.fx, ry = (px.y - c.cy) / c.fy;
+    const double d[3] = {R(0, 0) * rx + R(0, 1) * ry + R(0, 2),
+                         R(1, 0) * rx + R(1, 1) * ry + R(1, 2),
+                         R(2, 0) * rx + R(2, 1) * ry + R(2, 2)};
+    if (std::abs(d[2]) < 1e-12) return std::nullopt;
+    const double lambda = (h - camera_in_map.z()) / d[2];
+    if (!(lambda > 0.0)) return std::nullopt;
+    return cv::Point3d(camera_in_map.x() + lambda * d[0], camera_in_map.y() + lambda * d[1], h);
+}
+
+std::optional<cv::Point2d> projectToImage(const Pinhole& c,
+                                          const mrpt::poses::CPose3D& camera_in_map,
+                                          const cv::Point3d& p) {
+    double lx = 0, ly = 0, lz = 0;
+    camera_in_map.inverseComposePoint(p.x, p.y, p.z, lx, ly, lz);
+    if (!(lz > 1e-9)) return std::nullopt;
+    return cv::Point2d(c.fx * lx / lz + c.cx, c.fy * ly / lz + c.cy);
+}
+
+cv::Matx33d ceilingHomography(const Pinhole& a, const mrpt::poses::CPose3D& a_in_map,
+                              const Pinhole& b, const mrpt::poses::CPose3D& b_in_map, double h) {
+    // Plane coordinates (x, y, 1) -> pixel: K R^T [e1 e2 (0,0,h) - t].
+    const auto planeToPixel = [h](const Pinhole& c, const mrpt::poses::CPose3D& pose) {
+        const auto R = pose.getRotationMatrix();
+        cv::Matx33d Rt;
+        for (int i = 0; i < 3; ++i)
+            for (int j = 0; j < 3; ++j) Rt(i, j) = R(j, i);
+        const cv::Matx33d M(1, 0, -pose.x(), 0, 1, -pose.y(), 0, 0, h - pose.z());
+        return c.K() * Rt * M;
+    };
+    const cv::Matx33d H = planeToPixel(b, b_in_map) * planeToPixel(a, a_in_map).inv();
+    return H * (1.0 / H(2, 2));
+}
+
+}  // namespace lookup::refine

@@ -1,0 +1,41 @@
+#include <mrpt/img/CImage.h>
+
+#include <opencv2/imgproc.hpp>
+#include <stdexcept>
+
+#include "lookup/refine/matcher.h"
+#include "lookup/refine/types.h"
+
+namespace lookup::refine {
+
+void Reference::prepare(int pyramid_levels) {
+    pyramid = std::make_shared<const ImagePyramid>(ImagePyramid::build(image, pyramid_levels));
+}
+
+Reference Reference::fromObservation(std::int64_t id, const mrpt::obs::CObservationImage& obs,
+                                     const mrpt::poses::CPose3D& vehicle_in_map) {
+    Reference r;
+    r.id = id;
+    r.timestamp = obs.timestamp;
+    r.camera = obs.cameraParams;
+    r.vehicle_in_map = vehicle_in_map;
+    r.camera_on_vehicle = obs.cameraPose;
+    try {
+        const cv::Mat& m = obs.image.asCvMatRef();  // loads an external image
+        if (m.channels() == 3) {
+            cv::cvtColor(m, r.image, cv::COLOR_BGR2GRAY);
+        } else {
+            r.image = m.clone();
+        }
+    } catch (const std::exception& e) {
+        throw std::runtime_error("reference " + std::to_string(id) + " (label '" + obs.sensorLabel +
+                                 "'): cannot read its image: " + e.what());
+    }
+    if (r.image.empty() || r.image.type() != CV_8UC1) {
+        throw std::runtime_error("reference " + std::to_string(id) + " (label '" + obs.sensorLabel +
+                                 "'): image is empty or not 8-bit");
+    }
+    return r;
+}
+
+}  // namespace lookup::refine
