@@ -116,33 +116,43 @@ Run loadRun(const std::string& directory) {
     return run;
 }
 
+std::string framesCsvHeader() {
+    std::string out;
+    for (const char* name : kColumns) out += std::string(out.empty() ? "" : ",") + name;
+    return out;
+}
+
+std::string formatFramesCsvRow(const FrameRow& r) {
+    std::string reason = r.reason;  // the CSV has no quoting: keep reasons comma-free
+    for (char& c : reason) {
+        if (c == ',' || c == '\n') c = ';';
+    }
+    char buf[512];
+    std::string out;
+    std::snprintf(buf, sizeof buf, "%.6f,%s,%s,", r.time_s, r.status.c_str(), reason.c_str());
+    out += buf;
+    if (r.has_pose) {
+        std::snprintf(buf, sizeof buf, "%.5f,%.5f,%.6f,%.4e,%.4e,%.4e,%.4e,", r.x, r.y, r.yaw,
+                      r.cov_xx, r.cov_xy, r.cov_yy, r.cov_tt);
+        out += buf;
+    } else {
+        out += ",,,,,,,";
+    }
+    if (r.has_coarse) {
+        std::snprintf(buf, sizeof buf, "%.5f,%.5f,%.6f,", r.coarse_x, r.coarse_y, r.coarse_yaw);
+        out += buf;
+    } else {
+        out += ",,,";
+    }
+    std::snprintf(buf, sizeof buf, "%.4f,%d,%.3f", r.inlier_share, r.references, r.ms);
+    return out + buf;
+}
+
 void writeFramesCsv(const std::string& path, const std::vector<FrameRow>& frames) {
-    std::FILE* f = std::fopen(path.c_str(), "w");
-    if (f == nullptr) throw ConfigError(path + ": cannot open for writing");
-    for (size_t i = 0; i < std::size(kColumns); ++i) {
-        std::fprintf(f, "%s%s", i ? "," : "", kColumns[i]);
-    }
-    std::fprintf(f, "\n");
-    for (const auto& r : frames) {
-        std::string reason = r.reason;  // the CSV has no quoting: keep reasons comma-free
-        for (char& c : reason) {
-            if (c == ',' || c == '\n') c = ';';
-        }
-        std::fprintf(f, "%.6f,%s,%s,", r.time_s, r.status.c_str(), reason.c_str());
-        if (r.has_pose) {
-            std::fprintf(f, "%.5f,%.5f,%.6f,%.4e,%.4e,%.4e,%.4e,", r.x, r.y, r.yaw, r.cov_xx,
-                         r.cov_xy, r.cov_yy, r.cov_tt);
-        } else {
-            std::fprintf(f, ",,,,,,,");
-        }
-        if (r.has_coarse) {
-            std::fprintf(f, "%.5f,%.5f,%.6f,", r.coarse_x, r.coarse_y, r.coarse_yaw);
-        } else {
-            std::fprintf(f, ",,,");
-        }
-        std::fprintf(f, "%.4f,%d,%.3f\n", r.inlier_share, r.references, r.ms);
-    }
-    std::fclose(f);
+    std::ofstream out(path);
+    if (!out) throw ConfigError(path + ": cannot open for writing");
+    out << framesCsvHeader() << "\n";
+    for (const auto& r : frames) out << formatFramesCsvRow(r) << "\n";
 }
 
 }  // namespace lookup::eval

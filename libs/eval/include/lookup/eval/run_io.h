@@ -34,6 +34,11 @@ struct Run {
 /// the file and line for a missing file, a missing column or a malformed value.
 Run loadRun(const std::string& directory);
 
+/// The header line of frames.csv (docs/run-format.md), without a newline.
+std::string framesCsvHeader();
+/// One frames.csv row, without a newline (commas in the reason become ';').
+std::string formatFramesCsvRow(const FrameRow& row);
+
 /// Writes frames.csv with the header of docs/run-format.md.
 void writeFramesCsv(const std::string& path, const std::vector<FrameRow>& frames);
 

@@ -1,0 +1,29 @@
+#pragma once
+// lookup-localize as a library class (thin main in apps/lookup-localize), so tests run it.
+
+#include <string>
+
+#include "lookup/localize/run_writer.h"
+
+namespace lookup::localize {
+
+struct LocalizeRequest {
+    std::string db_dir;             ///< reference database (lookup-survey)
+    std::string rawlog;             ///< query rawlog to replay
+    std::string out_dir;            ///< run folder (docs/run-format.md)
+    std::string ini_file;           ///< optional: [localizer], [refine.*], [coarse] sections
+    std::string method = "lookup";  ///< name of the method in run.ini and the eval report
+    std::string coarse_matches;     ///< optional: `query_time reference_time` file
+    std::string coarse_poses;       ///< optional: coarse poses (TUM / MRPT)
+    std::string sampling;           ///< optional override: "grid", "heatmap" or "auto"
+    int realtime = -1;              ///< -1: from the ini; 0: as fast as possible; 1: recorded rate
+    std::size_t max_frames = 0;     ///< stop after this many ceiling frames (0 = all)
+    bool progress = true;           ///< progress bar on stderr when it is a terminal
+};
+
+/// Runs the localiser over a rawlog. Returns the run's timing. Throws std::runtime_error (or
+/// a subclass) naming the file, record and reason for bad input; frames already processed stay
+/// written in the run folder.
+RunTiming runLocalization(const LocalizeRequest& request);
+
+}  // namespace lookup::localize

@@ -1,0 +1,140 @@
+#pragma once
+// The on-vehicle localiser (paper Fig. 3): per ceiling frame,
+//   coarse (forward-camera sequence match, or the odometry-propagated previous fix)
+//   -> references (nearest in time to the coarse match, the paper's interface; or nearest in
+//      space to the prediction while tracking)
+//   -> refinement (lookup::refine::Refiner: select, match, verify, estimate)
+//   -> acceptance, or fallback to the prediction / coarse pose, or "lost".
+// Observations are fed in time order as they arrive; nothing here reads files, so the same
+// class runs on a rawlog replay and on live sensors.
+
+#include <mrpt/obs/CObservation.h>
+#include <mrpt/obs/CObservationImage.h>
+#include <mrpt/poses/CPose2D.h>
+#include <mrpt/poses/CPosePDFGaussian.h>
+
+#include <deque>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "lookup/coarse/coarse_source.h"
+#include "lookup/database/reference_database.h"
+#include "lookup/localize/localizer_options.h"
+#include "lookup/refine/refiner.h"
+
+namespace lookup::localize {
+
+enum class FrameStatus {
+    Refined,   ///< refinement accepted (N_th, d_th)
+    Fallback,  ///< refinement rejected or impossible: predicted or coarse pose emitted
+    Lost,      ///< no pose at all (no coarse match, no recent fix)
+    Dropped,   ///< not processed: the localiser was behind real time
+};
+const char* toString(FrameStatus s);  ///< "refined", "fallback", "lost", "dropped"
+
+/// Milliseconds spent per stage on one frame.
+struct StageTimes {
+    double coarse_ms = 0;  ///< forward frames since the previous ceiling frame
+    double select_ms = 0;  ///< choosing and loading references
+    double refine_ms = 0;  ///< lookup::refine::Refiner (all attempts)
+    double total_ms = 0;
+};
+
+struct FrameResult {
+    double time_s = 0;
+    FrameStatus status = FrameStatus::Lost;
+    std::string reason;  ///< why not refined (empty when refined)
+    bool has_pose = false;
+    mrpt::poses::CPosePDFGaussian pose;  ///< emitted vehicle pose (x, y, yaw) with covariance
+    std::optional<mrpt::poses::CPose2D> coarse_pose;  ///< the coarse stage's pose, if any
+    std::string pose_source;                          ///< "refined", "prediction", "coarse"
+    double inlier_share = 0;                          ///< of the accepted / last refinement attempt
+    std::vector<std::size_t> reference_indices;       ///< database indices refined against
+    int refinement_attempts = 0;
+    StageTimes times;
+    /// The last refinement's full result (matches, inliers, per-stage times), for debug output.
+    std::shared_ptr<const refine::RefineResult> refinement;
+    mrpt::poses::CPose3D camera_on_vehicle;  ///< query ceiling camera mount
+};
+
+/// Heat maps written by lookup-train live in DB/<db.ini heatmaps_dir>/heat_<index:06>.png
+/// (16-bit PNG scaled to [0, 1]).
+std::string heatMapFileName(std::size_t index);
+/// The heat map of reference `index` as CV_32F in [0, 1], or an empty Mat when the database has
+/// none. Throws std::runtime_error naming the file when db.ini lists heat maps but one is
+/// missing.
+cv::Mat loadHeatMap(const database::ReferenceDatabase& db, std::size_t index);
+
+/// Builds the built-in coarse stage: SeqSLAM over the forward images of one survey traverse of
+/// the database (LocalizerOptions::coarse_traverse). Throws std::runtime_error when the
+/// database has no forward images.
+std::unique_ptr<coarse::CoarseSource> makeSequenceCoarseSource(
+    const database::ReferenceDatabase& db, const coarse::CoarseOptions& coarse_options,
+    const std::string& traverse);
+
+class Localizer {
+  public:
+    /// `db` must outlive the localiser. `coarse` may be null (then only tracking from a
+    /// known initial pose works: see setInitialPose).
+    Localizer(const database::ReferenceDatabase& db, const LocalizerOptions& options,
+              const refine::RefinerOptions& refiner_options,
+              std::unique_ptr<coarse::CoarseSource> coarse);
+    ~Localizer();
+
+    /// Feeds one observation (any kind, in time order). Returns a result for every ceiling
+    /// camera frame; forward images and odometry only update the internal state.
+    std::optional<FrameResult> process(const mrpt::obs::CObservation::Ptr& obs);
+
+    /// Records a ceiling frame that was skipped because processing fell behind.
+    FrameResult dropped(const mrpt::obs::CObservationImage& ceiling) const;
+
+    /// Optional known start pose (e.g. from the vehicle's last parked fix).
+    void setInitialPose(double time_s, const mrpt::poses::CPose2D& vehicle_pose);
+
+    const LocalizerOptions& options() const { return options_; }
+
+  private:
+    struct Prediction {
+        mrpt::poses::CPose2D pose;
+        double travelled_m = 0;  ///< odometry distance since the fix
+    };
+    FrameResult processCeiling(const mrpt::obs::CObservationImage& query);
+    void processForward(const mrpt::obs::CObservationImage& image);
+    void processOdometry(const mrpt::obs::CObservation& odo);
+    std::optional<Prediction> predict(double time_s) const;
+    std::optional<mrpt::poses::CPose2D> odometryAt(double time_s) const;
+    std::vector<std::size_t> referencesNearTime(double time_s) const;
+    std::vector<std::size_t> referencesNear(const mrpt::poses::CPose2D& pose) const;
+    std::vector<std::size_t> acquisitionCandidates(const mrpt::poses::CPose2D& pose) const;
+    std::shared_ptr<const refine::RefineResult> refineAgainst(
+        const mrpt::obs::CObservationImage& query, const std::vector<std::size_t>& refs,
+        const mrpt::poses::CPose2D& hint, FrameResult& out);
+    const refine::Reference& referenceView(std::size_t index);
+
+    const database::ReferenceDatabase& db_;
+    LocalizerOptions options_;
+    refine::Refiner refiner_;
+    std::unique_ptr<coarse::CoarseSource> coarse_;
+
+    std::optional<coarse::CoarseResult> last_coarse_;
+    double coarse_ms_since_frame_ = 0;
+    std::deque<std::pair<double, mrpt::poses::CPose2D>> odometry_;  ///< (time, odometry)
+    double last_odometry_time_ = -1;
+    double travelled_since_forward_ = 0;
+    std::optional<mrpt::poses::CPose2D> last_forward_odometry_;
+
+    struct Fix {
+        double time_s = 0;
+        mrpt::poses::CPose2D pose;
+    };
+    std::optional<Fix> last_fix_;
+
+    // Reference views with prepared pyramids, most recently used last (bounded).
+    std::map<std::size_t, refine::Reference> views_;
+    std::deque<std::size_t> view_order_;
+};
+
+}  // namespace lookup::localize

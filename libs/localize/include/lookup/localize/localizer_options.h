@@ -1,0 +1,47 @@
+#pragma once
+// Options of the on-vehicle localiser (paper Sec. III-E and the system schematic, Fig. 3).
+
+#include <mrpt/config/CLoadableOptions.h>
+
+#include <string>
+
+namespace lookup::localize {
+
+struct LocalizerOptions : public mrpt::config::CLoadableOptions {
+    std::string ceiling_camera_label = "CEILING_CAM";  ///< query ceiling images
+    std::string forward_camera_label = "FORWARD_CAM";  ///< query forward images (coarse stage)
+    std::string odometry_label = "ODOMETRY";           ///< optional wheel odometry
+
+    int references_per_query = 3;  ///< ceiling references refined against per frame
+    /// The paper's interface: references nearest in time to the coarse match's time stamp.
+    /// With tracking, references nearest in space to the predicted pose instead.
+    bool use_tracking = true;
+    /// A fix older than this (in time without a new fix) is not used to predict [s].
+    double max_tracking_gap_s = 1.0;
+    /// Acquisition (not tracking): also try references within this distance of the coarse
+    /// match, one by one, before giving up, since the SAD window covers only +-L_SR/2 [m].
+    double acquisition_radius_m = 4.0;
+    /// Spacing of the acquisition candidates along the surveyed route [m].
+    double acquisition_step_m = 0.5;
+    /// Survey traverse whose forward images feed the coarse matcher ("" = the one with the most
+    /// references). One traverse: several laterally offset ones would alias each other.
+    std::string coarse_traverse;
+
+    /// Replay at the recorded rate, dropping ceiling frames that the localiser cannot start
+    /// within max_latency_s of their arrival (what happens on the vehicle).
+    bool realtime = false;
+    double max_latency_s = 0.1;  ///< [s]
+
+    bool write_debug_images = false;  ///< flow overlays into results.rawlog
+    int debug_image_every = 10;       ///< one debug image every N frames
+
+    std::size_t image_cache_capacity = 64;  ///< reference images kept in memory
+
+    void loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
+                            const std::string& section) override;
+    void saveToConfigFile(mrpt::config::CConfigFileBase& target,
+                          const std::string& section) const override;
+    void check() const;
+};
+
+}  // namespace lookup::localize

@@ -1,0 +1,365 @@
+#include "lookup/localize/localizer.h"
+
+#include <mrpt/obs/CObservationOdometry.h>
+#include <mrpt/system/CTicTac.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <opencv2/imgcodecs.hpp>
+
+#include "lookup/coarse/coarse_localizer.h"
+#include "lookup/coarse/descriptor.h"
+
+namespace lookup::localize {
+
+const char* toString(FrameStatus s) {
+    switch (s) {
+        case FrameStatus::Refined:
+            return "refined";
+        case FrameStatus::Fallback:
+            return "fallback";
+        case FrameStatus::Lost:
+            return "lost";
+        case FrameStatus::Dropped:
+            return "dropped";
+    }
+    return "?";
+}
+
+namespace {
+
+mrpt::poses::CPose2D toPose2D(const mrpt::poses::CPose3D& p) {
+    return mrpt::poses::CPose2D(p.x(), p.y(), p.yaw());
+}
+
+mrpt::poses::CPosePDFGaussian gaussian(const mrpt::poses::CPose2D& mean, double sigma_xy_m,
+                                       double sigma_yaw_rad) {
+    mrpt::math::CMatrixDouble33 cov;
+    cov.setZero();
+    cov(0, 0) = cov(1, 1) = sigma_xy_m * sigma_xy_m;
+    cov(2, 2) = sigma_yaw_rad * sigma_yaw_rad;
+    return mrpt::poses::CPosePDFGaussian(mean, cov);
+}
+
+// The traverse holding the most references: the natural default for the coarse sequence.
+std::string largestTraverse(const database::ReferenceDatabase& db) {
+    std::map<std::string, std::size_t> counts;
+    for (const auto& r : db.references()) counts[r.traverse] += r.has_forward;
+    std::string best;
+    std::size_t best_count = 0;
+    for (const auto& [name, n] : counts) {
+        if (n > best_count) best = name, best_count = n;
+    }
+    return best;
+}
+
+// Coarse source that reports database reference indices instead of sequence indices.
+class DatabaseSequenceSource : public coarse::CoarseSource {
+  public:
+    DatabaseSequenceSource(std::unique_ptr<coarse::CoarseLocalizer> inner,
+                           std::vector<std::size_t> db_index)
+        : inner_(std::move(inner)), db_index_(std::move(db_index)) {}
+    coarse::CoarseResult locate(const coarse::CoarseQuery& query) override {
+        auto r = inner_->locate(query);
+        if (r.hasMatch()) r.reference_index = db_index_.at(r.reference_index);
+        return r;
+    }
+    std::string name() const override { return inner_->name(); }
+
+  private:
+    std::unique_ptr<coarse::CoarseLocalizer> inner_;
+    std::vector<std::size_t> db_index_;
+};
+
+}  // namespace
+
+cv::Mat loadHeatMap(const database::ReferenceDatabase& db, std::size_t index) {
+    const std::string& dir = db.info().heatmaps_dir;
+    if (dir.empty()) return {};
+    const std::string path = db.directory() + "/" + dir + "/" + heatMapFileName(index);
+    cv::Mat stored = cv::imread(path, cv::IMREAD_UNCHANGED);
+    if (stored.empty()) throw std::runtime_error(path + ": heat map listed in db.ini is missing");
+    cv::Mat heat;
+    stored.convertTo(heat, CV_32F, stored.depth() == CV_16U ? 1.0 / 65535 : 1.0 / 255);
+    return heat;
+}
+
+std::string heatMapFileName(std::size_t index) {
+    char name[32];
+    std::snprintf(name, sizeof name, "heat_%06zu.png", index);
+    return name;
+}
+
+std::unique_ptr<coarse::CoarseSource> makeSequenceCoarseSource(
+    const database::ReferenceDatabase& db, const coarse::CoarseOptions& coarse_options,
+    const std::string& traverse) {
+    const std::string chosen = traverse.empty() ? largestTraverse(db) : traverse;
+    auto sequence = std::make_shared<coarse::ReferenceDescriptors>(coarse_options);
+    std::vector<std::size_t> db_index;
+    for (std::size_t i : db.forwardSequence()) {
+        const auto& ref = db.reference(i);
+        if (ref.traverse != chosen) continue;
+        const cv::Mat image = db.forwardImage(i);
+        if (sequence->empty()) sequence->setImageSize(image.cols, image.rows);
+        sequence->add(ref.forward_time_s,
+                      coarse::computeDescriptor(mrpt::img::CImage(image, mrpt::img::SHALLOW_COPY),
+                                                coarse_options),
+                      ref.vehicle_pose);
+        db_index.push_back(i);
+    }
+    if (sequence->empty()) {
+        throw std::runtime_error(db.directory() + ": no forward images for traverse '" + chosen +
+                                 "': the coarse stage needs them (or give a coarse file)");
+    }
+    return std::make_unique<DatabaseSequenceSource>(
+        std::make_unique<coarse::CoarseLocalizer>(sequence, coarse_options), std::move(db_index));
+}
+
+Localizer::Localizer(const database::ReferenceDatabase& db, const LocalizerOptions& options,
+                     const refine::RefinerOptions& refiner_options,
+                     std::unique_ptr<coarse::CoarseSource> coarse)
+    : db_(db), options_(options), refiner_(refiner_options), coarse_(std::move(coarse)) {
+    options_.check();
+}
+
+Localizer::~Localizer() = default;
+
+void Localizer::setInitialPose(double time_s, const mrpt::poses::CPose2D& vehicle_pose) {
+    last_fix_ = Fix{time_s, vehicle_pose};
+}
+
+std::optional<FrameResult> Localizer::process(const mrpt::obs::CObservation::Ptr& obs) {
+    if (!obs) return std::nullopt;
+    if (obs->sensorLabel == options_.odometry_label) {
+        processOdometry(*obs);
+        return std::nullopt;
+    }
+    const auto* image = dynamic_cast<const mrpt::obs::CObservationImage*>(obs.get());
+    if (image == nullptr) return std::nullopt;
+    if (obs->sensorLabel == options_.forward_camera_label) {
+        processForward(*image);
+        return std::nullopt;
+    }
+    if (obs->sensorLabel == options_.ceiling_camera_label) return processCeiling(*image);
+    return std::nullopt;
+}
+
+FrameResult Localizer::dropped(const mrpt::obs::CObservationImage& ceiling) const {
+    FrameResult r;
+    r.time_s = mrpt::Clock::toDouble(ceiling.timestamp);
+    r.status = FrameStatus::Dropped;
+    r.reason = "processing behind real time";
+    return r;
+}
+
+void Localizer::processOdometry(const mrpt::obs::CObservation& obs) {
+    const auto* odo = dynamic_cast<const mrpt::obs::CObservationOdometry*>(&obs);
+    if (odo == nullptr) return;
+    const double t = mrpt::Clock::toDouble(odo->timestamp);
+    if (t <= last_odometry_time_) return;  // out of order: ignore rather than corrupt the track
+    if (!odometry_.empty()) {
+        travelled_since_forward_ += (odo->odometry - odometry_.back().second).translation().norm();
+    }
+    last_odometry_time_ = t;
+    odometry_.emplace_back(t, odo->odometry);
+    // Keep what a prediction can need: back to the last fix (bounded by the tracking gap).
+    const double keep_from = t - 2 * options_.max_tracking_gap_s - 1.0;
+    while (odometry_.size() > 2 && odometry_[1].first < keep_from) odometry_.pop_front();
+}
+
+std::optional<mrpt::poses::CPose2D> Localizer::odometryAt(double t) const {
+    if (odometry_.empty() || t < odometry_.front().first || t > odometry_.back().first + 0.2) {
+        return std::nullopt;
+    }
+    auto it = std::lower_bound(odometry_.begin(), odometry_.end(), t,
+                               [](const auto& e, double v) { return e.first < v; });
+    if (it == odometry_.end()) return odometry_.back().second;  // short extrapolation gap
+    if (it == odometry_.begin()) return it->second;
+    const auto& [t1, p1] = *it;
+    const auto& [t0, p0] = *std::prev(it);
+    const double a = (t - t0) / (t1 - t0);
+    const mrpt::poses::CPose2D d = p1 - p0;
+    return p0 + mrpt::poses::CPose2D(a * d.x(), a * d.y(), a * d.phi());
+}
+
+std::optional<Localizer::Prediction> Localizer::predict(double t) const {
+    if (!last_fix_ || t - last_fix_->time_s > options_.max_tracking_gap_s) return std::nullopt;
+    const auto odo_now = odometryAt(t), odo_fix = odometryAt(last_fix_->time_s);
+    if (!odo_now || !odo_fix) {
+        // Without odometry the previous fix is the prediction (the vehicle moved < gap·speed).
+        return Prediction{last_fix_->pose, 0.0};
+    }
+    const mrpt::poses::CPose2D delta = *odo_now - *odo_fix;
+    return Prediction{last_fix_->pose + delta, delta.translation().norm()};
+}
+
+void Localizer::processForward(const mrpt::obs::CObservationImage& image) {
+    if (!coarse_) return;
+    mrpt::system::CTicTac timer;
+    coarse::CoarseQuery q;
+    q.time_s = mrpt::Clock::toDouble(image.timestamp);
+    q.forward_image = &image.image;
+    if (!odometry_.empty()) {
+        if (last_forward_odometry_) q.travelled_m = travelled_since_forward_;
+        last_forward_odometry_ = odometry_.back().second;
+        travelled_since_forward_ = 0;
+    }
+    last_coarse_ = coarse_->locate(q);
+    coarse_ms_since_frame_ += 1e3 * timer.Tac();
+}
+
+std::vector<std::size_t> Localizer::referencesNearTime(double time_s) const {
+    std::vector<std::size_t> out;
+    for (const auto& n : db_.nearestInTime(time_s, options_.references_per_query)) {
+        out.push_back(n.index);
+    }
+    return out;
+}
+
+std::vector<std::size_t> Localizer::referencesNear(const mrpt::poses::CPose2D& pose) const {
+    std::vector<std::size_t> out;
+    for (const auto& n :
+         db_.nearest(mrpt::math::TPoint2D(pose.x(), pose.y()), options_.references_per_query)) {
+        out.push_back(n.index);
+    }
+    return out;
+}
+
+std::vector<std::size_t> Localizer::acquisitionCandidates(const mrpt::poses::CPose2D& pose) const {
+    // Nearest first, keeping candidates at least acquisition_step_m from each other.
+    std::vector<std::size_t> out;
+    for (const auto& n : db_.withinRadius(mrpt::math::TPoint2D(pose.x(), pose.y()),
+                                          options_.acquisition_radius_m)) {
+        const auto& p = db_.reference(n.index).vehicle_pose;
+        bool far_enough = true;
+        for (std::size_t j : out) {
+            const auto& q = db_.reference(j).vehicle_pose;
+            if (std::hypot(p.x() - q.x(), p.y() - q.y()) < options_.acquisition_step_m) {
+                far_enough = false;
+                break;
+            }
+        }
+        if (far_enough) out.push_back(n.index);
+    }
+    return out;
+}
+
+const refine::Reference& Localizer::referenceView(std::size_t index) {
+    auto it = views_.find(index);
+    if (it != views_.end()) {
+        view_order_.erase(std::find(view_order_.begin(), view_order_.end(), index));
+        view_order_.push_back(index);
+        return it->second;
+    }
+    const auto& ref = db_.reference(index);
+    refine::Reference view;
+    view.id = static_cast<std::int64_t>(index);
+    view.timestamp = mrpt::Clock::fromDouble(ref.time_s);
+    view.image = db_.ceilingImage(index).clone();
+    view.camera = db_.info().ceiling_camera;
+    view.vehicle_in_map = ref.vehicle_pose;
+    view.camera_on_vehicle = ref.ceiling_camera_mount;
+    view.heat_map = loadHeatMap(db_, index);
+    view.prepare(refiner_.options().matcher.pyramid_levels);
+    while (views_.size() >= options_.image_cache_capacity) {
+        views_.erase(view_order_.front());
+        view_order_.pop_front();
+    }
+    view_order_.push_back(index);
+    return views_.emplace(index, std::move(view)).first->second;
+}
+
+std::shared_ptr<const refine::RefineResult> Localizer::refineAgainst(
+    const mrpt::obs::CObservationImage& query, const std::vector<std::size_t>& refs,
+    const mrpt::poses::CPose2D& hint, FrameResult& out) {
+    mrpt::system::CTicTac timer;
+    std::vector<refine::Reference> views;
+    for (std::size_t i : refs) views.push_back(referenceView(i));
+    out.times.select_ms += 1e3 * timer.Tac();
+
+    timer.Tic();
+    refine::CoarseHint coarse_hint;
+    coarse_hint.vehicle_pose = mrpt::poses::CPose3D(hint.x(), hint.y(), 0, hint.phi(), 0, 0);
+    if (db_.info().ceiling_height_m > 0) coarse_hint.ceiling_height_m = db_.info().ceiling_height_m;
+    auto result =
+        std::make_shared<const refine::RefineResult>(refiner_.refine(query, coarse_hint, views));
+    out.times.refine_ms += 1e3 * timer.Tac();
+    ++out.refinement_attempts;
+    out.reference_indices = refs;
+    out.refinement = result;
+    out.inlier_share = result->inlier_share;
+    return result;
+}
+
+FrameResult Localizer::processCeiling(const mrpt::obs::CObservationImage& query) {
+    mrpt::system::CTicTac total;
+    FrameResult out;
+    out.time_s = mrpt::Clock::toDouble(query.timestamp);
+    out.camera_on_vehicle = query.cameraPose;
+    out.times.coarse_ms = coarse_ms_since_frame_;
+    coarse_ms_since_frame_ = 0;
+
+    // 1. Coarse: the forward-camera match (paper) and the odometry-propagated previous fix.
+    std::optional<std::size_t> coarse_ref;
+    if (last_coarse_ && last_coarse_->usable()) {
+        coarse_ref = last_coarse_->reference_index;
+        out.coarse_pose = toPose2D(db_.reference(*coarse_ref).vehicle_pose);
+    }
+    const auto prediction = options_.use_tracking ? predict(out.time_s) : std::nullopt;
+
+    // 2-4. References, refinement, acceptance.
+    std::shared_ptr<const refine::RefineResult> result;
+    if (prediction) {
+        result = refineAgainst(query, referencesNear(prediction->pose), prediction->pose, out);
+    }
+    if ((!result || !result->accepted()) && coarse_ref) {
+        const auto& matched = db_.reference(*coarse_ref);
+        result = refineAgainst(query, referencesNearTime(matched.time_s), *out.coarse_pose, out);
+        if (!result->accepted() && options_.acquisition_radius_m > 0) {
+            // The SAD window covers only +-L_SR/2 pixels: try references around the coarse
+            // match one at a time, then refine against the neighbours of the first fix.
+            for (std::size_t candidate : acquisitionCandidates(*out.coarse_pose)) {
+                const auto cand_pose = toPose2D(db_.reference(candidate).vehicle_pose);
+                auto single = refineAgainst(query, {candidate}, cand_pose, out);
+                if (!single->accepted()) continue;
+                const mrpt::poses::CPose2D fix = single->pose.mean;
+                result = refineAgainst(query, referencesNear(fix), fix, out);
+                if (!result->accepted()) result = single;
+                break;
+            }
+        }
+    }
+
+    if (result && result->accepted()) {
+        out.status = FrameStatus::Refined;
+        out.pose_source = "refined";
+        out.has_pose = true;
+        out.pose = result->pose;
+        last_fix_ = Fix{out.time_s, out.pose.mean};
+    } else {
+        out.status = FrameStatus::Fallback;
+        out.reason = result ? result->reason : "no references to refine against";
+        const auto& acc = refiner_.options().acceptance;
+        if (prediction) {
+            out.has_pose = true;
+            out.pose_source = "prediction";
+            // Dead reckoning since the last fix: a few percent of the distance travelled.
+            out.pose = gaussian(prediction->pose, 0.05 + 0.05 * prediction->travelled_m,
+                                mrpt::DEG2RAD(1.0 + 2.0 * prediction->travelled_m));
+        } else if (out.coarse_pose) {
+            out.has_pose = true;
+            out.pose_source = "coarse";
+            out.pose = gaussian(*out.coarse_pose, acc.fallback_sigma_xy_m,
+                                mrpt::DEG2RAD(acc.fallback_sigma_yaw_deg));
+        } else {
+            out.status = FrameStatus::Lost;
+            out.reason = last_coarse_ ? "coarse stage not confident: " + last_coarse_->reason
+                                      : "no coarse match yet";
+        }
+    }
+    out.times.total_ms = 1e3 * total.Tac() + out.times.coarse_ms;
+    return out;
+}
+
+}  // namespace lookup::localize

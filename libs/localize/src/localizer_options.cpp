@@ -1,0 +1,65 @@
+#include "lookup/localize/localizer_options.h"
+
+#include "lookup/common/config.h"
+
+namespace lookup::localize {
+
+void LocalizerOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
+                                          const std::string& section) {
+    const common::IniSection s(source, section, "localizer options");
+    s.rejectUnknownKeys({"ceiling_camera_label", "forward_camera_label", "odometry_label",
+                         "references_per_query", "use_tracking", "max_tracking_gap_s",
+                         "acquisition_radius_m", "acquisition_step_m", "coarse_traverse",
+                         "realtime", "max_latency_s", "write_debug_images", "debug_image_every",
+                         "image_cache_capacity"});
+    ceiling_camera_label = s.getString("ceiling_camera_label", ceiling_camera_label);
+    forward_camera_label = s.getString("forward_camera_label", forward_camera_label);
+    odometry_label = s.getString("odometry_label", odometry_label);
+    references_per_query = s.getInt("references_per_query", references_per_query);
+    use_tracking = s.getBool("use_tracking", use_tracking);
+    max_tracking_gap_s = s.getDouble("max_tracking_gap_s", max_tracking_gap_s);
+    acquisition_radius_m = s.getDouble("acquisition_radius_m", acquisition_radius_m);
+    acquisition_step_m = s.getDouble("acquisition_step_m", acquisition_step_m);
+    coarse_traverse = s.getString("coarse_traverse", coarse_traverse);
+    realtime = s.getBool("realtime", realtime);
+    max_latency_s = s.getDouble("max_latency_s", max_latency_s);
+    write_debug_images = s.getBool("write_debug_images", write_debug_images);
+    debug_image_every = s.getInt("debug_image_every", debug_image_every);
+    image_cache_capacity = static_cast<std::size_t>(
+        s.getInt("image_cache_capacity", static_cast<int>(image_cache_capacity)));
+    check();
+}
+
+void LocalizerOptions::saveToConfigFile(mrpt::config::CConfigFileBase& target,
+                                        const std::string& section) const {
+    target.write(section, "ceiling_camera_label", ceiling_camera_label);
+    target.write(section, "forward_camera_label", forward_camera_label);
+    target.write(section, "odometry_label", odometry_label);
+    target.write(section, "references_per_query", references_per_query);
+    target.write(section, "use_tracking", use_tracking);
+    target.write(section, "max_tracking_gap_s", max_tracking_gap_s);
+    target.write(section, "acquisition_radius_m", acquisition_radius_m);
+    target.write(section, "acquisition_step_m", acquisition_step_m);
+    target.write(section, "coarse_traverse", coarse_traverse);
+    target.write(section, "realtime", realtime);
+    target.write(section, "max_latency_s", max_latency_s);
+    target.write(section, "write_debug_images", write_debug_images);
+    target.write(section, "debug_image_every", debug_image_every);
+    target.write(section, "image_cache_capacity", static_cast<int>(image_cache_capacity));
+}
+
+void LocalizerOptions::check() const {
+    common::OptionsCheck c("localizer");
+    c.require(!ceiling_camera_label.empty(), "ceiling_camera_label", "non-empty");
+    c.require(references_per_query >= 1, "references_per_query", ">= 1");
+    c.require(max_tracking_gap_s > 0, "max_tracking_gap_s", "> 0");
+    c.require(acquisition_radius_m >= 0, "acquisition_radius_m", ">= 0");
+    c.require(acquisition_step_m > 0, "acquisition_step_m", "> 0");
+    c.require(max_latency_s > 0, "max_latency_s", "> 0");
+    c.require(debug_image_every >= 1, "debug_image_every", ">= 1");
+    c.require(image_cache_capacity >= static_cast<std::size_t>(references_per_query),
+              "image_cache_capacity", ">= references_per_query");
+    c.throwIfFailed();
+}
+
+}  // namespace lookup::localize
