@@ -10,7 +10,11 @@ namespace lookup::coarse {
 
 Descriptor computeDescriptor(const mrpt::img::CImage& image, const CoarseOptions& options) {
     // Externally stored images report isEmpty() until loaded (MRPT 2.5): load, then look.
-    if (image.isExternallyStored()) image.forceLoad();
+    if (image.isExternallyStored()) {
+        image.forceLoad();
+    } else if (image.isEmpty()) {
+        throw std::invalid_argument("computeDescriptor: empty image");
+    }
     const cv::Mat& input = image.asCvMatRef();
     if (input.empty()) throw std::invalid_argument("computeDescriptor: empty image");
     cv::Mat grey;
