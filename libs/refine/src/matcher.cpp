@@ -165,8 +165,11 @@ PointMatch matchOne(const ImagePyramid& ref, const ImagePyramid& qry, cv::Point 
     const int r = o.search_range_px / 2;
     // Exhaustive search on the top level over the window scaled down (rounded outwards).
     const int scale = 1 << top;
-    const Range window_x{floorDiv(p.x - r, scale), ceilDiv(p.x + r, scale)};
-    const Range window_y{floorDiv(p.y - r, scale), ceilDiv(p.y + r, scale)};
+    // One extra coarse pixel each side: a peak just inside the full-resolution window may
+    // round onto the scaled border. Only level 0 judges the true window border.
+    const int pad = top > 0 ? 1 : 0;
+    const Range window_x{floorDiv(p.x - r, scale) - pad, ceilDiv(p.x + r, scale) + pad};
+    const Range window_y{floorDiv(p.y - r, scale) - pad, ceilDiv(p.y + r, scale) + pad};
     LevelSearch level;
     if (!level.init(ref.levels[top], qry.levels[top], cv::Point(c.x >> top, c.y >> top),
                     o.patch_px >> top, simd)) {
@@ -176,7 +179,8 @@ PointMatch matchOne(const ImagePyramid& ref, const ImagePyramid& qry, cv::Point 
     if (rx.empty() || ry.empty()) return m;
     Surface surface = level.compute(rx, ry);
     cv::Point best = argMin(surface);
-    if (onBorder(best, rx, ry)) {
+    // On coarse levels the image limits are rounded, so only level 0 judges them.
+    if (top == 0 ? onBorder(best, rx, ry) : onBorder(best, window_x, window_y)) {
         m.status = MatchStatus::BorderPeak;
         return m;
     }
@@ -202,8 +206,9 @@ PointMatch matchOne(const ImagePyramid& ref, const ImagePyramid& qry, cv::Point 
     // the local border but not on the window's (a coarse estimate may be off by a little more).
     for (int k = top - 1; k >= 0; --k) {
         const int s = 1 << k;
-        const Range wx{floorDiv(p.x - r, s), ceilDiv(p.x + r, s)};
-        const Range wy{floorDiv(p.y - r, s), ceilDiv(p.y + r, s)};
+        const int pad_k = k > 0 ? 1 : 0;
+        const Range wx{floorDiv(p.x - r, s) - pad_k, ceilDiv(p.x + r, s) + pad_k};
+        const Range wy{floorDiv(p.y - r, s) - pad_k, ceilDiv(p.y + r, s) + pad_k};
         if (!level.init(ref.levels[k], qry.levels[k], cv::Point(c.x >> k, c.y >> k),
                         o.patch_px >> k, simd)) {
             return m;
@@ -224,7 +229,7 @@ PointMatch matchOne(const ImagePyramid& ref, const ImagePyramid& qry, cv::Point 
             if (!(moved_x || moved_y) || iteration >= 8) break;
             centre = best;
         }
-        if (onBorder(best, lx, ly) || onBorder(best, rx, ry)) {
+        if (k == 0 && (onBorder(best, lx, ly) || onBorder(best, rx, ry))) {
             m.status = MatchStatus::BorderPeak;
             return m;
         }

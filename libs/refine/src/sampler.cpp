@@ -44,20 +44,18 @@ std::vector<cv::Point2f> heatMapPoints(const cv::Mat& heat_map, int count, doubl
     double lo = 0.0;
     cv::minMaxLoc(map, &lo);
     if (lo < 0.0) map -= lo;  // damping by a factor needs non-negative values
-    cv::Mat taken = cv::Mat::zeros(map.size(), CV_8UC1);
     const int half = damping_side_px / 2;
-    const int max_rounds = count * 64;  // a peaky map may choose the same pixel a few times
-    for (int round = 0; round < max_rounds && int(points.size()) < count; ++round) {
+    for (int i = 0; i < count; ++i) {
         cv::Point best;
-        cv::minMaxLoc(map, nullptr, nullptr, nullptr, &best);
-        if (!taken.at<std::uint8_t>(best)) {
-            taken.at<std::uint8_t>(best) = 1;
-            points.emplace_back(float(best.x + margin_px), float(best.y + margin_px));
-        }
+        double value = 0.0;
+        cv::minMaxLoc(map, nullptr, &value, nullptr, &best);
+        if (value < 0.0) break;  // every pixel taken
+        points.emplace_back(float(best.x + margin_px), float(best.y + margin_px));
         const cv::Rect hood =
             cv::Rect(best.x - half, best.y - half, damping_side_px, damping_side_px) &
             cv::Rect(0, 0, map.cols, map.rows);
         map(hood) *= damping_ratio;
+        map.at<float>(best) = -1.0f;  // chosen: never again (values are >= 0)
     }
     return points;
 }

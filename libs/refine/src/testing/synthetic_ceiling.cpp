@@ -2,7 +2,7 @@
 
 #include <opencv2/imgproc.hpp>
 
-namespace lookup::refine::testing {
+namespace lookup::refine::synthetic {
 
 cv::Mat makeNoiseTexture(cv::Size size, std::uint64_t seed, int octaves) {
     cv::RNG rng(seed);
@@ -76,4 +76,4 @@ Reference SyntheticCeiling::reference(std::int64_t id, const mrpt::img::TCamera&
     return r;
 }
 
-}  // namespace lookup::refine::testing
+}  // namespace lookup::refine::synthetic

@@ -11,7 +11,7 @@
 
 #include "lookup/refine/types.h"
 
-namespace lookup::refine::testing {
+namespace lookup::refine::synthetic {
 
 /// Multi-scale noise: octaves of uniform noise upsampled (bicubic) and summed, 8-bit.
 cv::Mat makeNoiseTexture(cv::Size size, std::uint64_t seed, int octaves = 6);
@@ -42,4 +42,4 @@ struct SyntheticCeiling {
                         const mrpt::poses::CPose3D& vehicle_in_map) const;
 };
 
-}  // namespace lookup::refine::testing
+}  // namespace lookup::refine::synthetic

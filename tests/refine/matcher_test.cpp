@@ -1,0 +1,162 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "lookup/refine/geometry.h"
+#include "lookup/refine/matcher.h"
+#include "lookup/refine/sampler.h"
+#include "lookup/refine/testing/synthetic_ceiling.h"
+
+using namespace lookup::refine;
+using mrpt::poses::CPose3D;
+
+namespace {
+
+struct Pair {
+    cv::Mat ref, qry;
+    cv::Matx33d H;  // true reference -> query pixel map
+};
+
+// Reference at the origin, query moved by (dx, dy) m and `yaw` rad; camera 3.5 m below the
+// ceiling, f = 250 px: 71.4 px per metre.
+Pair makePair(double dx, double dy, double yaw = 0.0, std::uint64_t seed = 1) {
+    static const auto ceiling = synthetic::SyntheticCeiling::make(5.0, 10.0, 0.01, seed);
+    const auto cam = synthetic::makeCamera(320, 240, 250);
+    const CPose3D on_vehicle = synthetic::ceilingCameraOnVehicle();
+    const CPose3D ref_cam = CPose3D() + on_vehicle;
+    const CPose3D qry_cam = CPose3D(dx, dy, 0, yaw, 0, 0) + on_vehicle;
+    Pinhole p;
+    pinholeFrom(cam, p, nullptr);
+    return {ceiling.render(cam, ref_cam), ceiling.render(cam, qry_cam),
+            ceilingHomography(p, ref_cam, p, qry_cam, ceiling.height_m)};
+}
+
+cv::Point2d apply(const cv::Matx33d& H, cv::Point2f p) {
+    const cv::Vec3d v = H * cv::Vec3d(p.x, p.y, 1.0);
+    return {v[0] / v[2], v[1] / v[2]};
+}
+
+}  // namespace
+
+TEST(Matcher, RecoversSubpixelOffsetToATenthOfAPixel) {
+    // 0.1 m, -0.07 m: (-7.14, +5.0) px, fractional parts included.
+    const Pair pair = makePair(0.1, -0.07);
+    MatcherOptions o;
+    const auto points = gridPoints(pair.ref.size(), 24, o.patch_px / 2);
+    const auto levels = effectivePyramidLevels(o);
+    const auto matches = matchPoints(ImagePyramid::build(pair.ref, levels),
+                                     ImagePyramid::build(pair.qry, levels), points, {}, o);
+    ASSERT_EQ(matches.size(), points.size());
+    double sum = 0;
+    int n = 0;
+    for (const auto& m : matches) {
+        ASSERT_TRUE(m.matched()) << toString(m.status) << " at " << m.reference_px;
+        const cv::Point2d truth = apply(pair.H, m.reference_px);
+        const double err = cv::norm(cv::Point2d(m.query_px) - truth);
+        EXPECT_LT(err, 0.25) << "at " << m.reference_px;
+        sum += err;
+        ++n;
+    }
+    EXPECT_LT(sum / n, 0.1) << "mean sub-pixel error";
+}
+
+TEST(Matcher, CoarseToFineEqualsExhaustiveOnTexture) {
+    for (const auto& [search, patch] : {std::pair{40, 40}, std::pair{70, 60}}) {
+        const Pair pair = makePair(0.15, 0.2, 0.03);
+        MatcherOptions fast;
+        fast.search_range_px = search;
+        fast.patch_px = patch;
+        MatcherOptions exhaustive = fast;
+        exhaustive.pyramid_levels = 0;
+        ASSERT_GT(effectivePyramidLevels(fast), 0);
+        const auto points = gridPoints(pair.ref.size(), 40, patch / 2);
+        const ImagePyramid r = ImagePyramid::build(pair.ref, 2),
+                           q = ImagePyramid::build(pair.qry, 2);
+        const auto a = matchPoints(r, q, points, {}, fast);
+        const auto b = matchPoints(r, q, points, {}, exhaustive);
+        int matched = 0;
+        for (std::size_t i = 0; i < points.size(); ++i) {
+            if (!b[i].matched()) continue;
+            ++matched;
+            ASSERT_TRUE(a[i].matched()) << "point " << points[i] << ": " << toString(a[i].status)
+                                        << " exhaustive " << b[i].query_px;
+            EXPECT_EQ(a[i].query_px, b[i].query_px) << "point " << points[i];
+        }
+        EXPECT_GE(matched, int(points.size()) * 3 / 4) << "L_SR " << search;
+    }
+}
+
+TEST(Matcher, SimdAndScalarGiveIdenticalMatches) {
+    const Pair pair = makePair(-0.12, 0.05, -0.02);
+    MatcherOptions o;
+    o.search_range_px = 70;
+    o.patch_px = 60;
+    const auto points = gridPoints(pair.ref.size(), 24, 30);
+    const ImagePyramid r = ImagePyramid::build(pair.ref, 2), q = ImagePyramid::build(pair.qry, 2);
+    const auto simd = matchPoints(r, q, points, {}, o, bestSimdLevel());
+    const auto scalar = matchPoints(r, q, points, {}, o, SimdLevel::Scalar);
+    for (std::size_t i = 0; i < points.size(); ++i) {
+        EXPECT_EQ(simd[i].status, scalar[i].status);
+        EXPECT_EQ(simd[i].query_px, scalar[i].query_px);
+        EXPECT_EQ(simd[i].quality, scalar[i].quality);
+        EXPECT_EQ(simd[i].sad_per_px, scalar[i].sad_per_px);
+    }
+}
+
+TEST(Matcher, PredictedOffsetReachesMotionBeyondTheWindow) {
+    // 0.8 m = 57 px: outside +-20 px, found when the window is centred on the prediction.
+    const Pair pair = makePair(0.8, 0.0);
+    MatcherOptions o;
+    const auto points = gridPoints(pair.ref.size(), 12, 20);
+    const ImagePyramid r = ImagePyramid::build(pair.ref, 2), q = ImagePyramid::build(pair.qry, 2);
+    std::vector<cv::Point2f> predicted;
+    for (const auto& p : points) {
+        const cv::Point2d t = apply(pair.H, p);
+        predicted.emplace_back(float(t.x - p.x + 6.0), float(t.y - p.y - 4.0));  // 7 px off
+    }
+    const auto blind = matchPoints(r, q, points, {}, o);
+    const auto guided = matchPoints(r, q, points, predicted, o);
+    int good_blind = 0, good_guided = 0;
+    for (std::size_t i = 0; i < points.size(); ++i) {
+        const cv::Point2d t = apply(pair.H, points[i]);
+        if (blind[i].matched() && cv::norm(cv::Point2d(blind[i].query_px) - t) < 0.5) ++good_blind;
+        if (guided[i].matched() && cv::norm(cv::Point2d(guided[i].query_px) - t) < 0.5) {
+            ++good_guided;
+        }
+    }
+    EXPECT_EQ(good_blind, 0);
+    EXPECT_GE(good_guided, 9);  // points whose true match left the query image are refused
+}
+
+TEST(Matcher, BlankImageGivesLowTextureNotMatches) {
+    const cv::Mat blank(240, 320, CV_8UC1, cv::Scalar(128));
+    const ImagePyramid b = ImagePyramid::build(blank, 2);
+    const auto matches = matchPoints(b, b, gridPoints(blank.size(), 12, 20), {}, MatcherOptions());
+    for (const auto& m : matches) EXPECT_EQ(m.status, MatchStatus::LowTexture);
+}
+
+TEST(Matcher, PointsOnTheBorderAreRefusedWithAReason) {
+    const Pair pair = makePair(0.0, 0.0);
+    const ImagePyramid r = ImagePyramid::build(pair.ref, 2), q = ImagePyramid::build(pair.qry, 2);
+    const std::vector<cv::Point2f> border = {{0, 0},     {319, 120}, {5, 5},
+                                             {160, 239}, {-50, 10},  {std::nanf(""), 3}};
+    for (const auto& m : matchPoints(r, q, border, {}, MatcherOptions())) {
+        EXPECT_EQ(m.status, MatchStatus::OutOfImage) << m.reference_px;
+    }
+    // A window running off the query: the best lies on the clipped border.
+    MatcherOptions o;
+    const auto m = matchPoints(r, q, {{20, 120}}, {{-30, 0}}, o);
+    EXPECT_FALSE(m[0].matched());
+}
+
+TEST(Matcher, MismatchedImageGivesInconsistentOrRejectedMatches) {
+    const Pair pair = makePair(0.0, 0.0);
+    const cv::Mat other = synthetic::makeNoiseTexture(pair.ref.size(), 99);
+    const ImagePyramid r = ImagePyramid::build(pair.ref, 2), q = ImagePyramid::build(other, 2);
+    const auto points = gridPoints(pair.ref.size(), 24, 20);
+    int consistent = 0;
+    for (const auto& m : matchPoints(r, q, points, {}, MatcherOptions())) {
+        if (m.matched() && cv::norm(m.query_px - m.reference_px) < 1.0) ++consistent;
+    }
+    EXPECT_LE(consistent, 2);
+}
