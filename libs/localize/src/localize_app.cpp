@@ -57,7 +57,8 @@ RunTiming runLocalization(const LocalizeRequest& req) {
     } else {
         coarse = makeSequenceCoarseSource(db, coarse_options, options.coarse_traverse);
     }
-    Localizer localizer(db, options, refiner_options, std::move(coarse));
+    const bool coarse_from_files = !req.coarse_matches.empty() || !req.coarse_poses.empty();
+    Localizer localizer(db, options, refiner_options, std::move(coarse), !coarse_from_files);
 
     mrpt::config::CConfigFileMemory used;
     used.write("run", "method", req.method);

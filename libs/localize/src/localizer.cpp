@@ -118,8 +118,12 @@ std::unique_ptr<coarse::CoarseSource> makeSequenceCoarseSource(
 
 Localizer::Localizer(const database::ReferenceDatabase& db, const LocalizerOptions& options,
                      const refine::RefinerOptions& refiner_options,
-                     std::unique_ptr<coarse::CoarseSource> coarse)
-    : db_(db), options_(options), refiner_(refiner_options), coarse_(std::move(coarse)) {
+                     std::unique_ptr<coarse::CoarseSource> coarse, bool coarse_uses_images)
+    : db_(db),
+      options_(options),
+      refiner_(refiner_options),
+      coarse_(std::move(coarse)),
+      coarse_uses_images_(coarse_uses_images) {
     options_.check();
 }
 
@@ -195,7 +199,7 @@ std::optional<Localizer::Prediction> Localizer::predict(double t) const {
 }
 
 void Localizer::processForward(const mrpt::obs::CObservationImage& image) {
-    if (!coarse_) return;
+    if (!coarse_ || !coarse_uses_images_) return;
     mrpt::system::CTicTac timer;
     coarse::CoarseQuery q;
     q.time_s = mrpt::Clock::toDouble(image.timestamp);
@@ -207,6 +211,35 @@ void Localizer::processForward(const mrpt::obs::CObservationImage& image) {
     }
     last_coarse_ = coarse_->locate(q);
     coarse_ms_since_frame_ += 1e3 * timer.Tac();
+}
+
+std::optional<Localizer::CoarseFix> Localizer::coarseFix() const {
+    if (!last_coarse_) return std::nullopt;
+    const auto& c = *last_coarse_;
+    using coarse::CoarseStatus;
+    if (c.status != CoarseStatus::kTracking && c.status != CoarseStatus::kGlobal &&
+        c.status != CoarseStatus::kExternal) {
+        return std::nullopt;
+    }
+    // The paper's interface is the matched reference time stamp: the ceiling references taken
+    // nearest in time to it. A coarse source without references may give only a pose.
+    std::optional<double> reference_time;
+    if (c.reference_index != coarse::CoarseResult::kNone) {
+        reference_time = db_.reference(c.reference_index).time_s;
+    } else if (std::isfinite(c.reference_time_s)) {
+        reference_time = c.reference_time_s;
+    }
+    if (reference_time) {
+        const auto nearest = db_.nearestInTime(*reference_time, 1);
+        if (nearest.empty()) return std::nullopt;
+        return CoarseFix{toPose2D(db_.reference(nearest.front().index).vehicle_pose),
+                         referencesNearTime(*reference_time)};
+    }
+    if (c.coarse_pose) {
+        const auto pose = toPose2D(*c.coarse_pose);
+        return CoarseFix{pose, referencesNear(pose)};
+    }
+    return std::nullopt;
 }
 
 std::vector<std::size_t> Localizer::referencesNearTime(double time_s) const {
@@ -301,11 +334,13 @@ FrameResult Localizer::processCeiling(const mrpt::obs::CObservationImage& query)
     coarse_ms_since_frame_ = 0;
 
     // 1. Coarse: the forward-camera match (paper) and the odometry-propagated previous fix.
-    std::optional<std::size_t> coarse_ref;
-    if (last_coarse_ && last_coarse_->usable()) {
-        coarse_ref = last_coarse_->reference_index;
-        out.coarse_pose = toPose2D(db_.reference(*coarse_ref).vehicle_pose);
+    if (!coarse_uses_images_ && coarse_) {
+        coarse::CoarseQuery q;
+        q.time_s = out.time_s;
+        last_coarse_ = coarse_->locate(q);
     }
+    const auto coarse_fix = coarseFix();
+    if (coarse_fix) out.coarse_pose = coarse_fix->pose;
     const auto prediction = options_.use_tracking ? predict(out.time_s) : std::nullopt;
 
     // 2-4. References, refinement, acceptance.
@@ -313,9 +348,8 @@ FrameResult Localizer::processCeiling(const mrpt::obs::CObservationImage& query)
     if (prediction) {
         result = refineAgainst(query, referencesNear(prediction->pose), prediction->pose, out);
     }
-    if ((!result || !result->accepted()) && coarse_ref) {
-        const auto& matched = db_.reference(*coarse_ref);
-        result = refineAgainst(query, referencesNearTime(matched.time_s), *out.coarse_pose, out);
+    if ((!result || !result->accepted()) && coarse_fix) {
+        result = refineAgainst(query, coarse_fix->references, coarse_fix->pose, out);
         if (!result->accepted() && options_.acquisition_radius_m > 0) {
             // The SAD window covers only +-L_SR/2 pixels: try references around the coarse
             // match one at a time, then refine against the neighbours of the first fix.

@@ -78,10 +78,12 @@ std::unique_ptr<coarse::CoarseSource> makeSequenceCoarseSource(
 class Localizer {
   public:
     /// `db` must outlive the localiser. `coarse` may be null (then only tracking from a
-    /// known initial pose works: see setInitialPose).
+    /// known initial pose works: see setInitialPose). `coarse_uses_images`: the source is fed
+    /// forward-camera frames (SeqSLAM); otherwise it is asked at each ceiling frame's time
+    /// (coarse results from a file or another localiser).
     Localizer(const database::ReferenceDatabase& db, const LocalizerOptions& options,
               const refine::RefinerOptions& refiner_options,
-              std::unique_ptr<coarse::CoarseSource> coarse);
+              std::unique_ptr<coarse::CoarseSource> coarse, bool coarse_uses_images = true);
     ~Localizer();
 
     /// Feeds one observation (any kind, in time order). Returns a result for every ceiling
@@ -104,6 +106,11 @@ class Localizer {
     FrameResult processCeiling(const mrpt::obs::CObservationImage& query);
     void processForward(const mrpt::obs::CObservationImage& image);
     void processOdometry(const mrpt::obs::CObservation& odo);
+    struct CoarseFix {
+        mrpt::poses::CPose2D pose;           ///< pose of the matched reference (or given)
+        std::vector<std::size_t> references;  ///< ceiling references for that match
+    };
+    std::optional<CoarseFix> coarseFix() const;
     std::optional<Prediction> predict(double time_s) const;
     std::optional<mrpt::poses::CPose2D> odometryAt(double time_s) const;
     std::vector<std::size_t> referencesNearTime(double time_s) const;
@@ -118,6 +125,7 @@ class Localizer {
     LocalizerOptions options_;
     refine::Refiner refiner_;
     std::unique_ptr<coarse::CoarseSource> coarse_;
+    bool coarse_uses_images_;
 
     std::optional<coarse::CoarseResult> last_coarse_;
     double coarse_ms_since_frame_ = 0;

@@ -1,0 +1,165 @@
+// lookup-localize end to end on a synthetic planar ceiling: a database of references along a
+// straight drive, a query drive offset sideways, coarse poses from a file with metre-level
+// errors; the refined poses must land within centimetres of the truth.
+
+#include <gtest/gtest.h>
+#include <mrpt/obs/CObservationOdometry.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "lookup/common/pose_files.h"
+#include "lookup/common/rawlog_io.h"
+#include "lookup/database/database_writer.h"
+#include "lookup/eval/evaluator.h"
+#include "lookup/localize/localize_app.h"
+#include "lookup/refine/testing/synthetic_ceiling.h"
+
+namespace fs = std::filesystem;
+using namespace lookup;
+
+namespace {
+
+constexpr double kCeilingHeight = 5.0;
+constexpr double kT0 = 1.7e9;
+
+struct Scene {
+    refine::synthetic::SyntheticCeiling ceiling =
+        refine::synthetic::SyntheticCeiling::make(kCeilingHeight, 40.0, 0.01, 7);
+    mrpt::img::TCamera camera = refine::synthetic::makeCamera(320, 240, 160);
+    mrpt::poses::CPose3D mount = refine::synthetic::ceilingCameraOnVehicle();
+
+    mrpt::obs::CObservationImage::Ptr image(const mrpt::poses::CPose3D& vehicle,
+                                            double t) const {
+        auto obs = mrpt::obs::CObservationImage::Create();
+        obs->sensorLabel = "CEILING_CAM";
+        obs->timestamp = mrpt::Clock::fromDouble(t);
+        obs->cameraParams = camera;
+        obs->cameraPose = mount;
+        obs->image = mrpt::img::CImage(ceiling.render(camera, vehicle + mount),
+                                       mrpt::img::DEEP_COPY);
+        return obs;
+    }
+};
+
+fs::path freshDir(const std::string& name) {
+    const auto dir = fs::temp_directory_path() / ("lookup_localize_" + name);
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    return dir;
+}
+
+// References every 0.25 m along y = 0 from x = -8 to 8.
+void writeDatabase(const Scene& scene, const std::string& dir) {
+    database::DatabaseWriter writer(dir);
+    int k = 0;
+    for (double x = -8; x <= 8.001; x += 0.25, ++k) {
+        database::ReferenceInput in;
+        in.traverse = "survey";
+        in.vehicle_pose = mrpt::poses::CPose3D(x, 0, 0, 0, 0, 0);
+        in.vehicle_cov.setIdentity();
+        in.vehicle_cov *= 1e-4;
+        in.ceiling = scene.image(in.vehicle_pose, 100.0 + 0.1 * k);
+        in.travelled_m = x + 8;
+        writer.add(in);
+    }
+    database::DatabaseInfo info;
+    info.name = "synthetic";
+    info.ceiling_camera = scene.camera;
+    info.ceiling_height_m = kCeilingHeight;
+    info.pose_source = "test";
+    writer.commit(info);
+}
+
+}  // namespace
+
+TEST(Localize, RefinesCoarsePosesToCentimetresOnASyntheticCeiling) {
+    Scene scene;
+    const auto dir = freshDir("planar");
+    writeDatabase(scene, (dir / "db").string());
+
+    // Query drive: 0.4 m to the left of the survey line, slightly rotated, 20 frames.
+    common::PoseTrack truth, coarse;
+    {
+        common::RawlogWriter rawlog((dir / "query.rawlog").string());
+        for (int i = 0; i < 20; ++i) {
+            const double t = kT0 + 0.1 * i;
+            const mrpt::poses::CPose3D vehicle(-5 + 0.3 * i, 0.4, 0, 0.05, 0, 0);
+            truth.push_back({t, vehicle});
+            // Coarse error of 0.6-1.0 m along the tunnel, as a sequence matcher would give.
+            coarse.push_back({t, vehicle + mrpt::poses::CPose3D(0.6 + 0.02 * i, -0.4, 0,
+                                                                 -0.05, 0, 0)});
+            auto img = scene.image(vehicle, t);
+            char name[32];
+            std::snprintf(name, sizeof name, "ceiling_%03d.png", i);
+            rawlog.writeWithExternalImage(*img, name);
+            mrpt::obs::CObservationOdometry odo;
+            odo.sensorLabel = "ODOMETRY";
+            odo.timestamp = img->timestamp;
+            odo.odometry = mrpt::poses::CPose2D(vehicle.x(), vehicle.y(), vehicle.yaw());
+            rawlog.write(odo);
+        }
+        rawlog.close();
+    }
+    common::writeTumPoseFile((dir / "coarse.tum").string(), coarse);
+    common::writeMrptPoseFile((dir / "query.rawlog.GT.txt").string(), truth);
+
+    localize::LocalizeRequest req;
+    req.db_dir = (dir / "db").string();
+    req.rawlog = (dir / "query.rawlog").string();
+    req.out_dir = (dir / "run").string();
+    req.coarse_poses = (dir / "coarse.tum").string();
+    req.method = "lookup-grid24";
+    req.sampling = "grid";
+    req.progress = false;
+    const auto timing = localize::runLocalization(req);
+    EXPECT_EQ(timing.frames, 20u);
+    EXPECT_EQ(timing.frames_dropped, 0u);
+
+    const auto report = eval::evaluate({eval::loadGroundTruth((dir / "query.rawlog.GT.txt").string())},
+                                       {eval::loadRun(req.out_dir)}, {});
+    ASSERT_EQ(report.rows.size(), 2u);
+    const auto& coarse_row = report.rows[0];
+    const auto& lookup_row = report.rows[1];
+    EXPECT_EQ(coarse_row.method, "coarse");
+    EXPECT_GT(coarse_row.error.mean_m, 0.5);
+    EXPECT_GE(lookup_row.acceptance_share, 0.95);
+    EXPECT_LT(lookup_row.error.mean_m, 0.03);
+    EXPECT_LT(lookup_row.error.max_m, 0.10);
+
+    for (const char* f : {"frames.csv", "poses.tum", "coarse.tum", "results.rawlog",
+                          "timing.json", "run.ini"}) {
+        EXPECT_TRUE(fs::exists(fs::path(req.out_dir) / f)) << f;
+    }
+}
+
+TEST(Localize, MissingDatabaseAndRawlogWithoutCeilingImagesAreRefused) {
+    const auto dir = freshDir("bad");
+    localize::LocalizeRequest req;
+    req.db_dir = (dir / "nodb").string();
+    req.rawlog = (dir / "q.rawlog").string();
+    req.out_dir = (dir / "run").string();
+    req.progress = false;
+    EXPECT_THROW(localize::runLocalization(req), std::exception);
+
+    Scene scene;
+    writeDatabase(scene, (dir / "db").string());
+    {
+        common::RawlogWriter rawlog(req.rawlog);
+        mrpt::obs::CObservationOdometry odo;
+        odo.sensorLabel = "ODOMETRY";
+        rawlog.write(odo);
+        rawlog.close();
+    }
+    req.db_dir = (dir / "db").string();
+    common::writeTumPoseFile((dir / "coarse.tum").string(),
+                             {{kT0, mrpt::poses::CPose3D()}, {kT0 + 1, mrpt::poses::CPose3D()}});
+    req.coarse_poses = (dir / "coarse.tum").string();
+    try {
+        localize::runLocalization(req);
+        FAIL() << "a rawlog without ceiling images was accepted";
+    } catch (const std::exception& e) {
+        EXPECT_NE(std::string(e.what()).find("q.rawlog"), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find("CEILING_CAM"), std::string::npos) << e.what();
+    }
+}
