@@ -26,23 +26,46 @@ LaserMap buildMapIcpSlam(const TraverseData& traverse, const mrpt::config::CConf
     builder.setVerbosityLevel(mrpt::system::LVL_ERROR);
     builder.ICP_options.loadFromConfigFile(config, "MappingApplication");
     builder.ICP_params.loadFromConfigFile(config, "ICP");
-    const mrpt::poses::CPosePDFGaussian x0(start);
-    builder.initialize(mrpt::maps::CSimpleMap(), &x0);
+    // MRPT 2.5.8: an initial pose PDF given to initialize() leaves the odometry-based pose
+    // extrapolator without a valid time stamp and the pose never moves, so only identity is
+    // supported here; callers transform the results (see Survey::run).
+    if (start != mrpt::poses::CPose2D()) {
+        throw std::invalid_argument("buildMapIcpSlam: only an identity start is supported");
+    }
+    builder.initialize(mrpt::maps::CSimpleMap());
 
     LaserMap out;
+    // Fed as (odometry increment action, scan sensory frame) pairs, the form icp-slam uses for
+    // actions/sensory-frames rawlogs: independent of odometry/scan time-stamp alignment.
+    mrpt::obs::CActionRobotMovement2D::TMotionModelOptions motion;
+    motion.modelSelection = mrpt::obs::CActionRobotMovement2D::mmGaussian;
+    bool have_odometry = false;
+    mrpt::poses::CPose2D last_used_odometry, latest_odometry;
     const std::size_t n = traverse.laser_sequence.size();
     for (std::size_t i = 0; i < n; ++i) {
         const auto& o = traverse.laser_sequence[i];
-        builder.processObservation(o);
-        if (IS_CLASS(*o, mrpt::obs::CObservation2DRangeScan)) {
-            const auto pdf = builder.getCurrentPoseEstimation();
-            mrpt::poses::CPose3D mean;
-            pdf->getMean(mean);
-            out.icp_track.poses.push_back({mrpt::Clock::toDouble(o->timestamp), mean});
-            mrpt::math::CMatrixDouble33 cov;
-            cov.setZero();
-            out.icp_track.covs.push_back(cov);
+        if (auto odo = std::dynamic_pointer_cast<mrpt::obs::CObservationOdometry>(o)) {
+            latest_odometry = odo->odometry;
+            if (!have_odometry) last_used_odometry = latest_odometry;
+            have_odometry = true;
+            continue;
         }
+        mrpt::obs::CActionRobotMovement2D move;
+        move.timestamp = o->timestamp;
+        move.computeFromOdometry(latest_odometry - last_used_odometry, motion);
+        last_used_odometry = latest_odometry;
+        mrpt::obs::CActionCollection action;
+        action.insert(move);
+        mrpt::obs::CSensoryFrame sf;
+        sf.insert(o);
+        builder.processActionObservation(action, sf);
+        const auto pdf = builder.getCurrentPoseEstimation();
+        mrpt::poses::CPose3D mean;
+        pdf->getMean(mean);
+        out.icp_track.poses.push_back({mrpt::Clock::toDouble(o->timestamp), mean});
+        mrpt::math::CMatrixDouble33 cov;
+        cov.setZero();
+        out.icp_track.covs.push_back(cov);
         if (progress && (i % 64 == 0 || i + 1 == n)) progress(double(i + 1) / double(n));
     }
     const auto* maps = builder.getCurrentlyBuiltMetricMap();
@@ -123,8 +146,9 @@ mrpt::maps::COccupancyGridMap2D loadGridMap(const std::string& path) {
         auto arch = mrpt::serialization::archiveFrom(f);
         arch >> grid;
     } catch (const std::exception& e) {
-        throw std::runtime_error(path + ": unreadable map (expected a COccupancyGridMap2D "
-                                        "serialization): " +
+        throw std::runtime_error(path +
+                                 ": unreadable map (expected a COccupancyGridMap2D "
+                                 "serialization): " +
                                  std::string(e.what()).substr(0, 300));
     }
     if (grid.getSizeX() == 0 || grid.getSizeY() == 0) {

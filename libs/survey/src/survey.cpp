@@ -81,7 +81,7 @@ std::uint64_t folderSize(const std::string& dir) {
 }
 
 class ProgressBar {
-public:
+  public:
     ProgressBar(bool enabled, std::string stage) : enabled_(enabled), stage_(std::move(stage)) {}
     void operator()(double ratio) const {
         if (!enabled_) return;
@@ -89,7 +89,7 @@ public:
         if (ratio >= 1.0) std::cerr << "\n";
     }
 
-private:
+  private:
     bool enabled_;
     std::string stage_;
 };
@@ -169,8 +169,8 @@ std::string SurveyResult::toJson() const {
                 std::snprintf(buf, sizeof(buf),
                               "{\"from_m\": %.1f, \"to_m\": %.1f, \"x\": %.2f, \"y\": %.2f, ",
                               s.from_m, s.to_m, s.x, s.y);
-                o << (k ? ",\n       " : "\n       ") << buf
-                  << "\"error\": " << statsJson(s.error) << "}";
+                o << (k ? ",\n       " : "\n       ") << buf << "\"error\": " << statsJson(s.error)
+                  << "}";
             }
             o << "]";
         }
@@ -216,6 +216,7 @@ SurveyResult Survey::run(const SurveyInputs& in) const {
 
         // 2. Vehicle poses per traverse.
         std::vector<LaserTrack> tracks(data.size());
+        std::vector<double> localisation_time(data.size(), 0.0);
         std::optional<mrpt::maps::COccupancyGridMap2D> grid;
         mrpt::system::CTicTac timer;
         if (!laser) {
@@ -256,19 +257,25 @@ SurveyResult Survey::run(const SurveyInputs& in) const {
                     data[mapping] = readTraverse(in.traverses[mapping].rawlog, options_, true);
                 }
                 result.pose_source = "laser";
+                // ICP-SLAM runs in its own frame (its start = identity: MRPT 2.5.8's pose
+                // extrapolator stalls when initialize() is given a start pose); poses are moved
+                // into the ground-truth frame by map_origin afterwards.
                 map_origin = startOf(mapping, mrpt::poses::CPose2D());
                 timer.Tic();
                 ProgressBar bar(in.show_progress, "ICP-SLAM " + in.traverses[mapping].name);
-                grid = buildMapIcpSlam(data[mapping], config_, map_origin, bar).grid;
+                grid = buildMapIcpSlam(data[mapping], config_, mrpt::poses::CPose2D(), bar).grid;
                 result.mapping_time_s = timer.Tac();
             }
             for (std::size_t i = 0; i < data.size(); ++i) {
                 if (!in.traverses[i].reference) continue;
                 timer.Tic();
                 ProgressBar bar(in.show_progress, "MCL " + in.traverses[i].name);
-                tracks[i] = localizeMcl(data[i], *grid, config_, options_,
-                                        startOf(i, map_origin), bar);
-                result.localisation_time_s += timer.Tac();
+                const mrpt::poses::CPose2D start_in_grid = startOf(i, map_origin) - map_origin;
+                tracks[i] = localizeMcl(data[i], *grid, config_, options_, start_in_grid, bar);
+                const mrpt::poses::CPose3D origin3(map_origin);
+                for (auto& p : tracks[i].poses) p.pose = origin3 + p.pose;
+                localisation_time[i] = timer.Tac();
+                result.localisation_time_s += localisation_time[i];
             }
         }
 
@@ -298,6 +305,7 @@ SurveyResult Survey::run(const SurveyInputs& in) const {
             rep.name = spec.name;
             rep.ceiling_frames = d.ceiling.size();
             rep.has_ground_truth = gt[i].has_value();
+            rep.localisation_time_s = localisation_time[i];
             const auto& track = tracks[i];
             if (track.poses.empty()) {
                 throw common::RawlogError(d.rawlog, "no vehicle poses (no lidar scans localised)");
@@ -338,7 +346,8 @@ SurveyResult Survey::run(const SurveyInputs& in) const {
             rep.rejected_exposure = selection.rejected_exposure;
 
             std::vector<double> forward_times;
-            for (const auto& fw : d.forward) forward_times.push_back(mrpt::Clock::toDouble(fw->timestamp));
+            for (const auto& fw : d.forward)
+                forward_times.push_back(mrpt::Clock::toDouble(fw->timestamp));
 
             std::vector<double> err_m, err_yaw, travelled;
             std::vector<mrpt::poses::CPose3D> ref_poses;

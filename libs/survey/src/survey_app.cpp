@@ -41,8 +41,10 @@ void readDataset(const std::string& path, SurveyInputs& inputs, SurveyOptions& o
     if (!ds.exists()) throw common::ConfigError(path + ": no [dataset] section");
     inputs.name = ds.getString("name", "");
     inputs.ceiling_height_m = ds.getDouble("ceiling_height_m", 0);
-    options.ceiling_camera_label = ds.getString("ceiling_camera_label", options.ceiling_camera_label);
-    options.forward_camera_label = ds.getString("forward_camera_label", options.forward_camera_label);
+    options.ceiling_camera_label =
+        ds.getString("ceiling_camera_label", options.ceiling_camera_label);
+    options.forward_camera_label =
+        ds.getString("forward_camera_label", options.forward_camera_label);
     options.lidar_label = ds.getString("lidar_label", options.lidar_label);
     options.odometry_label = ds.getString("odometry_label", options.odometry_label);
     const int count = ds.requireInt("traverse_count");
@@ -79,8 +81,8 @@ std::string defaultSurveyIni() {
 }
 
 bool SurveyApp::initialize(int argc, const char* const* argv) {
-    TCLAP::CmdLine cmd("lookup-survey: builds a LookUP reference database from survey rawlogs",
-                       ' ', "0.1");
+    TCLAP::CmdLine cmd("lookup-survey: builds a LookUP reference database from survey rawlogs", ' ',
+                       "0.1");
     TCLAP::ValueArg<std::string> dataset("d", "dataset", "lookup-sim dataset.ini", false, "",
                                          "DATASET.ini", cmd);
     TCLAP::ValueArg<std::string> rawlogs("r", "rawlogs", "comma-separated survey rawlogs", false,
@@ -88,14 +90,13 @@ bool SurveyApp::initialize(int argc, const char* const* argv) {
     TCLAP::ValueArg<std::string> ini("i", "ini",
                                      "survey .ini ([survey] and the MRPT ICP-SLAM / MCL sections)",
                                      false, "", "survey.ini", cmd);
-    TCLAP::ValueArg<std::string> out("o", "out", "database folder to create", true, "", "DB",
-                                     cmd);
+    TCLAP::ValueArg<std::string> out("o", "out", "database folder to create", true, "", "DB", cmd);
     TCLAP::ValueArg<std::string> poses("p", "poses",
                                        "surveyed vehicle poses (MRPT .GT.txt or TUM) replacing "
                                        "the laser stage",
                                        false, "", "FILE", cmd);
-    TCLAP::ValueArg<std::string> map("m", "map", "existing grid map replacing ICP-SLAM", false,
-                                     "", "FILE.gridmap[.gz]", cmd);
+    TCLAP::ValueArg<std::string> map("m", "map", "existing grid map replacing ICP-SLAM", false, "",
+                                     "FILE.gridmap[.gz]", cmd);
     TCLAP::SwitchArg quiet("q", "quiet", "no progress bar", cmd, false);
     std::vector<const char*> args(argv, argv + argc);
     if (!cmd.parse(argc, args.data())) {

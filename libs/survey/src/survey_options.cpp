@@ -7,14 +7,14 @@ namespace lookup::survey {
 void SurveyOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
                                        const std::string& section) {
     common::IniSection s(source, section, "survey options");
-    s.rejectUnknownKeys({"ceiling_camera_label", "forward_camera_label", "lidar_label",
-                         "odometry_label", "keyframe_spacing_m", "min_sharpness",
-                         "min_mean_intensity", "max_mean_intensity", "max_clipped_fraction",
-                         "forward_max_dt_s", "max_pose_gap_s", "max_outside_fraction",
-                         "ceiling_height_m", "mcl_particles", "mcl_init_std_xy_m",
-                         "mcl_init_std_yaw_deg", "odometry_min_std_xy_m",
-                         "odometry_min_std_yaw_deg", "start_at_ground_truth",
-                         "pose_file_std_xy_m", "pose_file_std_yaw_deg"});
+    s.rejectUnknownKeys(
+        {"ceiling_camera_label",  "forward_camera_label",  "lidar_label",
+         "odometry_label",        "keyframe_spacing_m",    "min_sharpness",
+         "min_mean_intensity",    "max_mean_intensity",    "max_clipped_fraction",
+         "forward_max_dt_s",      "max_pose_gap_s",        "max_outside_fraction",
+         "ceiling_height_m",      "mcl_particles",         "mcl_init_std_xy_m",
+         "mcl_init_std_yaw_deg",  "odometry_min_std_xy_m", "odometry_min_std_yaw_deg",
+         "start_at_ground_truth", "pose_file_std_xy_m",    "pose_file_std_yaw_deg"});
     ceiling_camera_label = s.getString("ceiling_camera_label", ceiling_camera_label);
     forward_camera_label = s.getString("forward_camera_label", forward_camera_label);
     lidar_label = s.getString("lidar_label", lidar_label);

@@ -31,10 +31,10 @@ TraverseData readTraverse(const std::string& rawlog, const SurveyOptions& option
         t.labels.insert(o->sensorLabel);
         const double time = mrpt::Clock::toDouble(o->timestamp);
         if (auto it = last_time.find(o->sensorLabel); it != last_time.end() && time < it->second) {
-            throw common::RawlogError(
-                rawlog, record,
-                "non-monotonic time stamp for " + o->sensorLabel + ": " + std::to_string(time) +
-                    " s after " + std::to_string(it->second) + " s");
+            throw common::RawlogError(rawlog, record,
+                                      "non-monotonic time stamp for " + o->sensorLabel + ": " +
+                                          std::to_string(time) + " s after " +
+                                          std::to_string(it->second) + " s");
         }
         last_time[o->sensorLabel] = time;
 

@@ -18,11 +18,11 @@ struct KeyframeCandidate {
 };
 
 struct KeyframeSelection {
-    std::vector<std::size_t> kept;            ///< indices into the candidates, increasing
-    std::vector<ImageQuality> kept_quality;   ///< quality of each kept frame
-    std::vector<double> kept_travelled_m;     ///< distance travelled at each kept frame [m]
-    std::size_t rejected_blur = 0;            ///< candidates skipped as blurred
-    std::size_t rejected_exposure = 0;        ///< candidates skipped as badly exposed
+    std::vector<std::size_t> kept;           ///< indices into the candidates, increasing
+    std::vector<ImageQuality> kept_quality;  ///< quality of each kept frame
+    std::vector<double> kept_travelled_m;    ///< distance travelled at each kept frame [m]
+    std::size_t rejected_blur = 0;           ///< candidates skipped as blurred
+    std::size_t rejected_exposure = 0;       ///< candidates skipped as badly exposed
 };
 
 /// Keeps the first good frame, then the first good frame after each further

@@ -25,12 +25,12 @@ struct TraverseSpec {
 
 struct SurveyInputs {
     std::vector<TraverseSpec> traverses;
-    std::string out_dir;         ///< database folder to (re)create
-    std::string poses_file;      ///< surveyed poses replacing the laser stage ("" = laser)
-    std::string map_file;        ///< existing grid map replacing ICP-SLAM ("" = build one)
-    std::string name;            ///< database name (e.g. the dataset's)
-    double ceiling_height_m = 0; ///< from the dataset; 0 = SurveyOptions::ceiling_height_m
-    bool show_progress = false;  ///< progress bar on stderr
+    std::string out_dir;          ///< database folder to (re)create
+    std::string poses_file;       ///< surveyed poses replacing the laser stage ("" = laser)
+    std::string map_file;         ///< existing grid map replacing ICP-SLAM ("" = build one)
+    std::string name;             ///< database name (e.g. the dataset's)
+    double ceiling_height_m = 0;  ///< from the dataset; 0 = SurveyOptions::ceiling_height_m
+    bool show_progress = false;   ///< progress bar on stderr
 };
 
 /// Reference-pose error against ground truth (planar position and heading).
@@ -54,11 +54,11 @@ struct TraverseReport {
     std::size_t references = 0;           ///< kept as references
     std::size_t rejected_blur = 0;
     std::size_t rejected_exposure = 0;
-    std::size_t without_forward = 0;      ///< references with no forward image in time
-    double localisation_time_s = 0;       ///< MCL (or ICP-SLAM) wall time for this traverse
+    std::size_t without_forward = 0;  ///< references with no forward image in time
+    double localisation_time_s = 0;   ///< MCL (or ICP-SLAM) wall time for this traverse
     bool has_ground_truth = false;
-    PoseErrorStats error;                 ///< over the references (when ground truth)
-    std::vector<SegmentError> segments;   ///< error per 10 m of travel (when ground truth)
+    PoseErrorStats error;                ///< over the references (when ground truth)
+    std::vector<SegmentError> segments;  ///< error per 10 m of travel (when ground truth)
 };
 
 enum class SurveyStatus { Ok, Failed };
@@ -81,7 +81,7 @@ struct SurveyResult {
 };
 
 class Survey {
-public:
+  public:
     /// `config`: the whole .ini (the [survey] section must already be in `options`; the MRPT
     /// sections of the laser stage are read from here).
     Survey(SurveyOptions options, const mrpt::config::CConfigFileBase& config);
@@ -90,7 +90,7 @@ public:
     /// and leaves no database folder behind (and an existing one intact).
     SurveyResult run(const SurveyInputs& inputs) const;
 
-private:
+  private:
     SurveyOptions options_;
     mrpt::config::CConfigFileMemory config_;
 };

@@ -14,7 +14,7 @@
 namespace lookup::survey {
 
 class SurveyApp {
-public:
+  public:
     /// Parses the command line and the .ini files. Returns false (after printing help or the
     /// error to stderr) when the program should exit; `exitCode()` then tells how.
     bool initialize(int argc, const char* const* argv);
@@ -25,7 +25,7 @@ public:
     const SurveyResult& result() const { return result_; }
     const SurveyInputs& inputs() const { return inputs_; }
 
-private:
+  private:
     SurveyInputs inputs_;
     SurveyOptions options_;
     mrpt::config::CConfigFileMemory config_;

@@ -19,11 +19,11 @@ struct SurveyOptions : public mrpt::config::CLoadableOptions {
     std::string odometry_label = "ODOMETRY";           ///< CObservationOdometry
 
     // --- keyframes (paper Sec. III-A: references sampled along the survey) ---------------
-    double keyframe_spacing_m = 0.25;   ///< travel between kept references [m]
-    double min_sharpness = 30.0;        ///< min variance of Laplacian [grey^2]; below = blurred
-    double min_mean_intensity = 25.0;   ///< darker mean grey level = under-exposed [0..255]
-    double max_mean_intensity = 230.0;  ///< brighter mean grey level = over-exposed [0..255]
-    double max_clipped_fraction = 0.25; ///< max share of pixels at <=2 or >=253 [0..1]
+    double keyframe_spacing_m = 0.25;    ///< travel between kept references [m]
+    double min_sharpness = 30.0;         ///< min variance of Laplacian [grey^2]; below = blurred
+    double min_mean_intensity = 25.0;    ///< darker mean grey level = under-exposed [0..255]
+    double max_mean_intensity = 230.0;   ///< brighter mean grey level = over-exposed [0..255]
+    double max_clipped_fraction = 0.25;  ///< max share of pixels at <=2 or >=253 [0..1]
 
     // --- time association -----------------------------------------------------------------
     double forward_max_dt_s = 0.25;  ///< max |t_forward - t_ceiling| to attach a forward image [s]
@@ -36,18 +36,18 @@ struct SurveyOptions : public mrpt::config::CLoadableOptions {
     double ceiling_height_m = 5.0;  ///< ceiling above the floor if the dataset gives none [m]
 
     // --- laser stage (ICP-SLAM map, then MCL per traverse) ---------------------------------
-    int mcl_particles = 600;             ///< particles of CMonteCarloLocalization2D
-    double mcl_init_std_xy_m = 0.2;      ///< spread of the initial particles around the start [m]
-    double mcl_init_std_yaw_deg = 3.0;   ///< ... and in yaw [deg]
-    double odometry_min_std_xy_m = 0.04;     ///< CActionRobotMovement2D gaussian minStdXY [m]
-    double odometry_min_std_yaw_deg = 2.0;   ///< ... minStdPHI [deg]
+    int mcl_particles = 600;              ///< particles of CMonteCarloLocalization2D
+    double mcl_init_std_xy_m = 0.2;       ///< spread of the initial particles around the start [m]
+    double mcl_init_std_yaw_deg = 3.0;    ///< ... and in yaw [deg]
+    double odometry_min_std_xy_m = 0.04;  ///< CActionRobotMovement2D gaussian minStdXY [m]
+    double odometry_min_std_yaw_deg = 2.0;  ///< ... minStdPHI [deg]
     /// Start ICP-SLAM (and MCL) at the first ground-truth pose when a GT file exists, so the
     /// map frame is the dataset's; otherwise the map frame is the mapping traverse's start.
     bool start_at_ground_truth = true;
 
     // --- pose file (--poses) ---------------------------------------------------------------
-    double pose_file_std_xy_m = 0.02;     ///< stated std of surveyed positions [m]
-    double pose_file_std_yaw_deg = 0.5;   ///< stated std of surveyed headings [deg]
+    double pose_file_std_xy_m = 0.02;    ///< stated std of surveyed positions [m]
+    double pose_file_std_yaw_deg = 0.5;  ///< stated std of surveyed headings [deg]
 
     void loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
                             const std::string& section) override;

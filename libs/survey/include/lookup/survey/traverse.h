@@ -14,7 +14,7 @@
 namespace lookup::survey {
 
 struct TraverseData {
-    std::string rawlog;  ///< path of the rawlog
+    std::string rawlog;                                      ///< path of the rawlog
     std::vector<mrpt::obs::CObservationImage::Ptr> ceiling;  ///< in time order
     std::vector<std::size_t> ceiling_records;                ///< rawlog record of each
     std::vector<mrpt::obs::CObservationImage::Ptr> forward;  ///< in time order
@@ -29,7 +29,6 @@ struct TraverseData {
 /// rawlog is unreadable or truncated, when a labelled sensor's time stamps go backwards, when an
 /// external image file is missing, or when the ceiling camera (or, with `need_laser`, the lidar
 /// or odometry) label is absent — then the message lists the labels present.
-TraverseData readTraverse(const std::string& rawlog, const SurveyOptions& options,
-                          bool need_laser);
+TraverseData readTraverse(const std::string& rawlog, const SurveyOptions& options, bool need_laser);
 
 }  // namespace lookup::survey

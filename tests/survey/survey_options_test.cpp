@@ -1,0 +1,43 @@
+#include <gtest/gtest.h>
+#include <mrpt/config/CConfigFile.h>
+#include <mrpt/config/CConfigFileMemory.h>
+
+#include "lookup/common/config.h"
+#include "lookup/survey/survey_options.h"
+
+using lookup::survey::SurveyOptions;
+
+TEST(SurveyOptions, DefaultsAreValid) { EXPECT_NO_THROW(SurveyOptions().check()); }
+
+TEST(SurveyOptions, ShareIniLoadsAndRoundTrips) {
+    mrpt::config::CConfigFile file(std::string(LOOKUP_SOURCE_SHARE_DIR) + "/survey.ini");
+    SurveyOptions a;
+    a.keyframe_spacing_m = 99;  // must be overwritten by the file
+    a.loadFromConfigFile(file, "survey");
+    EXPECT_DOUBLE_EQ(a.keyframe_spacing_m, 0.25);
+    mrpt::config::CConfigFileMemory mem;
+    a.saveToConfigFile(mem, "survey");
+    SurveyOptions b;
+    b.keyframe_spacing_m = 1;
+    b.mcl_particles = 11;
+    b.loadFromConfigFile(mem, "survey");
+    EXPECT_DOUBLE_EQ(b.keyframe_spacing_m, a.keyframe_spacing_m);
+    EXPECT_EQ(b.mcl_particles, a.mcl_particles);
+    EXPECT_EQ(b.lidar_label, a.lidar_label);
+    EXPECT_EQ(b.start_at_ground_truth, a.start_at_ground_truth);
+}
+
+TEST(SurveyOptions, RejectsBadFieldAndUnknownKey) {
+    mrpt::config::CConfigFileMemory mem;
+    mem.write("survey", "keyframe_spacing_m", -1.0);
+    SurveyOptions o;
+    try {
+        o.loadFromConfigFile(mem, "survey");
+        FAIL() << "negative spacing accepted";
+    } catch (const lookup::common::ConfigError& e) {
+        EXPECT_NE(std::string(e.what()).find("keyframe_spacing_m"), std::string::npos);
+    }
+    mrpt::config::CConfigFileMemory typo;
+    typo.write("survey", "keyframe_spacin_m", 0.3);
+    EXPECT_THROW(o.loadFromConfigFile(typo, "survey"), lookup::common::ConfigError);
+}
