@@ -1,0 +1,200 @@
+#include <gtest/gtest.h>
+#include <mrpt/img/CImage.h>
+
+#include <cmath>
+#include <limits>
+
+#include "lookup/refine/refiner.h"
+#include "lookup/refine/testing/synthetic_ceiling.h"
+
+using namespace lookup::refine;
+using mrpt::poses::CPose3D;
+
+namespace {
+
+struct Scene {
+    synthetic::SyntheticCeiling ceiling = synthetic::SyntheticCeiling::make(5.3, 10.0, 0.01, 3);
+    mrpt::img::TCamera camera = synthetic::makeCamera(320, 240, 250);
+    CPose3D on_vehicle = synthetic::ceilingCameraOnVehicle();
+
+    Reference reference(std::int64_t id, const CPose3D& vehicle) const {
+        return ceiling.reference(id, camera, on_vehicle, vehicle);
+    }
+    cv::Mat query(const CPose3D& vehicle) const {
+        return ceiling.render(camera, vehicle + on_vehicle);
+    }
+};
+
+const Scene& scene() {
+    static const Scene s;
+    return s;
+}
+
+RefinerOptions optionsWithHeight(double h) {
+    RefinerOptions o;
+    o.estimator.ceiling_height_m = h;
+    return o;
+}
+
+double distanceXY(const mrpt::poses::CPosePDFGaussian& p, const CPose3D& truth) {
+    return std::hypot(p.mean.x() - truth.x(), p.mean.y() - truth.y());
+}
+
+}  // namespace
+
+TEST(Refiner, OneReferenceWithTheRightPriorGivesMillimetres) {
+    const Scene& s = scene();
+    const CPose3D truth(0.18, -0.12, 0, 0.04, 0, 0);
+    const Refiner refiner(optionsWithHeight(5.3));
+    const auto r = refiner.refine(s.query(truth), s.camera, s.on_vehicle, {{7}, CPose3D(), {}},
+                                  {s.reference(7, CPose3D())});
+    ASSERT_TRUE(r.accepted()) << r.reason;
+    EXPECT_EQ(r.source, PoseSource::Refined);
+    EXPECT_LT(distanceXY(r.pose, truth), 0.005);
+    EXPECT_NEAR(r.pose.mean.phi(), 0.04, 0.002);
+    EXPECT_GT(r.inlier_share, 0.9);
+    ASSERT_EQ(r.references.size(), 1u);
+    EXPECT_EQ(r.references[0].matches.size(), 24u);
+    EXPECT_GT(r.pose.cov(0, 0), 0.0);
+    EXPECT_LT(std::sqrt(r.pose.cov(0, 0)), 0.05);  // confident, and rightly so
+    EXPECT_GT(r.times.match_ms, 0.0);
+}
+
+TEST(Refiner, TwoReferencesRecoverTheCeilingHeightWithinOnePercent) {
+    const Scene& s = scene();
+    const CPose3D truth(0.25, 0.1, 0, 0.03, 0, 0);
+    RefinerOptions o = optionsWithHeight(5.0);  // prior 6 % low
+    o.estimator.ceiling_height_sigma_m = 1.0;
+    const Refiner refiner(o);
+    CoarseHint hint;
+    hint.vehicle_pose = CPose3D(0.2, 0.05, 0, 0, 0, 0);
+    const auto r = refiner.refine(
+        s.query(truth), s.camera, s.on_vehicle, hint,
+        {s.reference(1, CPose3D()), s.reference(2, CPose3D(0.5, 0.0, 0, 0.02, 0, 0))});
+    ASSERT_TRUE(r.accepted()) << r.reason;
+    EXPECT_NEAR(r.estimate.ceiling_height_m, 5.3, 0.053);
+    EXPECT_LT(distanceXY(r.pose, truth), 0.01);
+    EXPECT_EQ(r.references.size(), 2u);
+}
+
+TEST(Refiner, OccludingObjectPointsAreOutliers) {
+    const Scene& s = scene();
+    const CPose3D truth(0.1, 0.05, 0, 0.0, 0, 0);
+    cv::Mat query = s.query(truth);
+    // A pipe-like object of another texture over the left third of the query.
+    const cv::Mat other = synthetic::makeNoiseTexture(cv::Size(100, 240), 1234);
+    other.copyTo(query(cv::Rect(0, 0, 100, 240)));
+    const Refiner refiner(optionsWithHeight(5.3));
+    auto o = refiner.options();
+    const auto r = refiner.refine(query, s.camera, s.on_vehicle, {{}, CPose3D(), {}},
+                                  {s.reference(1, CPose3D())});
+    ASSERT_EQ(r.references.size(), 1u);
+    int occluded = 0, occluded_inliers = 0;
+    for (const auto& m : r.references[0].matches) {
+        if (m.reference_px.x + 7 < 100 - o.matcher.patch_px / 2) {  // its match lies in the object
+            ++occluded;
+            occluded_inliers += m.inlier ? 1 : 0;
+        }
+    }
+    EXPECT_GE(occluded, 4);
+    EXPECT_EQ(occluded_inliers, 0);
+    EXPECT_LT(distanceXY(r.estimate.pose, truth), 0.01) << r.reason;
+}
+
+TEST(Refiner, MismatchedImageFallsBackToTheCoarsePose) {
+    const Scene& s = scene();
+    const cv::Mat unrelated = synthetic::makeNoiseTexture(cv::Size(320, 240), 77);
+    const CPose3D coarse(1.0, 2.0, 0, 0.1, 0, 0);
+    const Refiner refiner;
+    const auto r = refiner.refine(unrelated, s.camera, s.on_vehicle, {{}, coarse, {}},
+                                  {s.reference(1, coarse)});
+    EXPECT_FALSE(r.accepted());
+    EXPECT_FALSE(r.reason.empty());
+    EXPECT_EQ(r.source, PoseSource::Coarse);
+    EXPECT_NEAR(r.pose.mean.x(), 1.0, 1e-12);
+    EXPECT_NEAR(std::sqrt(r.pose.cov(0, 0)), refiner.options().acceptance.fallback_sigma_xy_m,
+                1e-9);
+}
+
+TEST(Refiner, BadInputIsARejectionWithAReason) {
+    const Scene& s = scene();
+    const Refiner refiner;
+    const CPose3D coarse(0.3, 0.0, 0, 0, 0, 0);
+    const std::vector<Reference> refs = {s.reference(1, CPose3D())};
+    const cv::Mat good = s.query(coarse);
+
+    // Blank query.
+    const cv::Mat blank(240, 320, CV_8UC1, cv::Scalar(90));
+    auto r = refiner.refine(blank, s.camera, s.on_vehicle, {{}, coarse, {}}, refs);
+    EXPECT_EQ(r.status, RefineStatus::TooFewMatches) << r.reason;
+    EXPECT_NE(r.reason.find("inliers 0 of 24"), std::string::npos) << r.reason;
+    EXPECT_EQ(r.source, PoseSource::Coarse);
+
+    // NaN in the query intrinsics.
+    auto nan_camera = s.camera;
+    nan_camera.fx(std::numeric_limits<double>::quiet_NaN());
+    r = refiner.refine(good, nan_camera, s.on_vehicle, {{}, coarse, {}}, refs);
+    EXPECT_EQ(r.status, RefineStatus::InvalidQuery);
+    EXPECT_NE(r.reason.find("fx=nan"), std::string::npos) << r.reason;
+
+    // NaN in a reference's intrinsics: that reference is skipped, naming it.
+    auto bad_ref = refs;
+    bad_ref[0].camera.cy(std::numeric_limits<double>::quiet_NaN());
+    r = refiner.refine(good, s.camera, s.on_vehicle, {{}, coarse, {}}, bad_ref);
+    EXPECT_EQ(r.status, RefineStatus::NoReferences);
+    EXPECT_NE(r.reason.find("reference 1"), std::string::npos) << r.reason;
+
+    // Empty reference set, with and without a coarse pose.
+    r = refiner.refine(good, s.camera, s.on_vehicle, {{}, coarse, {}}, {});
+    EXPECT_EQ(r.status, RefineStatus::NoReferences);
+    EXPECT_EQ(r.source, PoseSource::Coarse);
+    r = refiner.refine(good, s.camera, s.on_vehicle, {}, {});
+    EXPECT_EQ(r.status, RefineStatus::NoReferences);
+    EXPECT_EQ(r.source, PoseSource::None);
+    EXPECT_GT(r.pose.cov(0, 0), 1e6);  // no confident pose out of nothing
+
+    // Hint naming an id that is not in the set.
+    r = refiner.refine(good, s.camera, s.on_vehicle, {{42}, coarse, {}}, refs);
+    EXPECT_EQ(r.status, RefineStatus::NoReferences);
+
+    // Reference too small for any sample point away from the border.
+    auto tiny = refs;
+    tiny[0].image = refs[0].image(cv::Rect(0, 0, 40, 40)).clone();
+    r = refiner.refine(good, s.camera, s.on_vehicle, {{}, coarse, {}}, tiny);
+    EXPECT_EQ(r.status, RefineStatus::TooFewMatches) << r.reason;
+
+    // Empty query image.
+    r = refiner.refine(cv::Mat(), s.camera, s.on_vehicle, {{}, coarse, {}}, refs);
+    EXPECT_EQ(r.status, RefineStatus::InvalidQuery);
+}
+
+TEST(Refiner, OffsetBeyondDthIsRejected) {
+    const Scene& s = scene();
+    RefinerOptions o = optionsWithHeight(5.3);
+    o.acceptance.max_offset_m = 0.1;
+    const CPose3D truth(0.2, 0.1, 0, 0, 0, 0);
+    const auto r =
+        Refiner(o).refine(s.query(truth), s.camera, s.on_vehicle, {}, {s.reference(1, CPose3D())});
+    EXPECT_EQ(r.status, RefineStatus::OffsetTooLarge) << r.reason;
+    EXPECT_NEAR(r.offset_m, std::hypot(0.2, 0.1), 0.01);
+    EXPECT_EQ(r.source, PoseSource::Reference);
+    EXPECT_TRUE(r.estimate.ok);  // the estimate itself is still reported
+}
+
+TEST(Refiner, ObservationEntryPointMatchesTheMatEntryPoint) {
+    const Scene& s = scene();
+    const CPose3D truth(-0.1, 0.15, 0, -0.03, 0, 0);
+    mrpt::obs::CObservationImage obs;
+    obs.sensorLabel = "CEILING_CAM";
+    obs.image = mrpt::img::CImage(s.query(truth), mrpt::img::DEEP_COPY);
+    obs.cameraParams = s.camera;
+    obs.cameraPose = s.on_vehicle;
+    const Refiner refiner(optionsWithHeight(5.3));
+    const std::vector<Reference> refs = {s.reference(1, CPose3D())};
+    const CoarseHint hint{{}, CPose3D(), {}};
+    const auto a = refiner.refine(obs, hint, refs);
+    const auto b = refiner.refine(s.query(truth), s.camera, s.on_vehicle, hint, refs);
+    ASSERT_TRUE(a.accepted()) << a.reason;
+    EXPECT_EQ(a.pose.mean, b.pose.mean);
+    EXPECT_LT(distanceXY(a.pose, truth), 0.005);
+}
