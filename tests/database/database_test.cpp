@@ -1,0 +1,174 @@
+#include <gtest/gtest.h>
+#include <mrpt/random/RandomGenerators.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+
+#include "lookup/database/database_writer.h"
+#include "lookup/database/reference_database.h"
+
+namespace fs = std::filesystem;
+using namespace lookup::database;
+
+namespace {
+
+fs::path tempDir(const std::string& name) {
+    auto dir = fs::temp_directory_path() / ("lookup_database_" + name);
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    return dir;
+}
+
+mrpt::poses::CPose3D poseOf(int i) {
+    // A winding path with a few revisits, so spatial and time order differ.
+    return {std::cos(i * 0.37) * 5 + i * 0.1, std::sin(i * 0.53) * 3, 0, i * 0.05, 0, 0};
+}
+
+// Writes `n` references whose ceiling image i is filled with grey level i.
+void writeDatabase(const fs::path& out, int n) {
+    DatabaseWriter w(out.string());
+    mrpt::img::TCamera cam;
+    cam.ncols = 16;
+    cam.nrows = 12;
+    cam.fx(321.5);
+    for (int i = 0; i < n; ++i) {
+        ReferenceInput in;
+        in.traverse = i < n / 2 ? "a" : "b";
+        in.ceiling = mrpt::obs::CObservationImage::Create();
+        in.ceiling->sensorLabel = "CEILING_CAM";
+        in.ceiling->timestamp = mrpt::Clock::fromDouble(100.0 + i * 0.5);
+        in.ceiling->cameraPose = mrpt::poses::CPose3D(0.5, 0, 2, 0, 0, 0);
+        in.ceiling->cameraParams = cam;
+        in.ceiling->image.resize(16, 12, mrpt::img::CH_GRAY);
+        in.ceiling->image.filledRectangle(0, 0, 15, 11, mrpt::img::TColor(i, i, i));
+        if (i % 2 == 0) {
+            in.forward = mrpt::obs::CObservationImage::Create();
+            in.forward->sensorLabel = "FORWARD_CAM";
+            in.forward->timestamp = mrpt::Clock::fromDouble(100.0 + i * 0.5 + 0.01);
+            in.forward->image.resize(8, 6, mrpt::img::CH_GRAY);
+            in.forward->image.filledRectangle(0, 0, 7, 5, mrpt::img::TColor(200, 200, 200));
+        }
+        in.vehicle_pose = poseOf(i);
+        in.vehicle_cov.setIdentity();
+        in.vehicle_cov *= 0.01 * (i + 1);
+        in.forward_vehicle_pose = poseOf(i);
+        in.sharpness = 100 + i;
+        w.add(in);
+    }
+    DatabaseInfo info;
+    info.name = "test";
+    info.ceiling_camera = cam;
+    info.ceiling_height_m = 4.5;
+    info.source_rawlogs = {"/x/a.rawlog", "/x/b.rawlog"};
+    w.commit(info);
+}
+
+}  // namespace
+
+TEST(Database, RoundTripPosesIntrinsicsAndLazyBoundedImages) {
+    const auto dir = tempDir("roundtrip");
+    writeDatabase(dir / "db", 40);
+    auto db = ReferenceDatabase::load((dir / "db").string(), 5);
+    ASSERT_EQ(db.size(), 40u);
+    EXPECT_EQ(db.info().name, "test");
+    EXPECT_DOUBLE_EQ(db.info().ceiling_camera.fx(), 321.5);
+    EXPECT_DOUBLE_EQ(db.info().ceiling_height_m, 4.5);
+    EXPECT_EQ(db.info().source_rawlogs.size(), 2u);
+    EXPECT_EQ(db.imageDiskReads(), 0u);  // nothing read at load
+    for (int i = 0; i < 40; ++i) {
+        const auto& r = db.reference(i);
+        EXPECT_EQ(r.id, static_cast<uint32_t>(i));
+        EXPECT_EQ(r.traverse, i < 20 ? "a" : "b");
+        EXPECT_NEAR((r.vehicle_pose.asVectorVal() - poseOf(i).asVectorVal()).norm(), 0, 1e-9);
+        EXPECT_NEAR(r.vehicle_cov(1, 1), 0.01 * (i + 1), 1e-12);
+        EXPECT_NEAR(r.ceiling_camera_pose.z(), 2.0, 1e-9);
+        EXPECT_EQ(r.has_forward, i % 2 == 0);
+        EXPECT_DOUBLE_EQ(r.sharpness, 100.0 + i);
+        const cv::Mat img = db.ceilingImage(i);
+        ASSERT_EQ(img.cols, 16);
+        EXPECT_EQ(img.at<uint8_t>(5, 5), i);
+        EXPECT_LE(db.imagesInMemory(), 5u);  // the cache bound holds
+    }
+    EXPECT_EQ(db.imageDiskReads(), 40u);
+    db.ceilingImage(39);  // most recent: a cache hit
+    EXPECT_EQ(db.imageDiskReads(), 40u);
+    db.ceilingImage(0);  // evicted long ago: read again
+    EXPECT_EQ(db.imageDiskReads(), 41u);
+    EXPECT_EQ(db.forwardSequence().size(), 20u);
+    EXPECT_EQ(db.forwardImage(0).cols, 8);
+    EXPECT_TRUE(db.forwardImage(1).empty());
+    EXPECT_TRUE(fs::exists(dir / "db" / "refs.tum"));
+}
+
+TEST(Database, SpatialAndTimeQueriesMatchBruteForce) {
+    const auto dir = tempDir("queries");
+    writeDatabase(dir / "db", 60);
+    const auto db = ReferenceDatabase::load((dir / "db").string());
+    auto& rng = mrpt::random::getRandomGenerator();
+    rng.randomize(7);
+    for (int q = 0; q < 50; ++q) {
+        const mrpt::math::TPoint2D p(rng.drawUniform(-6, 12), rng.drawUniform(-4, 4));
+        std::vector<std::pair<double, std::size_t>> brute;
+        for (std::size_t i = 0; i < db.size(); ++i) {
+            const auto& v = db.reference(i).vehicle_pose;
+            brute.push_back({std::hypot(v.x() - p.x, v.y() - p.y), i});
+        }
+        std::sort(brute.begin(), brute.end());
+        const auto k = db.nearest(p, 5);
+        ASSERT_EQ(k.size(), 5u);
+        for (int j = 0; j < 5; ++j) EXPECT_NEAR(k[j].distance, brute[j].first, 1e-9);
+        const double r = rng.drawUniform(0.5, 3);
+        const auto within = db.withinRadius(p, r);
+        const auto expected =
+            std::count_if(brute.begin(), brute.end(), [&](const auto& b) { return b.first <= r; });
+        EXPECT_EQ(static_cast<long>(within.size()), expected);
+        for (const auto& n : within) EXPECT_LE(n.distance, r + 1e-9);
+
+        const double t = rng.drawUniform(95, 135);
+        std::vector<std::pair<double, std::size_t>> tb;
+        for (std::size_t i = 0; i < db.size(); ++i) {
+            tb.push_back({std::abs(db.reference(i).time_s - t), i});
+        }
+        std::sort(tb.begin(), tb.end());
+        const auto kt = db.nearestInTime(t, 4);
+        ASSERT_EQ(kt.size(), 4u);
+        for (int j = 0; j < 4; ++j) EXPECT_NEAR(kt[j].distance, tb[j].first, 1e-9);
+    }
+    EXPECT_EQ(db.nearest(mrpt::math::TPoint2D(0, 0), 1000).size(), 60u);
+}
+
+TEST(Database, UncommittedWriterLeavesNothingAndKeepsExistingDatabase) {
+    const auto dir = tempDir("atomic");
+    { DatabaseWriter w((dir / "fresh").string()); }  // e.g. a survey that threw
+    EXPECT_FALSE(fs::exists(dir / "fresh"));
+    writeDatabase(dir / "db", 4);
+    {
+        DatabaseWriter w((dir / "db").string());
+        ReferenceInput in;
+        in.ceiling = mrpt::obs::CObservationImage::Create();
+        in.ceiling->image.resize(4, 4, mrpt::img::CH_GRAY);
+        w.add(in);
+    }  // destroyed before commit
+    EXPECT_EQ(ReferenceDatabase::load((dir / "db").string()).size(), 4u);
+    for (const auto& e : fs::directory_iterator(dir)) {
+        EXPECT_EQ(e.path().filename().string().find(".tmp-"), std::string::npos);
+    }
+    writeDatabase(dir / "db", 6);  // a committed rerun replaces it
+    EXPECT_EQ(ReferenceDatabase::load((dir / "db").string()).size(), 6u);
+}
+
+TEST(Database, MissingImageAndMissingFolderNamed) {
+    const auto dir = tempDir("broken");
+    writeDatabase(dir / "db", 3);
+    fs::remove(dir / "db" / "refs_Images" / "ceiling_000001.png");
+    try {
+        ReferenceDatabase::load((dir / "db").string());
+        FAIL() << "missing image accepted";
+    } catch (const DatabaseError& e) {
+        const std::string m = e.what();
+        EXPECT_NE(m.find("ceiling_000001.png"), std::string::npos) << m;
+        EXPECT_NE(m.find("refs.rawlog: record"), std::string::npos) << m;
+    }
+    EXPECT_THROW(ReferenceDatabase::load((dir / "nothing").string()), DatabaseError);
+}
