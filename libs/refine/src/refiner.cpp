@@ -228,7 +228,10 @@ RefineResult Refiner::refine(const cv::Mat& query_image, const mrpt::img::TCamer
         outcome.homography = estimateHomography(outcome.matches, o.homography, &K_ref, &K_query);
         res.times.homography_ms += msSince(t0);
 
-        res.sample_points += int(points.size());
+        // Points whose window falls outside the query cannot be tested: not in N_th's share.
+        for (const auto& m : outcome.matches) {
+            res.sample_points += m.status == MatchStatus::OutOfImage ? 0 : 1;
+        }
         std::vector<cv::Point2f> ref_px, query_px;
         for (const auto& m : outcome.matches) {
             if (!m.inlier) continue;

@@ -101,7 +101,8 @@ struct EstimatorOptions : public mrpt::config::CLoadableOptions {
 
 /// Acceptance filters (paper Sec. III-E).
 struct AcceptanceOptions : public mrpt::config::CLoadableOptions {
-    double min_inlier_share = 0.6;     ///< N_th: inliers / sample points, over all references
+    double min_inlier_share = 0.6;     ///< N_th: inliers / testable sample points (window in
+                                       ///< the query image), over all references
     double max_offset_m = 2.0;         ///< d_th: max |refined - coarse (or reference)| in x, y [m]
     double fallback_sigma_xy_m = 2.0;  ///< sigma reported with a fallback pose [m]
     double fallback_sigma_yaw_deg = 10.0;  ///< sigma reported with a fallback pose [deg]

@@ -60,7 +60,7 @@ struct RefineResult {
     mrpt::poses::CPosePDFGaussian pose;  ///< refined if accepted, else the fallback (x, y, yaw)
     PoseEstimate estimate;               ///< the joint estimate, also when rejected (if it ran)
 
-    int sample_points = 0;    ///< over all references
+    int sample_points = 0;    ///< testable points (not OutOfImage), all references
     int inliers = 0;          ///< over all references
     double inlier_share = 0;  ///< inliers / sample_points (compared with N_th)
     double offset_m = 0;      ///< |refined - coarse (or nearest reference)| in x, y

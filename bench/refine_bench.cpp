@@ -1,0 +1,319 @@
+// Refinement benchmarks (issue 3): the SAD matcher in pairs/s with Mine A and Mine B
+// parameters, the whole Refiner in queries/s with 1, 3 and 5 references, and the OpenCV
+// baselines a user would reach for (ORB + RANSAC homography, ECC, phase correlation) on the
+// same synthetic pairs, with their error against the known motion. One core: OpenCV threads
+// are set to 1 while these run.
+#include <benchmark/benchmark.h>
+
+#include <cmath>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/features2d.hpp>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/video/tracking.hpp>
+#include <vector>
+
+#include "lookup/refine/geometry.h"
+#include "lookup/refine/homography.h"
+#include "lookup/refine/matcher.h"
+#include "lookup/refine/refiner.h"
+#include "lookup/refine/sampler.h"
+#include "lookup/refine/testing/synthetic_ceiling.h"
+
+namespace {
+
+using namespace lookup::refine;
+using mrpt::poses::CPose3D;
+
+constexpr int kPairs = 16;
+
+// 640 x 480, f = 400 px, camera 3.5 m below a 5 m ceiling: 114 px per metre.
+struct World {
+    synthetic::SyntheticCeiling ceiling = synthetic::SyntheticCeiling::make(5.0, 14.0, 0.008, 11);
+    mrpt::img::TCamera camera = synthetic::makeCamera(640, 480, 400);
+    Pinhole pinhole{400, 400, 319.5, 239.5};
+    CPose3D on_vehicle = synthetic::ceilingCameraOnVehicle();
+
+    struct Pair {
+        Reference reference;
+        cv::Mat query;
+        CPose3D query_vehicle;
+        cv::Matx33d H;  // true reference -> query pixels
+        ImagePyramid ref_pyramid, query_pyramid;
+    };
+    std::vector<Pair> pairs;
+
+    World() {
+        cv::RNG rng(5);
+        for (int i = 0; i < kPairs; ++i) {
+            // References every 0.5 m along a tunnel; queries within +-0.12 m (14 px) and +-2 deg of
+            // them.
+            const CPose3D ref_vehicle(0.5 * i - 4.0, rng.uniform(-0.3, 0.3), 0,
+                                      rng.uniform(-0.03, 0.03), 0, 0);
+            const CPose3D query_vehicle =
+                ref_vehicle + CPose3D(rng.uniform(-0.12, 0.12), rng.uniform(-0.12, 0.12), 0,
+                                      rng.uniform(-0.035, 0.035), 0, 0);
+            Pair p{ceiling.reference(i, camera, on_vehicle, ref_vehicle),
+                   ceiling.render(camera, query_vehicle + on_vehicle),
+                   query_vehicle,
+                   ceilingHomography(pinhole, ref_vehicle + on_vehicle, pinhole,
+                                     query_vehicle + on_vehicle, ceiling.height_m),
+                   {},
+                   {}};
+            p.ref_pyramid = ImagePyramid::build(p.reference.image, 2);
+            p.query_pyramid = ImagePyramid::build(p.query, 2);
+            p.reference.prepare(2);
+            pairs.push_back(std::move(p));
+        }
+    }
+};
+
+const World& world() {
+    static const World w;
+    return w;
+}
+
+class OneCore {
+  public:
+    OneCore() : previous_(cv::getNumThreads()) { cv::setNumThreads(1); }
+    ~OneCore() { cv::setNumThreads(previous_); }
+
+  private:
+    int previous_;
+};
+
+cv::Point2d apply(const cv::Matx33d& H, const cv::Point2d& p) {
+    const cv::Vec3d v = H * cv::Vec3d(p.x, p.y, 1.0);
+    return {v[0] / v[2], v[1] / v[2]};
+}
+
+// Mean transfer error [px] of an estimated homography over a 5 x 4 grid of the image.
+double transferError(const cv::Matx33d& estimated, const cv::Matx33d& truth) {
+    double sum = 0;
+    int n = 0;
+    for (int y = 60; y < 480; y += 120) {
+        for (int x = 64; x < 640; x += 128) {
+            sum += cv::norm(apply(estimated, {double(x), double(y)}) -
+                            apply(truth, {double(x), double(y)}));
+            ++n;
+        }
+    }
+    return sum / n;
+}
+
+MatcherOptions mineA() { return MatcherOptions(); }
+MatcherOptions mineB() { return RefinerOptions::mineB().matcher; }
+
+// ---------------------------------------------------------------- matcher
+void matcherBench(benchmark::State& state, MatcherOptions o, int points, SimdLevel simd,
+                  bool include_query_pyramid) {
+    OneCore one_core;
+    const World& w = world();
+    const auto sample =
+        gridPoints(cv::Size(640, 480), points, o.patch_px / 2 + o.search_range_px / 2);
+    double error_sum = 0;
+    long matched = 0, total = 0;
+    std::size_t i = 0;
+    for (auto _ : state) {
+        const auto& p = w.pairs[i++ % w.pairs.size()];
+        std::vector<PointMatch> m;
+        if (include_query_pyramid) {
+            const ImagePyramid q = ImagePyramid::build(p.query, effectivePyramidLevels(o));
+            m = matchPoints(p.ref_pyramid, q, sample, {}, o, simd);
+        } else {
+            m = matchPoints(p.ref_pyramid, p.query_pyramid, sample, {}, o, simd);
+        }
+        benchmark::DoNotOptimize(m.data());
+        for (const auto& x : m) {
+            ++total;
+            if (!x.matched()) continue;
+            ++matched;
+            error_sum +=
+                cv::norm(cv::Point2d(x.query_px) - apply(p.H, cv::Point2d(x.reference_px)));
+        }
+    }
+    state.SetItemsProcessed(state.iterations());
+    state.counters["err_px"] = matched ? error_sum / matched : -1;
+    state.counters["matched"] = total ? double(matched) / total : 0;
+    state.SetLabel(std::string(toString(simd)) +
+                   (o.pyramid_levels ? " coarse-to-fine" : " exhaustive"));
+}
+
+MatcherOptions exhaustive(MatcherOptions o) {
+    o.pyramid_levels = 0;
+    return o;
+}
+
+// Window margin so every point's full window lies in the image (the border is not what
+// these measure).
+BENCHMARK_CAPTURE(matcherBench, MineA_12pts, mineA(), 12, bestSimdLevel(), false);
+BENCHMARK_CAPTURE(matcherBench, MineA_24pts, mineA(), 24, bestSimdLevel(), false);
+BENCHMARK_CAPTURE(matcherBench, MineB_12pts, mineB(), 12, bestSimdLevel(), false);
+BENCHMARK_CAPTURE(matcherBench, MineB_24pts, mineB(), 24, bestSimdLevel(), false);
+BENCHMARK_CAPTURE(matcherBench, MineB_12pts_with_query_pyramid, mineB(), 12, bestSimdLevel(), true);
+BENCHMARK_CAPTURE(matcherBench, MineB_12pts_scalar, mineB(), 12, SimdLevel::Scalar, false);
+BENCHMARK_CAPTURE(matcherBench, MineB_12pts_exhaustive, exhaustive(mineB()), 12, bestSimdLevel(),
+                  false);
+BENCHMARK_CAPTURE(matcherBench, MineB_12pts_exhaustive_scalar, exhaustive(mineB()), 12,
+                  SimdLevel::Scalar, false)
+    ->Iterations(8);
+
+// ---------------------------------------------------------------- matcher + homography vs OpenCV
+void lookupHomography(benchmark::State& state, int points) {
+    OneCore one_core;
+    const World& w = world();
+    const MatcherOptions o = mineB();
+    const auto sample = gridPoints(cv::Size(640, 480), points, 30);
+    double err = 0;
+    long n = 0, failed = 0;
+    std::size_t i = 0;
+    for (auto _ : state) {
+        const auto& p = w.pairs[i++ % w.pairs.size()];
+        auto m = matchPoints(p.ref_pyramid, p.query_pyramid, sample, {}, o);
+        const auto h = estimateHomography(m, HomographyOptions());
+        if (h.ok) {
+            err += transferError(h.H, p.H);
+            ++n;
+        } else {
+            ++failed;
+        }
+    }
+    state.SetItemsProcessed(state.iterations());
+    state.counters["err_px"] = n ? err / n : -1;
+    state.counters["failed"] = double(failed);
+}
+BENCHMARK_CAPTURE(lookupHomography, LookUP_SAD_MineB_24pts_RANSAC, 24);
+
+void orbHomography(benchmark::State& state) {
+    OneCore one_core;
+    const World& w = world();
+    auto orb = cv::ORB::create(500);
+    cv::BFMatcher matcher(cv::NORM_HAMMING, true);
+    double err = 0;
+    long n = 0, failed = 0;
+    std::size_t i = 0;
+    for (auto _ : state) {
+        const auto& p = w.pairs[i++ % w.pairs.size()];
+        std::vector<cv::KeyPoint> k1, k2;
+        cv::Mat d1, d2;
+        orb->detectAndCompute(p.reference.image, cv::noArray(), k1, d1);
+        orb->detectAndCompute(p.query, cv::noArray(), k2, d2);
+        std::vector<cv::DMatch> matches;
+        if (!d1.empty() && !d2.empty()) matcher.match(d1, d2, matches);
+        std::vector<cv::Point2f> a, b;
+        for (const auto& m : matches) {
+            a.push_back(k1[m.queryIdx].pt);
+            b.push_back(k2[m.trainIdx].pt);
+        }
+        cv::Mat H;
+        if (a.size() >= 4) H = cv::findHomography(a, b, cv::RANSAC, 2.0);
+        if (!H.empty()) {
+            err += transferError(cv::Matx33d(H), p.H);
+            ++n;
+        } else {
+            ++failed;
+        }
+    }
+    state.SetItemsProcessed(state.iterations());
+    state.counters["err_px"] = n ? err / n : -1;
+    state.counters["failed"] = double(failed);
+}
+BENCHMARK(orbHomography)->Name("Baseline_ORB500_findHomography_RANSAC");
+
+void eccEuclidean(benchmark::State& state) {
+    OneCore one_core;
+    const World& w = world();
+    double err = 0;
+    long n = 0, failed = 0;
+    std::size_t i = 0;
+    for (auto _ : state) {
+        const auto& p = w.pairs[i++ % w.pairs.size()];
+        cv::Mat warp = cv::Mat::eye(2, 3, CV_32F);
+        try {
+            cv::findTransformECC(
+                p.reference.image, p.query, warp, cv::MOTION_EUCLIDEAN,
+                cv::TermCriteria(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, 50, 1e-4),
+                cv::noArray(), 5);
+            cv::Matx33d H = cv::Matx33d::eye();
+            for (int r = 0; r < 2; ++r)
+                for (int c = 0; c < 3; ++c) H(r, c) = warp.at<float>(r, c);
+            // ECC's warp maps template (reference) coordinates to input (query) coordinates.
+            err += transferError(H, p.H);
+            ++n;
+        } catch (const cv::Exception&) {
+            ++failed;
+        }
+    }
+    state.SetItemsProcessed(state.iterations());
+    state.counters["err_px"] = n ? err / n : -1;
+    state.counters["failed"] = double(failed);
+}
+BENCHMARK(eccEuclidean)->Name("Baseline_findTransformECC_EUCLIDEAN");
+
+void phaseCorrelation(benchmark::State& state) {
+    OneCore one_core;
+    const World& w = world();
+    std::vector<cv::Mat> refs, queries;
+    for (const auto& p : w.pairs) {
+        cv::Mat a, b;
+        p.reference.image.convertTo(a, CV_64F);
+        p.query.convertTo(b, CV_64F);
+        refs.push_back(a);
+        queries.push_back(b);
+    }
+    const cv::Mat window = [] {
+        cv::Mat h;
+        cv::createHanningWindow(h, cv::Size(640, 480), CV_64F);
+        return h;
+    }();
+    double err = 0;
+    long n = 0;
+    std::size_t i = 0;
+    for (auto _ : state) {
+        const std::size_t k = i++ % w.pairs.size();
+        const cv::Point2d shift = cv::phaseCorrelate(refs[k], queries[k], window);
+        const cv::Matx33d H(1, 0, shift.x, 0, 1, shift.y, 0, 0, 1);
+        err += transferError(H, w.pairs[k].H);
+        ++n;
+    }
+    state.SetItemsProcessed(state.iterations());
+    state.counters["err_px"] = n ? err / n : -1;
+    state.SetLabel("translation only; 8-bit to double conversion excluded");
+}
+BENCHMARK(phaseCorrelation)->Name("Baseline_phaseCorrelate");
+
+// ---------------------------------------------------------------- whole Refiner
+void refinerBench(benchmark::State& state) {
+    OneCore one_core;
+    const World& w = world();
+    const int n_refs = int(state.range(0));
+    const Refiner refiner(RefinerOptions::mineB());
+    double err = 0;
+    long accepted = 0, queries = 0;
+    std::size_t i = 0;
+    for (auto _ : state) {
+        // The query of pair k against references k .. k + n_refs - 1 (0.5 m apart).
+        const std::size_t k = i++ % (w.pairs.size() - 5);
+        std::vector<Reference> refs;
+        for (int j = 0; j < n_refs; ++j) refs.push_back(w.pairs[k + j].reference);
+        CoarseHint hint;
+        hint.vehicle_pose = w.pairs[k].reference.vehicle_in_map;
+        const auto r = refiner.refine(w.pairs[k].query, w.camera, w.on_vehicle, hint, refs);
+        ++queries;
+        if (r.accepted()) {
+            ++accepted;
+            err += std::hypot(r.pose.mean.x() - w.pairs[k].query_vehicle.x(),
+                              r.pose.mean.y() - w.pairs[k].query_vehicle.y());
+        }
+    }
+    state.SetItemsProcessed(state.iterations());
+    state.counters["err_m"] = accepted ? err / accepted : -1;
+    state.counters["accepted"] = queries ? double(accepted) / queries : 0;
+}
+BENCHMARK(refinerBench)
+    ->Name("Refiner_MineB_grid24/refs")
+    ->Arg(1)
+    ->Arg(3)
+    ->Arg(5)
+    ->Unit(benchmark::kMillisecond);
+
+}  // namespace
