@@ -1,6 +1,8 @@
 #include <gtest/gtest.h>
 #include <mrpt/img/CImage.h>
 
+#include <opencv2/imgproc.hpp>
+
 #include <cmath>
 #include <limits>
 
@@ -197,4 +199,31 @@ TEST(Refiner, ObservationEntryPointMatchesTheMatEntryPoint) {
     ASSERT_TRUE(a.accepted()) << a.reason;
     EXPECT_EQ(a.pose.mean, b.pose.mean);
     EXPECT_LT(distanceXY(a.pose, truth), 0.005);
+}
+
+TEST(Refiner, HeatMapSamplingUsesTheBestRegionsAndIsDeterministic) {
+    const Scene& s = scene();
+    const CPose3D truth(0.12, 0.08, 0, 0.02, 0, 0);
+    Reference ref = s.reference(1, CPose3D());
+    // Heat map of sharp blobs (as an FCN gives) in the right half, one weak blob on the left:
+    // every chosen point must lie on the right.
+    ref.heat_map = cv::Mat(ref.image.size(), CV_32F, cv::Scalar(0.0f));
+    cv::RNG rng(3);
+    for (int i = 0; i < 16; ++i) {
+        ref.heat_map.at<float>(rng.uniform(40, 200), rng.uniform(180, 290)) =
+            float(rng.uniform(0.5, 1.0));
+    }
+    ref.heat_map.at<float>(120, 60) = 0.05f;
+    cv::GaussianBlur(ref.heat_map, ref.heat_map, cv::Size(0, 0), 3);
+    ref.prepare(2);
+    const Refiner refiner(optionsWithHeight(5.3));
+    const CoarseHint hint{{}, CPose3D(), {}};
+    const auto a = refiner.refine(s.query(truth), s.camera, s.on_vehicle, hint, {ref});
+    ASSERT_TRUE(a.accepted()) << a.reason;
+    ASSERT_EQ(a.references[0].matches.size(), 12u);  // heat_map_points
+    for (const auto& m : a.references[0].matches) EXPECT_GE(m.reference_px.x, 170.f);
+    EXPECT_LT(distanceXY(a.pose, truth), 0.01);  // 12 points on one side: less leverage
+    const auto b = refiner.refine(s.query(truth), s.camera, s.on_vehicle, hint, {ref});
+    EXPECT_EQ(a.pose.mean, b.pose.mean);
+    EXPECT_EQ(a.pose.cov, b.pose.cov);
 }
