@@ -227,3 +227,27 @@ TEST(Refiner, HeatMapSamplingUsesTheBestRegionsAndIsDeterministic) {
     EXPECT_EQ(a.pose.mean, b.pose.mean);
     EXPECT_EQ(a.pose.cov, b.pose.cov);
 }
+
+TEST(Reference, FromObservationConvertsToGreyAndKeepsPoses) {
+    const Scene& s = scene();
+    const cv::Mat grey = s.query(CPose3D());
+    cv::Mat bgr;
+    cv::cvtColor(grey, bgr, cv::COLOR_GRAY2BGR);
+    mrpt::obs::CObservationImage obs;
+    obs.sensorLabel = "CEILING_CAM";
+    obs.image = mrpt::img::CImage(bgr, mrpt::img::DEEP_COPY);
+    obs.cameraParams = s.camera;
+    obs.cameraPose = s.on_vehicle;
+    const CPose3D vehicle(1, 2, 0, 0.3, 0, 0);
+    const Reference r = Reference::fromObservation(9, obs, vehicle);
+    EXPECT_EQ(r.id, 9);
+    ASSERT_EQ(r.image.type(), CV_8UC1);
+    EXPECT_EQ(cv::norm(r.image, grey, cv::NORM_INF), 0.0);
+    EXPECT_EQ(r.vehicle_in_map, vehicle);
+    EXPECT_EQ(r.cameraInMap(), vehicle + s.on_vehicle);
+    EXPECT_DOUBLE_EQ(r.camera.fx(), s.camera.fx());
+
+    mrpt::obs::CObservationImage empty;
+    empty.sensorLabel = "CEILING_CAM";
+    EXPECT_THROW(Reference::fromObservation(3, empty, vehicle), std::runtime_error);
+}

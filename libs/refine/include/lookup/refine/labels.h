@@ -14,7 +14,9 @@ namespace lookup::refine {
 
 /// Dense grid (spacing `grid_step_px`, kept patch_px / 2 from the borders) -> match ->
 /// RANSAC homography. Each returned match carries `inlier` (the label) and `status` (points the
-/// matcher rejected are labelled outliers). `homography`, if given, receives the fit.
+/// matcher rejected are labelled outliers). Points near the border whose search window is
+/// clipped get BorderPeak / OutOfImage when the motion points outwards: a trainer may prefer to
+/// mask those in the loss rather than call them bad. `result`, if given, receives the fit.
 /// Images are CV_8UC1 (or CV_8UC3, converted).
 std::vector<PointMatch> labelGridPoints(const cv::Mat& reference, const cv::Mat& query,
                                         int grid_step_px, const MatcherOptions& matcher,
