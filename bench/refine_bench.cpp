@@ -157,6 +157,40 @@ BENCHMARK_CAPTURE(matcherBench, MineB_12pts_exhaustive_scalar, exhaustive(mineB(
                   SimdLevel::Scalar, false)
     ->Iterations(8);
 
+// The OpenCV way to do the same search: cv::matchTemplate (no SAD there; TM_SQDIFF), exhaustive
+// over the Mine B window, integer peak. Shows what the hand-written SAD path buys.
+void matchTemplateBench(benchmark::State& state, int points) {
+    OneCore one_core;
+    const World& w = world();
+    const MatcherOptions o = mineB();
+    const int r = o.search_range_px / 2, half = o.patch_px / 2;
+    const auto sample = gridPoints(cv::Size(640, 480), points, half + r);
+    double error_sum = 0;
+    long n = 0;
+    std::size_t i = 0;
+    for (auto _ : state) {
+        const auto& p = w.pairs[i++ % w.pairs.size()];
+        for (const auto& pt : sample) {
+            const cv::Point c(int(pt.x), int(pt.y));
+            const cv::Mat patch =
+                p.reference.image(cv::Rect(c.x - half, c.y - half, o.patch_px, o.patch_px));
+            const cv::Mat window = p.query(
+                cv::Rect(c.x - half - r, c.y - half - r, o.patch_px + 2 * r, o.patch_px + 2 * r));
+            cv::Mat score;
+            cv::matchTemplate(window, patch, score, cv::TM_SQDIFF);
+            cv::Point best;
+            cv::minMaxLoc(score, nullptr, nullptr, &best);
+            const cv::Point2d q(c.x + best.x - r, c.y + best.y - r);
+            error_sum += cv::norm(q - apply(p.H, cv::Point2d(pt)));
+            ++n;
+        }
+    }
+    state.SetItemsProcessed(state.iterations());
+    state.counters["err_px"] = n ? error_sum / n : -1;
+    state.SetLabel("integer peak");
+}
+BENCHMARK_CAPTURE(matchTemplateBench, Baseline_matchTemplate_SQDIFF_MineB_12pts, 12);
+
 // ---------------------------------------------------------------- matcher + homography vs OpenCV
 void lookupHomography(benchmark::State& state, int points) {
     OneCore one_core;
