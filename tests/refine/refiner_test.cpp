@@ -251,3 +251,23 @@ TEST(Reference, FromObservationConvertsToGreyAndKeepsPoses) {
     empty.sensorLabel = "CEILING_CAM";
     EXPECT_THROW(Reference::fromObservation(3, empty, vehicle), std::runtime_error);
 }
+
+TEST(Refiner, GlobalBrightnessChangeIsNormalisedAway) {
+    const Scene& s = scene();
+    const CPose3D truth(0.15, -0.05, 0, 0.02, 0, 0);
+    cv::Mat darker;
+    s.query(truth).convertTo(darker, CV_8U, 0.55, 20.0);  // exposure / lighting change
+    const std::vector<Reference> refs = {s.reference(1, CPose3D())};
+    const CoarseHint hint{{}, CPose3D(), {}};
+    RefinerOptions o = optionsWithHeight(5.3);
+    const auto r = Refiner(o).refine(darker, s.camera, s.on_vehicle, hint, refs);
+    ASSERT_TRUE(r.accepted()) << r.reason;
+    EXPECT_LT(distanceXY(r.pose, truth), 0.005);
+    // Without normalisation the SAD peaks are weaker: quality drops on the same pair.
+    o.matcher.normalize_brightness = false;
+    const auto raw = Refiner(o).refine(darker, s.camera, s.on_vehicle, hint, refs);
+    double q_norm = 0, q_raw = 0;
+    for (const auto& m : r.references[0].matches) q_norm += m.quality;
+    for (const auto& m : raw.references[0].matches) q_raw += m.quality;
+    EXPECT_GT(q_norm, q_raw);
+}

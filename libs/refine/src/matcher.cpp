@@ -22,7 +22,7 @@ const char* toString(MatchStatus s) {
     }
 }
 
-ImagePyramid ImagePyramid::build(const cv::Mat& image, int extra_levels) {
+ImagePyramid ImagePyramid::build(const cv::Mat& image, int extra_levels, bool normalize) {
     ImagePyramid p;
     if (image.empty()) return p;
     cv::Mat grey;
@@ -32,6 +32,16 @@ ImagePyramid ImagePyramid::build(const cv::Mat& image, int extra_levels) {
         cv::cvtColor(image, grey, cv::COLOR_BGR2GRAY);
     } else {
         CV_Error(cv::Error::StsUnsupportedFormat, "ImagePyramid: image must be CV_8UC1 or CV_8UC3");
+    }
+    if (normalize) {
+        cv::Scalar mean, stddev;
+        cv::meanStdDev(grey, mean, stddev);
+        // Capped gain: a flat, noisy image must not be stretched into fake texture.
+        const double gain = stddev[0] > 0.0 ? std::min(48.0 / stddev[0], 4.0) : 1.0;
+        cv::Mat stretched;
+        grey.convertTo(stretched, CV_8U, gain, 128.0 - gain * mean[0]);
+        grey = stretched;
+        p.normalized = true;
     }
     // Each level lives in a buffer 32 columns wider than the view, so SIMD rows may overrun.
     auto padded = [](const cv::Mat& src) {

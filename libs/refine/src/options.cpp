@@ -112,7 +112,7 @@ void MatcherOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& sou
     const IniSection s(source, section, sourceName(source));
     s.rejectUnknownKeys({"search_range_px", "patch_px", "pyramid_levels", "min_top_patch_px",
                          "refine_radius_px", "min_texture", "min_distinctiveness",
-                         "exclusion_radius_px", "subpixel", "use_simd"});
+                         "exclusion_radius_px", "subpixel", "use_simd", "normalize_brightness"});
     search_range_px = s.getInt("search_range_px", search_range_px);
     patch_px = s.getInt("patch_px", patch_px);
     pyramid_levels = s.getInt("pyramid_levels", pyramid_levels);
@@ -123,6 +123,7 @@ void MatcherOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& sou
     exclusion_radius_px = s.getInt("exclusion_radius_px", exclusion_radius_px);
     subpixel = parseSubpixel(s, "subpixel", subpixel);
     use_simd = s.getBool("use_simd", use_simd);
+    normalize_brightness = s.getBool("normalize_brightness", normalize_brightness);
 }
 
 void MatcherOptions::saveToConfigFile(mrpt::config::CConfigFileBase& t,
@@ -137,6 +138,7 @@ void MatcherOptions::saveToConfigFile(mrpt::config::CConfigFileBase& t,
     write(t, s, "exclusion_radius_px", exclusion_radius_px);
     write(t, s, "subpixel", std::string(toString(subpixel)));
     write(t, s, "use_simd", std::string(use_simd ? "true" : "false"));
+    write(t, s, "normalize_brightness", std::string(normalize_brightness ? "true" : "false"));
 }
 
 void MatcherOptions::check() const {

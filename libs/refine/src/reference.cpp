@@ -8,8 +8,9 @@
 
 namespace lookup::refine {
 
-void Reference::prepare(int pyramid_levels) {
-    pyramid = std::make_shared<const ImagePyramid>(ImagePyramid::build(image, pyramid_levels));
+void Reference::prepare(int pyramid_levels, bool normalize_brightness) {
+    pyramid = std::make_shared<const ImagePyramid>(
+        ImagePyramid::build(image, pyramid_levels, normalize_brightness));
 }
 
 Reference Reference::fromObservation(std::int64_t id, const mrpt::obs::CObservationImage& obs,

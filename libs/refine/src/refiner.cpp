@@ -170,7 +170,8 @@ RefineResult Refiner::refine(const cv::Mat& query_image, const mrpt::img::TCamer
         return fallback(RefineStatus::InvalidQuery, "ceiling height prior is not finite");
     const int levels = effectivePyramidLevels(o.matcher);
     auto t0 = Clock::now();
-    const ImagePyramid query_pyramid = ImagePyramid::build(query_image, levels);
+    const bool normalize = o.matcher.normalize_brightness;
+    const ImagePyramid query_pyramid = ImagePyramid::build(query_image, levels, normalize);
     res.times.prepare_ms += msSince(t0);
 
     EstimatorInput input;
@@ -192,8 +193,9 @@ RefineResult Refiner::refine(const cv::Mat& query_image, const mrpt::img::TCamer
         t0 = Clock::now();
         ImagePyramid local;
         const ImagePyramid* ref_pyramid = ref.pyramid.get();
-        if (!ref_pyramid || int(ref_pyramid->levels.size()) <= levels) {
-            local = ImagePyramid::build(ref.image, levels);
+        if (!ref_pyramid || int(ref_pyramid->levels.size()) <= levels ||
+            ref_pyramid->normalized != normalize) {
+            local = ImagePyramid::build(ref.image, levels, normalize);
             ref_pyramid = &local;
         }
         res.times.prepare_ms += msSince(t0);

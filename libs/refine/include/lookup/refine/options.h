@@ -57,7 +57,8 @@ struct MatcherOptions : public mrpt::config::CLoadableOptions {
                                         ///< outside exclusion_radius_px, coarsest level)
     int exclusion_radius_px = 2;        ///< exclusion radius around the best, at the coarsest level
     SubpixelMethod subpixel = SubpixelMethod::Equiangular;
-    bool use_simd = true;  ///< false forces the scalar SAD (verification)
+    bool use_simd = true;              ///< false forces the scalar SAD (verification)
+    bool normalize_brightness = true;  ///< per-image gain/offset normalisation before SAD
 
     void loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
                             const std::string& section) override;

@@ -25,9 +25,12 @@ namespace lookup::refine {
 /// 32 readable bytes after the end of each row (SIMD loads may overrun a patch row).
 struct ImagePyramid {
     std::vector<cv::Mat> levels;
+    bool normalized = false;  ///< brightness normalised (see build)
 
     /// `grey` must be CV_8UC1 (CV_8UC3 is converted); `extra_levels` coarser levels are added.
-    static ImagePyramid build(const cv::Mat& grey, int extra_levels);
+    /// `normalize`: linear stretch of the whole image to mean 128, standard deviation 48 (gain
+    /// capped at 4) so SAD ignores global gain and offset changes (exposure, vehicle lights).
+    static ImagePyramid build(const cv::Mat& grey, int extra_levels, bool normalize = false);
     bool empty() const { return levels.empty() || levels[0].empty(); }
 };
 
@@ -45,8 +48,9 @@ struct Reference {
     /// Optional cache built by prepare(); built on the fly per query when absent.
     std::shared_ptr<const ImagePyramid> pyramid;
 
-    /// Builds the matcher's pyramid once so queries do not rebuild it.
-    void prepare(int pyramid_levels);
+    /// Builds the matcher's pyramid once so queries do not rebuild it (the Refiner rebuilds it
+    /// per query if levels or normalisation differ from its MatcherOptions).
+    void prepare(int pyramid_levels, bool normalize_brightness = true);
 
     mrpt::poses::CPose3D cameraInMap() const { return vehicle_in_map + camera_on_vehicle; }
 
