@@ -1,0 +1,75 @@
+#pragma once
+// Self-supervised training labels (paper Sec. III-B): for each training query frame, the
+// nearest references (by the frame's ground-truth pose, known offline) have a dense grid of
+// points matched into the query; RANSAC splits them into inliers (good sample points) and
+// outliers. No manual labels. Query frames are split by time: the last `held_out_share` of each
+// training rawlog is held out for validation and evaluation, never trained on.
+
+#include <cstdint>
+#include <functional>
+#include <opencv2/core.hpp>
+#include <string>
+#include <vector>
+
+#include "lookup/database/reference_database.h"
+#include "lookup/fcn/options.h"
+#include "lookup/refine/homography.h"
+#include "lookup/refine/types.h"
+
+namespace lookup::fcn {
+
+/// One (reference, query frame) pair and its grid labels.
+struct LabelledPair {
+    std::size_t reference = 0;  ///< database index of the reference
+    std::string query_rawlog;
+    std::size_t query_record = 0;  ///< rawlog record of the query image
+    double query_time_s = 0;
+    double distance_m = 0;  ///< between the reference and query vehicle positions [m]
+    bool held_out = false;  ///< evaluation / validation pair (never trained on)
+    bool usable = false;    ///< homography found with >= min_pair_inliers inliers
+    std::string reason;     ///< why not usable
+    std::vector<cv::Point2f> points;   ///< grid points in the reference image [px]
+    std::vector<std::uint8_t> inlier;  ///< label per point: 1 = RANSAC inlier
+    int inliers = 0;
+};
+
+struct LabelStats {
+    std::size_t query_frames = 0;     ///< ceiling frames used (after query_stride)
+    std::size_t frames_without_reference = 0;  ///< no reference in range (distance, time gap)
+    std::size_t pairs = 0;            ///< pairs labelled
+    std::size_t usable_pairs = 0;     ///< of which usable
+    std::size_t training_pairs = 0;   ///< usable and not held out
+    std::size_t held_out_pairs = 0;   ///< usable and held out
+    std::size_t points = 0;           ///< labelled points of usable pairs
+    std::size_t inlier_points = 0;    ///< of which inliers
+    double seconds = 0;               ///< wall time of label generation
+    double inlierShare() const { return points ? double(inlier_points) / points : 0.0; }
+};
+
+struct LabelSet {
+    std::vector<LabelledPair> pairs;  ///< every labelled pair (usable or not)
+    LabelStats stats;
+};
+
+/// Labels one pair: dense grid (spacing grid_step_px, patch_px / 2 from the borders) ->
+/// matcher -> RANSAC homography, as refine::labelGridPoints. With `reference_to_query` (the
+/// ceiling-plane homography predicted from known poses) each search window is centred on the
+/// predicted position instead of the same pixel, so pairs farther apart than L_SR / 2 can be
+/// labelled. Images are CV_8UC1.
+std::vector<refine::PointMatch> labelPair(const cv::Mat& reference, const cv::Mat& query,
+                                          const LabelOptions& options,
+                                          const cv::Matx33d* reference_to_query,
+                                          refine::HomographyResult* result = nullptr);
+
+/// Called with (done, total) during label generation.
+using ProgressFn = std::function<void(std::size_t done, std::size_t total)>;
+
+/// Labels every training rawlog against the database. Each rawlog needs its ground truth
+/// `<rawlog>.GT.txt` beside it (training is offline; the pose picks the references). Throws
+/// std::runtime_error naming the file and reason for an unreadable rawlog, a missing or
+/// non-overlapping ground truth, or a rawlog without ceiling images (label of db.ini).
+LabelSet generateLabels(const database::ReferenceDatabase& db,
+                        const std::vector<std::string>& rawlogs, const LabelOptions& options,
+                        const ProgressFn& progress = {});
+
+}  // namespace lookup::fcn

@@ -1,0 +1,219 @@
+#include "lookup/fcn/labels.h"
+
+#include <mrpt/obs/CObservationImage.h>
+
+#include <algorithm>
+#include <chrono>
+#include <filesystem>
+#include <opencv2/imgproc.hpp>
+#include <stdexcept>
+
+#include "lookup/common/pose_files.h"
+#include "lookup/common/rawlog_io.h"
+#include "lookup/refine/geometry.h"
+#include "lookup/refine/matcher.h"
+
+namespace lookup::fcn {
+namespace {
+
+struct QueryFrame {
+    std::size_t record = 0;
+    double time_s = 0;
+    mrpt::poses::CPose3D vehicle_in_map;
+    mrpt::obs::CObservationImage::Ptr obs;
+};
+
+cv::Mat greyOf(const mrpt::obs::CObservationImage& obs, const std::string& where) {
+    cv::Mat grey;
+    try {
+        const cv::Mat& m = obs.image.asCvMatRef();  // loads an external image
+        if (m.channels() == 3) {
+            cv::cvtColor(m, grey, cv::COLOR_BGR2GRAY);
+        } else {
+            grey = m.clone();
+        }
+    } catch (const std::exception& e) {
+        throw std::runtime_error(where + ": cannot read the ceiling image: " + e.what());
+    }
+    if (grey.empty() || grey.type() != CV_8UC1) {
+        throw std::runtime_error(where + ": ceiling image is empty or not 8-bit");
+    }
+    return grey;
+}
+
+// Ceiling frames of one training rawlog with their ground-truth vehicle poses.
+std::vector<QueryFrame> readQueryFrames(const std::string& rawlog, const std::string& label,
+                                        int stride) {
+    const std::string gt_path = rawlog + ".GT.txt";
+    if (!std::filesystem::is_regular_file(gt_path)) {
+        throw std::runtime_error(rawlog + ": no ground truth " + gt_path +
+                                 " (training needs the query poses)");
+    }
+    const common::PoseTrack truth = common::readPoseFile(gt_path);
+    if (truth.size() < 2) throw std::runtime_error(gt_path + ": fewer than 2 poses");
+    const auto interp = common::makeInterpolator(truth, 1.0);
+
+    std::vector<QueryFrame> frames;
+    common::RawlogReader reader(rawlog);
+    mrpt::obs::CObservation::Ptr obs;
+    std::size_t ceiling = 0, without_pose = 0;
+    while (reader.next(obs)) {
+        auto img = std::dynamic_pointer_cast<mrpt::obs::CObservationImage>(obs);
+        if (!img || img->sensorLabel != label) continue;
+        if (ceiling++ % stride != 0) continue;
+        QueryFrame f;
+        f.record = reader.recordIndex();
+        f.time_s = mrpt::Clock::toDouble(img->timestamp);
+        bool valid = false;
+        interp.interpolate(img->timestamp, f.vehicle_in_map, valid);
+        if (!valid) {
+            ++without_pose;
+            continue;
+        }
+        f.obs = img;
+        frames.push_back(std::move(f));
+    }
+    if (ceiling == 0) {
+        throw std::runtime_error(rawlog + ": no ceiling images labelled '" + label + "'");
+    }
+    if (frames.empty()) {
+        throw std::runtime_error(rawlog + ": none of its " + std::to_string(ceiling) +
+                                 " ceiling images lies within the time span of " + gt_path);
+    }
+    return frames;
+}
+
+}  // namespace
+
+std::vector<refine::PointMatch> labelPair(const cv::Mat& reference, const cv::Mat& query,
+                                          const LabelOptions& options,
+                                          const cv::Matx33d* reference_to_query,
+                                          refine::HomographyResult* result) {
+    CV_Assert(reference.type() == CV_8UC1 && query.type() == CV_8UC1);
+    const int levels = refine::effectivePyramidLevels(options.matcher);
+    const auto ref = refine::ImagePyramid::build(reference, levels);
+    const auto qry = refine::ImagePyramid::build(query, levels);
+    std::vector<cv::Point2f> points;
+    const int margin = options.matcher.patch_px / 2;
+    for (int y = margin; y + margin < reference.rows; y += options.grid_step_px) {
+        for (int x = margin; x + margin < reference.cols; x += options.grid_step_px) {
+            points.emplace_back(float(x), float(y));
+        }
+    }
+    std::vector<cv::Point2f> offsets;
+    if (reference_to_query) {
+        offsets.reserve(points.size());
+        for (const auto& p : points) {
+            const cv::Vec3d q = (*reference_to_query) * cv::Vec3d(p.x, p.y, 1.0);
+            offsets.emplace_back(q[2] > 1e-9 ? cv::Point2f(float(q[0] / q[2] - p.x),
+                                                           float(q[1] / q[2] - p.y))
+                                             : cv::Point2f(0, 0));
+        }
+    }
+    auto matches = refine::matchPoints(ref, qry, points, offsets, options.matcher);
+    const auto fit = refine::estimateHomography(matches, options.homography);
+    if (result) *result = fit;
+    return matches;
+}
+
+LabelSet generateLabels(const database::ReferenceDatabase& db,
+                        const std::vector<std::string>& rawlogs, const LabelOptions& options,
+                        const ProgressFn& progress) {
+    const auto t0 = std::chrono::steady_clock::now();
+    options.check();
+    LabelSet out;
+    refine::Pinhole ref_camera;
+    std::string why;
+    if (!refine::pinholeFrom(db.info().ceiling_camera, ref_camera, &why)) {
+        throw std::runtime_error(db.directory() + "/db.ini [ceiling_camera]: " + why);
+    }
+    const double h = db.info().ceiling_height_m;
+
+    struct Job {
+        const std::string* rawlog;
+        QueryFrame* frame;
+        bool held_out;
+    };
+    std::vector<std::vector<QueryFrame>> all_frames;
+    std::vector<Job> jobs;
+    for (const auto& rawlog : rawlogs) {
+        all_frames.push_back(
+            readQueryFrames(rawlog, db.info().ceiling_camera_label, options.query_stride));
+    }
+    for (std::size_t r = 0; r < rawlogs.size(); ++r) {
+        auto& frames = all_frames[r];
+        const double split = frames.front().time_s +
+                             (1.0 - options.held_out_share) *
+                                 (frames.back().time_s - frames.front().time_s);
+        for (auto& f : frames) jobs.push_back({&rawlogs[r], &f, f.time_s >= split});
+    }
+
+    std::size_t done = 0;
+    for (const Job& job : jobs) {
+        QueryFrame& f = *job.frame;
+        ++out.stats.query_frames;
+        // Nearest references in space, skipping the same moment of the same survey traverse.
+        std::vector<database::Neighbour> chosen;
+        for (const auto& n : db.nearest(f.vehicle_in_map, options.references_per_query + 8)) {
+            if (n.distance > options.max_reference_distance_m) break;
+            if (std::abs(db.reference(n.index).time_s - f.time_s) < options.min_time_gap_s) {
+                continue;
+            }
+            chosen.push_back(n);
+            if (int(chosen.size()) == options.references_per_query) break;
+        }
+        if (chosen.empty()) {
+            ++out.stats.frames_without_reference;
+        } else {
+            const std::string where = *job.rawlog + " record " + std::to_string(f.record);
+            const cv::Mat query = greyOf(*f.obs, where);
+            refine::Pinhole query_camera;
+            if (!refine::pinholeFrom(f.obs->cameraParams, query_camera, &why)) {
+                throw std::runtime_error(where + ": camera parameters: " + why);
+            }
+            const mrpt::poses::CPose3D query_camera_in_map = f.vehicle_in_map + f.obs->cameraPose;
+            for (const auto& n : chosen) {
+                const auto& ref = db.reference(n.index);
+                const cv::Mat ref_image = db.ceilingImage(n.index);
+                LabelledPair pair;
+                pair.reference = n.index;
+                pair.query_rawlog = *job.rawlog;
+                pair.query_record = f.record;
+                pair.query_time_s = f.time_s;
+                pair.distance_m = n.distance;
+                pair.held_out = job.held_out;
+                const cv::Matx33d H = refine::ceilingHomography(
+                    ref_camera, ref.ceiling_camera_pose, query_camera, query_camera_in_map, h);
+                refine::HomographyResult fit;
+                const auto matches = labelPair(ref_image, query, options,
+                                               options.use_pose_prior ? &H : nullptr, &fit);
+                for (const auto& m : matches) {
+                    pair.points.push_back(m.reference_px);
+                    pair.inlier.push_back(m.inlier ? 1 : 0);
+                    pair.inliers += m.inlier ? 1 : 0;
+                }
+                if (!fit.ok) {
+                    pair.reason = "no homography: " + fit.reason;
+                } else if (pair.inliers < options.min_pair_inliers) {
+                    pair.reason = "only " + std::to_string(pair.inliers) + " inliers";
+                } else {
+                    pair.usable = true;
+                    ++out.stats.usable_pairs;
+                    ++(pair.held_out ? out.stats.held_out_pairs : out.stats.training_pairs);
+                    out.stats.points += pair.points.size();
+                    out.stats.inlier_points += pair.inliers;
+                }
+                ++out.stats.pairs;
+                out.pairs.push_back(std::move(pair));
+            }
+            f.obs->image.unload();
+        }
+        f.obs.reset();
+        if (progress) progress(++done, jobs.size());
+    }
+    out.stats.seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return out;
+}
+
+}  // namespace lookup::fcn
