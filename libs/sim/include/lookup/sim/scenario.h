@@ -1,0 +1,172 @@
+#pragma once
+// The scenario of a synthetic mine: world, vehicle, sensors and traverses, read strictly from an
+// MRPT-style .ini file (share/lookup/scenarios/*.ini) and written back fully resolved as
+// `scenario.ini` in every generated dataset. See docs/sim.md for the model behind each key.
+
+#include <mrpt/config/CLoadableOptions.h>
+#include <mrpt/poses/CPose3D.h>
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace lookup::sim {
+
+/// A sensor's mounting pose on the vehicle (vehicle frame: +x forward, +y left, +z up, origin on
+/// the floor under the vehicle centre). Angles follow mrpt::poses::CPose3D (yaw about z, then
+/// pitch about y, then roll about x).
+struct MountPose {
+    double x_m = 0, y_m = 0, z_m = 0;                 ///< translation [m]
+    double yaw_deg = 0, pitch_deg = 0, roll_deg = 0;  ///< rotation [deg]
+    mrpt::poses::CPose3D pose() const;
+};
+
+/// Tunnel network, ceiling texture and the 3-D furniture below the ceiling.
+struct WorldOptions {
+    std::string layout = "single";  ///< "single": one main tunnel (Mine B); "twin": two parallel
+                                    ///< tunnels joined by a crosscut at the far end (Mine A)
+    double length_m = 1000;         ///< length of the (each, for twin) main tunnel [m]
+    double width_m = 5.5;           ///< tunnel width, wall to wall [m]
+    double ceiling_height_m = 5.0;  ///< h: height of the quasi-planar ceiling above the floor [m]
+    double arch_radius_m = 1.2;     ///< radius of the rounded corners between walls and roof [m]
+    double segment_length_m = 80;   ///< mean length of straight centre-line pieces [m]
+    double bend_max_deg = 10;       ///< largest heading change between pieces [deg]
+    double twin_separation_m = 40;  ///< twin: distance between the two tunnels' centre lines [m]
+    double drawpoint_spacing_m =
+        40;  ///< distance between draw points along the tunnel, 0 = none [m]
+    double drawpoint_length_m = 12;   ///< depth of a draw point (side opening) [m]
+    double drawpoint_width_m = 4.5;   ///< width of a draw point [m]
+    double drawpoint_angle_deg = 60;  ///< angle between a draw point and the tunnel axis [deg]
+    double junction_spacing_m = 250;  ///< distance between crossing tunnels, 0 = none [m]
+    double junction_length_m = 30;    ///< length of a crossing tunnel on each side [m]
+    double bump_amplitude_m = 0.12;   ///< low-frequency ceiling relief amplitude (+-) [m]
+    double bump_wavelength_m = 4.0;   ///< wavelength of that relief [m]
+    double floor_roughness_m = 0.04;  ///< floor relief amplitude (gives vehicle pitch and roll) [m]
+    double rock_contrast = 1.0;       ///< contrast of the multi-scale rock albedo (0 = flat grey)
+    double bolt_spacing_m =
+        1.3;                     ///< rock-bolt grid pitch along and across the tunnel, 0 = none [m]
+    double bolt_plate_m = 0.15;  ///< side of a square bolt plate [m]
+    double mesh_fraction = 0.35;      ///< share of the ceiling covered by weld mesh [0,1]
+    double mesh_pitch_m = 0.1;        ///< weld-mesh pitch [m]
+    double shotcrete_fraction = 0.3;  ///< share of the ceiling covered by shotcrete patches [0,1]
+    std::string texture_image;        ///< optional grey image tiled as the rock albedo ("" = none)
+    double texture_image_size_m = 4;  ///< ceiling extent covered by one tile of that image [m]
+    double duct_radius_m = 0.35;      ///< ventilation duct radius, 0 = none [m]
+    double duct_offset_m = 1.9;      ///< duct axis lateral offset from the centre line (+ left) [m]
+    double duct_drop_m = 0.6;        ///< duct axis distance below the ceiling [m]
+    double pipe_radius_m = 0.08;     ///< service pipe radius, 0 = none [m]
+    double pipe_offset_m = -1.9;     ///< pipe lateral offset (+ left) [m]
+    double pipe_drop_m = 0.35;       ///< pipe axis distance below the ceiling [m]
+    double cable_offset_m = -0.9;    ///< hanging cable lateral offset (+ left) [m]
+    double cable_span_m = 3.0;       ///< distance between cable hangers, 0 = no cable [m]
+    double cable_sag_m = 0.15;       ///< cable sag at mid span [m]
+    double light_spacing_m = 25;     ///< distance between tunnel lights, 0 = none [m]
+    double sign_spacing_m = 60;      ///< mean distance between reflective wall signs, 0 = none [m]
+    double grid_resolution_m = 0.1;  ///< occupancy-grid cell size (map.gridmap.gz, lidar) [m]
+};
+
+/// The vehicle body: where its wheels touch the floor (pitch and roll follow the floor relief).
+struct VehicleOptions {
+    std::string name = "light";  ///< free text, e.g. "heavy loader", "light vehicle"
+    double wheelbase_m = 2.8;    ///< distance between axles [m]
+    double track_m = 1.8;        ///< distance between left and right wheels [m]
+};
+
+/// A grey pinhole camera rendered by ray casting.
+struct CameraOptions {
+    std::string label;       ///< sensorLabel of its observations
+    double rate_hz = 20;     ///< frame rate [Hz]
+    double phase_s = 0;      ///< time of the first frame after the traverse start [s]
+    int width_px = 320;      ///< image width [px]
+    int height_px = 240;     ///< image height [px]
+    double hfov_deg = 95;    ///< horizontal field of view [deg]; fx = fy, principal point centred
+    MountPose mount;         ///< camera pose on the vehicle (+Z optical axis, MRPT convention)
+    double exposure_ms = 4;  ///< exposure time, sets the motion-blur length [ms]
+    double exposure_variation = 0.15;  ///< relative amplitude of per-frame exposure changes
+    double noise_std_dn = 2.0;         ///< read-noise standard deviation [grey levels]
+    double light_gain = 1.0;  ///< vehicle-light intensity (1: ceiling at nominal range ~ albedo)
+    double light_falloff_exp = 1.5;  ///< vehicle-light beam: intensity ~ cos(off-axis)^exp
+    double max_range_m = 60;         ///< rays beyond this see darkness [m]
+};
+
+/// A horizontal 2-D scanner simulated by MRPT against the occupancy grid.
+struct LidarOptions {
+    std::string label = "LIDAR";
+    double rate_hz = 10;          ///< scan rate [Hz]
+    double phase_s = 0.027;       ///< time of the first scan after the traverse start [s]
+    double aperture_deg = 270;    ///< field of view [deg]
+    double resolution_deg = 0.5;  ///< angle between rays [deg]
+    double max_range_m = 30;      ///< maximum range [m]
+    double noise_std_m = 0.01;    ///< range noise standard deviation [m]
+    MountPose mount;              ///< scanner pose on the vehicle
+};
+
+/// Wheel odometry: accumulated 2-D pose with scale error, yaw bias and noise.
+struct OdometryOptions {
+    std::string label = "ODOMETRY";
+    double rate_hz = 50;               ///< record rate [Hz]
+    double phase_s = 0.005;            ///< time of the first record after the traverse start [s]
+    double scale_error = 0.01;         ///< relative distance error (0.01 = 1 % too long)
+    double yaw_bias_deg_per_m = 0.02;  ///< heading drift per metre travelled [deg/m]
+    double noise_std_m = 0.002;        ///< translation noise per record [m]
+    double noise_std_deg = 0.02;       ///< heading noise per record [deg]
+};
+
+/// One drive along the route.
+struct TraverseOptions {
+    std::string name;               ///< file stem of its rawlog, e.g. "left"
+    std::string roles;              ///< comma list of mapping, reference, query
+    double lateral_offset_m = 0;    ///< offset from the centre line (+ left) [m]
+    double zigzag_amplitude_m = 0;  ///< amplitude of a sinusoidal lateral weave [m]
+    double zigzag_period_m = 40;    ///< its period along the route [m]
+    double speed_kmh = 20;          ///< cruise speed [km/h]
+    double speed_variation = 0.15;  ///< relative slow variation of the cruise speed
+    double accel_mps2 = 1.5;        ///< acceleration and braking at start and end [m/s^2]
+    double start_m = 0;             ///< start along the route [m]
+    double end_m = -1;              ///< end along the route, -1 = route end [m]
+};
+
+/// The whole scenario. Sections: [scenario], [world], [vehicle], [ceiling_camera],
+/// [forward_camera], [lidar], [odometry], [traverse_0] ... [traverse_{traverse_count-1}].
+/// Loading is strict: unknown sections or keys and malformed values are refused with a
+/// common::ConfigError naming the file, section and key.
+struct ScenarioOptions : public mrpt::config::CLoadableOptions {
+    std::string name = "scenario";  ///< dataset name
+    uint64_t seed = 1;              ///< everything random derives from it: same seed, same bytes
+    int threads = 0;               ///< render threads, 0 = all cores (output does not depend on it)
+    double start_time_s = 1.7e9;   ///< time stamp of the first traverse's start [s, UNIX]
+    double traverse_gap_s = 1000;  ///< traverse k starts at start_time_s + k * gap (or later) [s]
+    WorldOptions world;
+    VehicleOptions vehicle;
+    CameraOptions ceiling_camera;
+    CameraOptions forward_camera;
+    LidarOptions lidar;
+    OdometryOptions odometry;
+    std::vector<TraverseOptions> traverses;
+
+    /// Name that error messages give the source (the file path when read by fromFile()).
+    std::string source_name = "<scenario>";
+
+    ScenarioOptions();
+
+    /// Reads the whole scenario; `section` is ignored (a scenario spans several sections).
+    void loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
+                            const std::string& section) override;
+    void saveToConfigFile(mrpt::config::CConfigFileBase& target,
+                          const std::string& section) const override;
+
+    /// Throws common::ConfigError naming every invalid field.
+    void check() const;
+
+    /// Loads and checks `path`; throws common::ConfigError (file, section, key) when malformed.
+    static ScenarioOptions fromFile(const std::string& path);
+
+    /// The resolved scenario as .ini text (what `scenario.ini` holds).
+    std::string toIniText() const;
+};
+
+/// `<dir>/<name>.ini` for the first dir in `search_dirs` that has it; throws ConfigError
+/// listing the dirs tried otherwise.
+std::string findPreset(const std::string& name, const std::vector<std::string>& search_dirs);
+
+}  // namespace lookup::sim

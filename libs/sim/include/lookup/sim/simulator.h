@@ -1,0 +1,85 @@
+#pragma once
+// lookup-sim as a library: generates a synthetic mine dataset (docs/dataset-format.md) from a
+// scenario: one observations-only rawlog with external images and one ground-truth file per
+// traverse, plus the map, dataset.ini and the resolved scenario.ini. Same seed, same bytes.
+
+#include "lookup/sim/scenario.h"
+#include "lookup/sim/world.h"
+
+#include <lookup/common/pose_files.h>
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace lookup::sim {
+
+/// What one traverse produced.
+struct TraverseSummary {
+    std::string name;
+    std::string roles;
+    std::size_t ceiling_frames = 0;
+    std::size_t forward_frames = 0;
+    std::size_t lidar_scans = 0;
+    std::size_t odometry_records = 0;
+    std::size_t ground_truth_rows = 0;
+    double length_m = 0;      ///< distance driven [m]
+    double duration_s = 0;    ///< from first to last ground-truth row [s]
+    double start_time_s = 0;  ///< absolute time stamp of the start [s]
+    uint64_t bytes = 0;       ///< rawlog + images + ground truth [bytes]
+    double wall_time_s = 0;   ///< generation time [s]
+};
+
+struct SimulationResult {
+    enum class Status { Ok, Failed };
+    Status status = Status::Failed;
+    std::string reason;  ///< why it failed (file and cause), empty when Ok
+    std::string out_dir;
+    std::vector<TraverseSummary> traverses;
+    uint64_t total_bytes = 0;  ///< everything written into out_dir [bytes]
+    double wall_time_s = 0;    ///< total generation time [s]
+};
+
+/// Human-readable table, one line per traverse plus a total.
+std::string formatSummary(const SimulationResult& result);
+
+/// A vehicle's drive along the route: dense ground truth (100 Hz) in the traverse's time base.
+common::PoseTrack vehicleTrack(const TunnelWorld& world, const TraverseOptions& traverse,
+                               const VehicleOptions& vehicle, double start_time_s);
+
+class Simulator {
+  public:
+    /// Called now and then during run(): traverse name and its fraction done in [0, 1].
+    using Progress = std::function<void(const std::string& traverse, double fraction)>;
+
+    /// Checks the scenario (common::ConfigError naming the field) and builds the world.
+    explicit Simulator(ScenarioOptions scenario);
+    ~Simulator();
+
+    const ScenarioOptions& scenario() const { return scenario_; }
+    const TunnelWorld& world() const { return *world_; }
+    /// For tests: paint a marker on the ceiling before run().
+    TunnelWorld& mutableWorld() { return *world_; }
+
+    /// Ground truth of traverse i (dense, 100 Hz, absolute time stamps). Traverse k starts at
+    /// start_time_s + k * traverse_gap_s, or 10 s after the previous one ends if that is later.
+    const common::PoseTrack& groundTruth(std::size_t i) const { return tracks_.at(i); }
+
+    /// Writes the dataset into `out_dir` (created if needed; files of the same names are
+    /// replaced). Failures (unwritable folder, full disk) come back as Status::Failed with the
+    /// file and cause, not as exceptions.
+    SimulationResult run(const std::string& out_dir, const Progress& progress = {}) const;
+
+  private:
+    TraverseSummary runTraverse(std::size_t index, const std::string& out_dir,
+                                const mrpt::maps::COccupancyGridMap2D& grid,
+                                const Progress& progress) const;
+
+    ScenarioOptions scenario_;
+    std::unique_ptr<TunnelWorld> world_;
+    std::vector<common::PoseTrack> tracks_;
+};
+
+}  // namespace lookup::sim

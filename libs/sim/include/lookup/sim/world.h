@@ -1,0 +1,144 @@
+#pragma once
+// The synthetic mine: a network of straight tunnel pieces (capsules in plan view) with an arched
+// profile, a world-anchored ceiling texture and 3-D furniture below the ceiling. Every query is
+// a pure function of the position and the seed.
+
+#include "lookup/sim/scenario.h"
+
+#include <mrpt/maps/COccupancyGridMap2D.h>
+#include <Eigen/Core>
+
+#include <cstdint>
+#include <limits>
+#include <vector>
+
+namespace lookup::sim {
+
+/// A straight piece of tunnel: in plan view the points within `half_width` of segment a-b.
+struct TunnelSegment {
+    Eigen::Vector2d a, b;   ///< centre-line end points in the map [m]
+    Eigen::Vector2d dir;    ///< unit vector a -> b
+    Eigen::Vector2d left;   ///< dir rotated +90 deg
+    double length = 0;      ///< |b - a| [m]
+    double half_width = 0;  ///< [m]
+    double s0 = 0;          ///< texture coordinate along the tunnel at `a` [m]
+    bool on_route = false;  ///< part of the drivable route (main tunnels and their crosscut)
+};
+
+/// Where a plan-view point lies relative to the tunnels.
+struct WallQuery {
+    double sdf = 1e9;  ///< signed distance to the nearest wall: < 0 inside a tunnel [m]
+    int segment = -1;  ///< nearest tunnel piece (-1: none near)
+    double s = 0;      ///< texture coordinate along that piece [m]
+    double d = 0;      ///< lateral offset from its centre line, + left [m]
+};
+
+enum class SurfaceKind { None, Roof, Wall, Floor, Duct, Pipe, Cable, Light };
+
+/// A finite cylinder (ducts, pipes, cable pieces).
+struct Cylinder {
+    Eigen::Vector3d a, axis;  ///< start point and unit axis
+    double length = 0, radius = 0;
+    SurfaceKind kind = SurfaceKind::Duct;
+    Eigen::Vector3d lo, hi;  ///< bounding box
+};
+
+/// A tunnel light: a self-luminous sphere.
+struct Lamp {
+    Eigen::Vector3d centre;
+    double radius = 0.12;
+};
+
+/// A bright disc painted on the ceiling (used by tests to check the camera model).
+struct CeilingMarker {
+    double x = 0, y = 0, radius = 0.05, albedo = 4.0;
+};
+
+/// A first intersection of a ray with the static tunnel surfaces.
+struct SurfaceHit {
+    double t = std::numeric_limits<double>::infinity();  ///< ray parameter (|d| = 1: metres)
+    SurfaceKind kind = SurfaceKind::None;
+    WallQuery q;  ///< plan-view query at the hit point
+};
+
+class TunnelWorld {
+  public:
+    /// Builds the layout, the drivable route and the furniture from the options and seed.
+    TunnelWorld(const WorldOptions& options, uint64_t seed);
+
+    const WorldOptions& options() const { return opt_; }
+    const std::vector<TunnelSegment>& segments() const { return segments_; }
+    /// Smoothed drivable centre line, points 0.25 m apart, from the start of the route.
+    const std::vector<Eigen::Vector2d>& route() const { return route_; }
+    double routeLength() const { return 0.25 * (route_.size() - 1); }
+    const std::vector<Cylinder>& cylinders() const { return cylinders_; }
+    const std::vector<Lamp>& lamps() const { return lamps_; }
+    void addMarker(const CeilingMarker& m) { markers_.push_back(m); }
+
+    /// Plan-view bounding box of all tunnels [m].
+    Eigen::Vector2d minCorner() const { return lo_; }
+    Eigen::Vector2d maxCorner() const { return hi_; }
+
+    WallQuery query(double x, double y) const;
+    /// Height of the roof above the floor at a plan point `dist_to_wall` (= -sdf) from the wall:
+    /// the arch near the walls, the ceiling height plus low-frequency relief elsewhere.
+    double roofHeight(double x, double y, double dist_to_wall) const;
+    /// Unit plan-view direction away from the nearest wall (-grad sdf) at a point of `q`.
+    Eigen::Vector2d awayFromWall(double x, double y, const WallQuery& q) const;
+    /// Gradient (dz/dx, dz/dy) of roofHeight() at a point of `q` (arch plus relief).
+    Eigen::Vector2d roofSlope(double x, double y, const WallQuery& q) const;
+    /// Floor height (relief of a few cm that pitches and rolls the vehicle) [m].
+    double floorHeight(double x, double y) const;
+
+    /// Ceiling albedo at a plan point; `footprint_m` is the pixel size there (finer detail is
+    /// averaged out). Adds the slope of the rock micro-relief to *slope_x, *slope_y.
+    double roofAlbedo(double x, double y, const WallQuery& q, double footprint_m, double* slope_x,
+                      double* slope_y) const;
+    /// Wall albedo at a point of height z on the wall of the piece in `q`.
+    double wallAlbedo(const WallQuery& q, double z, double footprint_m) const;
+    double floorAlbedo(double x, double y, double footprint_m) const;
+    /// Albedo of a furniture surface at `p` (ribs of the duct, ...).
+    double objectAlbedo(const Cylinder& c, const Eigen::Vector3d& p) const;
+
+    /// First hit of the ray o + t d (|d| = 1) with roof, walls or floor for t in (t_min, t_max).
+    /// `rad_per_px` (angle of one pixel) sets the accuracy needed far away.
+    SurfaceHit traceStatic(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double t_min,
+                           double t_max, double rad_per_px = 0) const;
+
+    /// Rasterises the tunnels into `grid` (free inside, occupied rock outside, 2 m margin).
+    void fillGridMap(mrpt::maps::COccupancyGridMap2D& grid) const;
+
+  private:
+    void buildLayout();
+    void buildRoute(const std::vector<Eigen::Vector2d>& raw);
+    void buildFurniture(const std::vector<Eigen::Vector2d>& raw);
+    void buildBuckets();
+    void buildBumps();
+    void addSegment(const Eigen::Vector2d& a, const Eigen::Vector2d& b, double half_width,
+                    double s0, bool on_route);
+    bool solid(const Eigen::Vector3d& p, WallQuery* q) const;
+
+    WorldOptions opt_;
+    uint32_t seed_;
+    std::vector<TunnelSegment> segments_;
+    std::vector<Eigen::Vector2d> route_;
+    std::vector<Cylinder> cylinders_;
+    std::vector<Lamp> lamps_;
+    std::vector<CeilingMarker> markers_;
+    Eigen::Vector2d lo_, hi_;
+    // Plan-view buckets of nearby segments, so a query tests only a few pieces.
+    double bucket_m_ = 8.0;
+    int bucket_nx_ = 0, bucket_ny_ = 0;
+    std::vector<std::vector<int>> buckets_;
+    // Ceiling relief sampled every kBumpCell metres over the bounding box (bilinear), so the
+    // inner loops of the ray caster do not evaluate noise.
+    double bumpAt(double x, double y, double* gx, double* gy) const;
+    std::vector<float> bump_;
+    int bump_nx_ = 0, bump_ny_ = 0;
+    Eigen::Vector2d bump_origin_;
+    // Optional user texture (grey, row-major) tiled over the ceiling.
+    std::vector<float> tex_;
+    int tex_w_ = 0, tex_h_ = 0;
+};
+
+}  // namespace lookup::sim
