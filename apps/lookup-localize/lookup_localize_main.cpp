@@ -1,5 +1,6 @@
 // lookup-localize: precise localisation of a query rawlog against a reference database.
-//   lookup-localize --db DB --rawlog QUERY.rawlog --out RUN_DIR [--ini FILE] [--method NAME]
+//   lookup-localize --db DB (--rawlog QUERY.rawlog | --live SENSORS.ini) --out RUN_DIR
+//                   [--ini FILE] [--method NAME]
 //                   [--coarse-matches F | --coarse-poses F] [--sampling grid|heatmap|auto]
 //                   [--realtime] [--max-frames N]
 
@@ -15,7 +16,14 @@ int main(int argc, char** argv) {
     try {
         TCLAP::CmdLine cmd("lookup-localize: LookUP precise localisation", ' ', "0.1");
         TCLAP::ValueArg<std::string> db("", "db", "reference database folder", true, "", "DB", cmd);
-        TCLAP::ValueArg<std::string> rawlog("", "rawlog", "query rawlog", true, "", "FILE", cmd);
+        TCLAP::ValueArg<std::string> rawlog("", "rawlog", "query rawlog to replay", false, "",
+                                            "FILE", cmd);
+        TCLAP::ValueArg<std::string> live("", "live",
+                                          "live sensors, rawlog-grabber style .ini (sections "
+                                          "with driver = CCameraSensor, ...)",
+                                          false, "", "FILE", cmd);
+        TCLAP::ValueArg<double> duration("", "duration", "live: stop after this many seconds",
+                                         false, 0, "S", cmd);
         TCLAP::ValueArg<std::string> out("", "out", "run output folder", true, "", "DIR", cmd);
         TCLAP::ValueArg<std::string> ini("", "ini", "options: [localizer] [refine.*] [coarse]",
                                          false, "", "FILE", cmd);
@@ -48,7 +56,19 @@ int main(int argc, char** argv) {
         if (realtime.getValue()) req.realtime = 1;
         req.max_frames = static_cast<std::size_t>(std::max(0, max_frames.getValue()));
 
-        const auto t = lookup::localize::runLocalization(req);
+        if (rawlog.getValue().empty() == live.getValue().empty()) {
+            throw std::invalid_argument("give exactly one of --rawlog FILE or --live FILE.ini");
+        }
+        lookup::localize::RunTiming t;
+        if (!live.getValue().empty()) {
+            lookup::localize::LiveRequest live_req;
+            live_req.base = req;
+            live_req.sensors_ini = live.getValue();
+            live_req.duration_s = duration.getValue();
+            t = lookup::localize::runLiveLocalization(live_req);
+        } else {
+            t = lookup::localize::runLocalization(req);
+        }
         std::printf(
             "lookup-localize: %zu frames (%zu dropped) in %.1f s: %.1f frames/s; "
             "%.2f ms/frame (coarse %.2f, select %.2f, refine %.2f) -> %s\n",

@@ -29,15 +29,14 @@ struct Scene {
     mrpt::img::TCamera camera = refine::synthetic::makeCamera(320, 240, 160);
     mrpt::poses::CPose3D mount = refine::synthetic::ceilingCameraOnVehicle();
 
-    mrpt::obs::CObservationImage::Ptr image(const mrpt::poses::CPose3D& vehicle,
-                                            double t) const {
+    mrpt::obs::CObservationImage::Ptr image(const mrpt::poses::CPose3D& vehicle, double t) const {
         auto obs = mrpt::obs::CObservationImage::Create();
         obs->sensorLabel = "CEILING_CAM";
         obs->timestamp = mrpt::Clock::fromDouble(t);
         obs->cameraParams = camera;
         obs->cameraPose = mount;
-        obs->image = mrpt::img::CImage(ceiling.render(camera, vehicle + mount),
-                                       mrpt::img::DEEP_COPY);
+        obs->image =
+            mrpt::img::CImage(ceiling.render(camera, vehicle + mount), mrpt::img::DEEP_COPY);
         return obs;
     }
 };
@@ -87,8 +86,8 @@ TEST(Localize, RefinesCoarsePosesToCentimetresOnASyntheticCeiling) {
             const mrpt::poses::CPose3D vehicle(-5 + 0.3 * i, 0.4, 0, 0.05, 0, 0);
             truth.push_back({t, vehicle});
             // Coarse error of 0.6-1.0 m along the tunnel, as a sequence matcher would give.
-            coarse.push_back({t, vehicle + mrpt::poses::CPose3D(0.6 + 0.02 * i, -0.4, 0,
-                                                                 -0.05, 0, 0)});
+            coarse.push_back(
+                {t, vehicle + mrpt::poses::CPose3D(0.6 + 0.02 * i, -0.4, 0, -0.05, 0, 0)});
             auto img = scene.image(vehicle, t);
             char name[32];
             std::snprintf(name, sizeof name, "ceiling_%03d.png", i);
@@ -116,8 +115,9 @@ TEST(Localize, RefinesCoarsePosesToCentimetresOnASyntheticCeiling) {
     EXPECT_EQ(timing.frames, 20u);
     EXPECT_EQ(timing.frames_dropped, 0u);
 
-    const auto report = eval::evaluate({eval::loadGroundTruth((dir / "query.rawlog.GT.txt").string())},
-                                       {eval::loadRun(req.out_dir)}, {});
+    const auto report =
+        eval::evaluate({eval::loadGroundTruth((dir / "query.rawlog.GT.txt").string())},
+                       {eval::loadRun(req.out_dir)}, {});
     ASSERT_EQ(report.rows.size(), 2u);
     const auto& coarse_row = report.rows[0];
     const auto& lookup_row = report.rows[1];
@@ -127,10 +127,31 @@ TEST(Localize, RefinesCoarsePosesToCentimetresOnASyntheticCeiling) {
     EXPECT_LT(lookup_row.error.mean_m, 0.03);
     EXPECT_LT(lookup_row.error.max_m, 0.10);
 
-    for (const char* f : {"frames.csv", "poses.tum", "coarse.tum", "results.rawlog",
-                          "timing.json", "run.ini"}) {
+    for (const char* f :
+         {"frames.csv", "poses.tum", "coarse.tum", "results.rawlog", "timing.json", "run.ini"}) {
         EXPECT_TRUE(fs::exists(fs::path(req.out_dir) / f)) << f;
     }
+
+    // The same frames from a "live" camera: MRPT's CCameraSensor replaying the rawlog, as
+    // rawlog-grabber would drive it on the vehicle.
+    std::ofstream(dir / "sensors.ini")
+        << "[CAM]\ndriver = CCameraSensor\nprocess_rate = 50\n"
+        << "grabber_type = rawlog\nrawlog_file = " << (dir / "query.rawlog").string()
+        << "\nrawlog_camera_sensor_label = CEILING_CAM\n"
+        << "sensorLabel = CEILING_CAM\npose_z = 1.5\n";
+    localize::LiveRequest live;
+    live.base = req;
+    live.base.out_dir = (dir / "live").string();
+    live.sensors_ini = (dir / "sensors.ini").string();
+    live.quiet_timeout_s = 1.0;
+    live.duration_s = 20;
+    const auto live_timing = localize::runLiveLocalization(live);
+    EXPECT_EQ(live_timing.frames, 20u);
+    const auto live_report =
+        eval::evaluate({eval::loadGroundTruth((dir / "query.rawlog.GT.txt").string())},
+                       {eval::loadRun(live.base.out_dir)}, {});
+    ASSERT_EQ(live_report.rows.size(), 2u);
+    EXPECT_LT(live_report.rows[1].error.mean_m, 0.03);
 }
 
 TEST(Localize, MissingDatabaseAndRawlogWithoutCeilingImagesAreRefused) {

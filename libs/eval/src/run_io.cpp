@@ -123,14 +123,14 @@ std::string framesCsvHeader() {
 }
 
 std::string formatFramesCsvRow(const FrameRow& r) {
-    std::string reason = r.reason;  // the CSV has no quoting: keep reasons comma-free
+    // The CSV has no quoting: reasons become one comma-free line of bounded length.
+    std::string reason = r.reason.substr(0, 240);
     for (char& c : reason) {
-        if (c == ',' || c == '\n') c = ';';
+        if (c == ',' || c == '\n' || c == '\r') c = ';';
     }
-    char buf[512];
-    std::string out;
-    std::snprintf(buf, sizeof buf, "%.6f,%s,%s,", r.time_s, r.status.c_str(), reason.c_str());
-    out += buf;
+    char buf[256];
+    std::snprintf(buf, sizeof buf, "%.6f,", r.time_s);
+    std::string out = buf + r.status + "," + reason + ",";
     if (r.has_pose) {
         std::snprintf(buf, sizeof buf, "%.5f,%.5f,%.6f,%.4e,%.4e,%.4e,%.4e,", r.x, r.y, r.yaw,
                       r.cov_xx, r.cov_xy, r.cov_yy, r.cov_tt);

@@ -2,6 +2,8 @@
 
 #include <mrpt/config/CConfigFile.h>
 #include <mrpt/config/CConfigFileMemory.h>
+#include <mrpt/core/exceptions.h>
+#include <mrpt/hwdrivers/CGenericSensor.h>
 #include <mrpt/system/CTicTac.h>
 #include <mrpt/system/progress.h>
 
@@ -28,119 +30,251 @@ std::size_t countFrames(const std::string& rawlog, const std::string& label) {
 
 }  // namespace
 
+namespace {
+
+/// Everything one run needs: options, database, localiser and output, fed one observation at a
+/// time by the replay loop or the live sensors.
+class Session {
+  public:
+    explicit Session(const LocalizeRequest& req, const std::string& source_name) : req_(req) {
+        // Options: defaults, then the ini file, then command-line overrides.
+        if (!req.ini_file.empty()) {
+            mrpt::config::CConfigFile ini(req.ini_file);
+            if (ini.sectionExists("localizer")) options_.loadFromConfigFile(ini, "localizer");
+            refiner_options_.loadFromConfigFile(ini, "refine");
+            if (ini.sectionExists("coarse")) coarse_options_.loadFromConfigFile(ini, "coarse");
+        }
+        if (req.realtime >= 0) options_.realtime = req.realtime == 1;
+        if (req.sampling == "grid") refiner_options_.sampler.mode = refine::SamplingMode::Grid;
+        if (req.sampling == "heatmap") {
+            refiner_options_.sampler.mode = refine::SamplingMode::HeatMap;
+        }
+        options_.check();
+        refiner_options_.check();
+
+        db_ = std::make_unique<database::ReferenceDatabase>(
+            database::ReferenceDatabase::load(req.db_dir, options_.image_cache_capacity));
+        if (req.sampling == "heatmap" && db_->info().heatmaps_dir.empty()) {
+            throw std::runtime_error(req.db_dir + "/db.ini: no heat maps (run lookup-train)");
+        }
+        std::unique_ptr<coarse::CoarseSource> coarse;
+        if (!req.coarse_matches.empty()) {
+            coarse = std::make_unique<coarse::MatchFileSource>(req.coarse_matches, 1.0);
+        } else if (!req.coarse_poses.empty()) {
+            coarse = std::make_unique<coarse::PoseFileSource>(req.coarse_poses, 1.0);
+        } else {
+            coarse = makeSequenceCoarseSource(*db_, coarse_options_, options_.coarse_traverse);
+        }
+        const bool coarse_from_files = !req.coarse_matches.empty() || !req.coarse_poses.empty();
+        localizer_ = std::make_unique<Localizer>(*db_, options_, refiner_options_,
+                                                 std::move(coarse), !coarse_from_files);
+
+        mrpt::config::CConfigFileMemory used;
+        used.write("run", "method", req.method);
+        used.write("run", "db", req.db_dir);
+        used.write("run", "source", source_name);
+        options_.saveToConfigFile(used, "localizer");
+        refiner_options_.saveToConfigFile(used, "refine");
+        coarse_options_.saveToConfigFile(used, "coarse");
+        std::string used_text;
+        used.getContent(used_text);
+        writer_ = std::make_unique<RunWriter>(req.out_dir, used_text, options_.write_debug_images,
+                                              options_.debug_image_every);
+    }
+
+    const LocalizerOptions& options() const { return options_; }
+    const RunTiming& timing() const { return timing_; }
+    double elapsed() const { return wall_.Tac(); }
+
+    /// Processes one observation. `late_s`: how long after its arrival it is being handled
+    /// (real time only). Returns true for a ceiling frame (processed or dropped).
+    bool feed(const mrpt::obs::CObservation::Ptr& obs, double late_s = 0) {
+        const bool is_ceiling = obs->sensorLabel == options_.ceiling_camera_label;
+        const auto* img = dynamic_cast<const mrpt::obs::CObservationImage*>(obs.get());
+        if (is_ceiling && img != nullptr && options_.realtime && late_s > options_.max_latency_s) {
+            writer_->write(localizer_->dropped(*img), img);
+            ++timing_.frames;
+            ++timing_.frames_dropped;
+            return true;
+        }
+        const auto frame = localizer_->process(obs);
+        if (!frame) return false;
+        writer_->write(*frame, img);
+        if (img != nullptr) img->image.unload();  // keep memory flat on long runs
+        ++timing_.frames;
+        timing_.coarse_ms += frame->times.coarse_ms;
+        timing_.select_ms += frame->times.select_ms;
+        timing_.refine_ms += frame->times.refine_ms;
+        timing_.total_ms += frame->times.total_ms;
+        if (frame->refinement) {
+            const auto& t = frame->refinement->times;
+            timing_.refine_stage_ms["select"] += t.select_ms;
+            timing_.refine_stage_ms["match"] += t.match_ms;
+            timing_.refine_stage_ms["homography"] += t.homography_ms;
+            timing_.refine_stage_ms["estimate"] += t.estimate_ms;
+        }
+        return true;
+    }
+
+    void progress(std::size_t expected) const {
+        if (!req_.progress || !isatty(STDERR_FILENO)) return;
+        if (timing_.frames % 10 != 0 && timing_.frames != expected) return;
+        std::cerr << "\r"
+                  << (expected ? mrpt::system::progress(double(timing_.frames) / expected, 40)
+                               : std::string())
+                  << " " << timing_.frames << (expected ? "/" + std::to_string(expected) : "")
+                  << " frames, " << timing_.frames_dropped << " dropped" << std::flush;
+    }
+
+    bool done() const { return req_.max_frames > 0 && timing_.frames >= req_.max_frames; }
+
+    RunTiming finish() {
+        if (req_.progress && isatty(STDERR_FILENO)) std::cerr << "\n";
+        timing_.wall_s = wall_.Tac();
+        writer_->finish(timing_);
+        return timing_;
+    }
+
+  private:
+    const LocalizeRequest& req_;
+    LocalizerOptions options_;
+    refine::RefinerOptions refiner_options_;
+    coarse::CoarseOptions coarse_options_;
+    std::unique_ptr<database::ReferenceDatabase> db_;
+    std::unique_ptr<Localizer> localizer_;
+    std::unique_ptr<RunWriter> writer_;
+    RunTiming timing_;
+    mrpt::system::CTicTac wall_;
+};
+
+}  // namespace
+
 RunTiming runLocalization(const LocalizeRequest& req) {
-    // Options: defaults, then the ini file, then command-line overrides.
-    LocalizerOptions options;
-    refine::RefinerOptions refiner_options;
-    coarse::CoarseOptions coarse_options;
-    if (!req.ini_file.empty()) {
-        mrpt::config::CConfigFile ini(req.ini_file);
-        if (ini.sectionExists("localizer")) options.loadFromConfigFile(ini, "localizer");
-        refiner_options.loadFromConfigFile(ini, "refine");
-        if (ini.sectionExists("coarse")) coarse_options.loadFromConfigFile(ini, "coarse");
-    }
-    if (req.realtime >= 0) options.realtime = req.realtime == 1;
-    if (req.sampling == "grid") refiner_options.sampler.mode = refine::SamplingMode::Grid;
-    if (req.sampling == "heatmap") refiner_options.sampler.mode = refine::SamplingMode::HeatMap;
-    options.check();
-    refiner_options.check();
-
-    const auto db = database::ReferenceDatabase::load(req.db_dir, options.image_cache_capacity);
-    if (req.sampling == "heatmap" && db.info().heatmaps_dir.empty()) {
-        throw std::runtime_error(req.db_dir + "/db.ini: no heat maps (run lookup-train first)");
-    }
-    std::unique_ptr<coarse::CoarseSource> coarse;
-    if (!req.coarse_matches.empty()) {
-        coarse = std::make_unique<coarse::MatchFileSource>(req.coarse_matches, 1.0);
-    } else if (!req.coarse_poses.empty()) {
-        coarse = std::make_unique<coarse::PoseFileSource>(req.coarse_poses, 1.0);
-    } else {
-        coarse = makeSequenceCoarseSource(db, coarse_options, options.coarse_traverse);
-    }
-    const bool coarse_from_files = !req.coarse_matches.empty() || !req.coarse_poses.empty();
-    Localizer localizer(db, options, refiner_options, std::move(coarse), !coarse_from_files);
-
-    mrpt::config::CConfigFileMemory used;
-    used.write("run", "method", req.method);
-    used.write("run", "db", req.db_dir);
-    used.write("run", "rawlog", req.rawlog);
-    options.saveToConfigFile(used, "localizer");
-    refiner_options.saveToConfigFile(used, "refine");
-    coarse_options.saveToConfigFile(used, "coarse");
-    std::string used_text;
-    used.getContent(used_text);
-    RunWriter writer(req.out_dir, used_text, options.write_debug_images, options.debug_image_every);
-
+    Session session(req, req.rawlog);
+    const auto& options = session.options();
     const std::size_t expected = countFrames(req.rawlog, options.ceiling_camera_label);
     if (expected == 0) {
         throw common::RawlogError(
             req.rawlog, "no '" + options.ceiling_camera_label + "' images: nothing to localise");
     }
-    const bool show_progress = req.progress && isatty(STDERR_FILENO);
-
-    RunTiming timing;
     common::RawlogReader reader(req.rawlog);
     mrpt::obs::CObservation::Ptr obs;
-    mrpt::system::CTicTac wall;
-    double first_stamp = -1;
-    double last_stamp = -1;
+    double first_stamp = -1, last_ceiling_stamp = -1;
     while (reader.next(obs)) {
         const double stamp = mrpt::Clock::toDouble(obs->timestamp);
         if (first_stamp < 0) first_stamp = stamp;
-        const bool is_ceiling = obs->sensorLabel == options.ceiling_camera_label;
-        if (is_ceiling && stamp <= last_stamp) {
-            throw common::RawlogError(req.rawlog, reader.recordIndex(),
-                                      "ceiling image time stamps go backwards");
+        if (obs->sensorLabel == options.ceiling_camera_label) {
+            if (stamp <= last_ceiling_stamp) {
+                throw common::RawlogError(req.rawlog, reader.recordIndex(),
+                                          "ceiling image time stamps go backwards");
+            }
+            last_ceiling_stamp = stamp;
         }
+        double late_s = 0;
         if (options.realtime) {
-            // Observation arrives at its recorded time; a ceiling frame that cannot be started
-            // within max_latency_s of its arrival is dropped, as on the vehicle.
+            // The observation arrives at its recorded time (relative to the first one).
             const double arrival = stamp - first_stamp;
-            const double now = wall.Tac();
+            const double now = session.elapsed();
             if (now < arrival) {
                 std::this_thread::sleep_for(std::chrono::duration<double>(arrival - now));
-            } else if (is_ceiling && now - arrival > options.max_latency_s) {
-                const auto* img = dynamic_cast<const mrpt::obs::CObservationImage*>(obs.get());
-                writer.write(localizer.dropped(*img), img);
-                ++timing.frames;
-                ++timing.frames_dropped;
-                last_stamp = stamp;
-                continue;
             }
+            late_s = std::max(0.0, now - arrival);
         }
-        std::optional<FrameResult> frame;
         try {
-            frame = localizer.process(obs);
+            if (!session.feed(obs, late_s)) continue;
         } catch (const std::exception& e) {
             throw common::RawlogError(req.rawlog, reader.recordIndex(), e.what());
         }
-        if (!frame) continue;
-        last_stamp = stamp;
-        const auto* img = dynamic_cast<const mrpt::obs::CObservationImage*>(obs.get());
-        writer.write(*frame, img);
-        if (img != nullptr) img->image.unload();  // keep memory flat on long replays
-        ++timing.frames;
-        timing.coarse_ms += frame->times.coarse_ms;
-        timing.select_ms += frame->times.select_ms;
-        timing.refine_ms += frame->times.refine_ms;
-        timing.total_ms += frame->times.total_ms;
-        if (frame->refinement) {
-            const auto& t = frame->refinement->times;
-            timing.refine_stage_ms["select"] += t.select_ms;
-            timing.refine_stage_ms["match"] += t.match_ms;
-            timing.refine_stage_ms["homography"] += t.homography_ms;
-            timing.refine_stage_ms["estimate"] += t.estimate_ms;
-        }
-        if (show_progress && (timing.frames % 10 == 0 || timing.frames == expected)) {
-            std::cerr << "\r" << mrpt::system::progress(double(timing.frames) / expected, 40) << " "
-                      << timing.frames << "/" << expected << " frames" << std::flush;
-        }
-        if (req.max_frames > 0 && timing.frames >= req.max_frames) break;
+        session.progress(expected);
+        if (session.done()) break;
     }
-    if (show_progress) std::cerr << "\n";
-    timing.wall_s = wall.Tac();
-    writer.finish(timing);
-    return timing;
+    return session.finish();
+}
+
+RunTiming runLiveLocalization(const LiveRequest& live) {
+    LocalizeRequest req = live.base;
+    req.realtime = 1;
+    mrpt::config::CConfigFile ini(live.sensors_ini);
+    std::vector<std::string> sections;
+    ini.getAllSections(sections);
+    struct Sensor {
+        std::string section;
+        mrpt::hwdrivers::CGenericSensor::Ptr driver;
+        double period_s = 0.01;
+        double next_s = 0;
+    };
+    std::vector<Sensor> sensors;
+    for (const auto& section : sections) {
+        const std::string driver = ini.read_string(section, "driver", "", false);
+        if (driver.empty()) continue;
+        Sensor s;
+        s.section = section;
+        s.driver = mrpt::hwdrivers::CGenericSensor::createSensorPtr(driver);
+        if (!s.driver) {
+            throw common::ConfigError(live.sensors_ini + " [" + section + "] driver: unknown " +
+                                      "sensor class '" + driver + "'");
+        }
+        try {
+            s.driver->loadConfig(ini, section);
+            s.driver->initialize();
+            const std::string recorded = ini.read_string(section, "rawlog_file", "", false);
+            if (ini.read_string(section, "grabber_type", "", false) == "rawlog" &&
+                !recorded.empty()) {
+                // MRPT 2.5.8 drops the '/' before <name>_Images for absolute rawlog paths;
+                // point external images at the right folder ourselves.
+                mrpt::img::CImage::setImagesPathBase(common::imagesDirectoryFor(recorded));
+            }
+        } catch (const std::exception& e) {
+            throw common::ConfigError(live.sensors_ini + " [" + section + "]: " + e.what());
+        }
+        s.period_s = 1.0 / std::max(1e-3, ini.read_double(section, "process_rate", 100, false));
+        sensors.push_back(std::move(s));
+    }
+    if (sensors.empty()) {
+        throw common::ConfigError(live.sensors_ini + ": no section with a 'driver' key");
+    }
+
+    Session session(req, live.sensors_ini);
+    double last_data_s = 0;
+    while (!session.done()) {
+        const double now = session.elapsed();
+        if (live.duration_s > 0 && now > live.duration_s) break;
+        if (now - last_data_s > live.quiet_timeout_s) break;
+        // Poll every sensor that is due, then hand over what arrived in time order.
+        mrpt::hwdrivers::CGenericSensor::TListObservations arrived;
+        for (auto& s : sensors) {
+            if (!s.driver || now < s.next_s) continue;
+            s.next_s = now + s.period_s;
+            try {
+                s.driver->doProcess();
+            } catch (const std::exception& e) {
+                // A sensor that fails (unplugged camera, end of a recorded stream) is closed;
+                // the others go on, and the run ends when all are quiet.
+                std::cerr << "lookup-localize: " << live.sensors_ini << " [" << s.section
+                          << "]: sensor stopped: " << mrpt::exception_to_str(e).substr(0, 200)
+                          << "\n";
+                s.driver.reset();
+                continue;
+            }
+            mrpt::hwdrivers::CGenericSensor::TListObservations got;
+            s.driver->getObservations(got);
+            arrived.insert(got.begin(), got.end());
+        }
+        if (arrived.empty()) {
+            std::this_thread::sleep_for(std::chrono::milliseconds(1));
+            continue;
+        }
+        last_data_s = now;
+        for (const auto& [stamp, object] : arrived) {
+            auto obs = std::dynamic_pointer_cast<mrpt::obs::CObservation>(object);
+            if (!obs) continue;
+            // Lateness: time since this batch was polled, i.e. spent on earlier observations.
+            session.feed(obs, session.elapsed() - now);
+            session.progress(0);
+            if (session.done()) break;
+        }
+    }
+    return session.finish();
 }
 
 }  // namespace lookup::localize

@@ -21,9 +21,23 @@ struct LocalizeRequest {
     bool progress = true;           ///< progress bar on stderr when it is a terminal
 };
 
+/// Live sensors, configured as for MRPT's rawlog-grabber: every section of `sensors_ini` with
+/// a `driver` key (e.g. `driver = CCameraSensor`) is created through
+/// mrpt::hwdrivers::CGenericSensor and polled at its `process_rate`.
+struct LiveRequest {
+    LocalizeRequest base;        ///< db_dir, out_dir, ini_file, method, coarse files, sampling
+    std::string sensors_ini;     ///< rawlog-grabber style sensor configuration
+    double duration_s = 0;       ///< stop after this long (0 = until the sensors go quiet)
+    double quiet_timeout_s = 5;  ///< stop when no sensor delivered anything for this long
+};
+
 /// Runs the localiser over a rawlog. Returns the run's timing. Throws std::runtime_error (or
 /// a subclass) naming the file, record and reason for bad input; frames already processed stay
 /// written in the run folder.
 RunTiming runLocalization(const LocalizeRequest& request);
+
+/// Runs the localiser on live sensors (always real time: late frames are dropped). Throws
+/// naming the file and section for a sensor that cannot be created or initialised.
+RunTiming runLiveLocalization(const LiveRequest& request);
 
 }  // namespace lookup::localize

@@ -107,7 +107,7 @@ class Localizer {
     void processForward(const mrpt::obs::CObservationImage& image);
     void processOdometry(const mrpt::obs::CObservation& odo);
     struct CoarseFix {
-        mrpt::poses::CPose2D pose;           ///< pose of the matched reference (or given)
+        mrpt::poses::CPose2D pose;            ///< pose of the matched reference (or given)
         std::vector<std::size_t> references;  ///< ceiling references for that match
     };
     std::optional<CoarseFix> coarseFix() const;
