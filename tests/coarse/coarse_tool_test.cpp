@@ -6,6 +6,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "lookup/coarse/options.h"
 #include "route_rawlog.h"
 
 namespace fs = std::filesystem;
@@ -32,7 +33,7 @@ Fixture writeFixture(const std::string& name) {
     f.query_gt = f.query + ".GT.txt";
     testing::writeRouteRawlog(f.ref, route, testing::positionsFrom(0, 1, 120), 0.0, "FORWARD_CAM",
                               3.0, f.ref_gt);
-    testing::writeRouteRawlog(f.query, route, testing::positionsFrom(30.2, 1.5, 50), 1000.0,
+    testing::writeRouteRawlog(f.query, route, testing::positionsFrom(20.2, 1.0, 60), 1000.0,
                               "FORWARD_CAM", 8.0, f.query_gt);
     return f;
 }
@@ -62,14 +63,15 @@ TEST(CoarseTool, MatchesTwoRawlogsWithoutPoses) {
     ASSERT_EQ(tool.run(out, err), 0) << err.str();
     EXPECT_TRUE(fs::exists(png));
     const auto rows = readCsv(csv);
-    ASSERT_EQ(rows.size(), 51u);
+    ASSERT_EQ(rows.size(), 61u);
     EXPECT_EQ(rows[0][0], "query_index");
     EXPECT_EQ(rows[0][2], "reference_index");
     EXPECT_EQ(rows[0][5], "status");
     int correct = 0, full = 0;
-    for (std::size_t t = 20; t < rows.size(); ++t) {  // full sequences from query 19 on
+    const std::size_t ds = CoarseOptions().sequence_length;
+    for (std::size_t t = ds + 1; t < rows.size(); ++t) {  // rows[t] is query t-1: full buffer
         ++full;
-        const double x = 30.2 + 1.5 * (t - 1);
+        const double x = 20.2 + 1.0 * (t - 1);
         const auto& r = rows[t];
         if ((r[5] == "tracking" || r[5] == "global") && !r[2].empty() &&
             std::abs(std::stol(r[2]) - std::lround(x)) <= 1) {
@@ -78,7 +80,7 @@ TEST(CoarseTool, MatchesTwoRawlogsWithoutPoses) {
         }
     }
     EXPECT_GE(correct, full - 1);
-    EXPECT_EQ(tool.summary().frames, 50u);
+    EXPECT_EQ(tool.summary().frames, 60u);
 }
 
 TEST(CoarseTool, EvaluatesWithPosesAndSavesDescriptors) {
@@ -91,8 +93,8 @@ TEST(CoarseTool, EvaluatesWithPosesAndSavesDescriptors) {
                                  "--save-descriptors", desc}));
     std::ostringstream out, err;
     ASSERT_EQ(tool.run(out, err), 0) << err.str();
-    EXPECT_EQ(tool.summary().evaluated, 50u);
-    EXPECT_LT(tool.summary().share_over_10m, 0.45);  // only the first, short sequences miss
+    EXPECT_EQ(tool.summary().evaluated, 60u);
+    EXPECT_LT(tool.summary().share_over_10m, 0.55);  // only the first, short sequences miss
     EXPECT_NE(out.str().find("coarse error"), std::string::npos);
     EXPECT_EQ(readCsv(csv)[0][6], "error_m");
 

@@ -11,7 +11,9 @@
 #include <iomanip>
 #include <iostream>
 #include <memory>
+#include <numeric>
 #include <optional>
+#include <random>
 
 #include "lookup/coarse/camera_stream.h"
 #include "lookup/coarse/coarse_localizer.h"
@@ -33,27 +35,27 @@ double mean(const std::vector<double>& v) {
     return v.empty() ? 0 : s / v.size();
 }
 
-/// Appends `copies - 1` altered copies of the references (circularly shifted and flipped
-/// thumbnails, poses moved 100 km away): a longer database with no exact duplicates, for
+/// Appends `copies - 1` altered copies of the references (thumbnail pixels randomly
+/// permuted, poses moved 100 km away): a longer database with no exact duplicates, for
 /// measuring how the cost grows with the database length.
 ReferenceDescriptors replicate(const ReferenceDescriptors& refs, int copies) {
     ReferenceDescriptors out(refs.layout());
     out.setImageSize(refs.imageWidth(), refs.imageHeight());
     const int w = refs.layout().thumb_width_px, h = refs.layout().thumb_height_px;
     const double span = refs.time(refs.size() - 1) - refs.time(0) + 1.0;
+    std::vector<std::vector<std::size_t>> perms(copies);
+    std::mt19937 rng(7);
+    for (auto& p : perms) {
+        p.resize(static_cast<std::size_t>(w) * h);
+        std::iota(p.begin(), p.end(), 0);
+        std::shuffle(p.begin(), p.end(), rng);
+    }
     for (int c = 0; c < copies; ++c) {
         for (std::size_t i = 0; i < refs.size(); ++i) {
             Descriptor d = refs.descriptor(i);
-            if (c > 0) {
+            if (c > 0) {  // a fixed random permutation per copy: no copy resembles a place
                 Descriptor s(d.size());
-                const int shift = (c * 7) % w;
-                const bool flip = c % 2 == 1;
-                for (int y = 0; y < h; ++y) {
-                    for (int x = 0; x < w; ++x) {
-                        const int sy = flip ? h - 1 - y : y;
-                        s[y * w + x] = d[sy * w + (x + shift) % w];
-                    }
-                }
+                for (std::size_t k = 0; k < d.size(); ++k) s[k] = d[perms[c][k]];
                 d = std::move(s);
             }
             std::optional<mrpt::poses::CPose3D> pose;

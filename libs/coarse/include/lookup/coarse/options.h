@@ -23,7 +23,7 @@ struct CoarseOptions : public mrpt::config::CLoadableOptions {
                                ///< must divide both thumbnail sides
 
     // --- Sequence search ---------------------------------------------------------------------
-    int sequence_length = 20;   ///< d_s: query frames in one sequence hypothesis [frames]
+    int sequence_length = 30;   ///< d_s: query frames in one sequence hypothesis [frames]
     double velocity_min = 0.4;  ///< V_min: slowest relative speed [reference frames / query frame]
     double velocity_max = 2.5;  ///< V_max: fastest relative speed [reference frames / query frame]
     int velocity_steps = 22;    ///< number of speeds tried, evenly spaced in [V_min, V_max]
@@ -35,7 +35,7 @@ struct CoarseOptions : public mrpt::config::CLoadableOptions {
     // --- Online behaviour ----------------------------------------------------------------------
     int tracking_half_window_refs = 25;  ///< while tracking, candidates lie within this
                                          ///< half-width of the predicted reference [references]
-    double min_confidence = 0.15;        ///< below this margin (see CoarseResult::confidence) the
+    double min_confidence = 0.2;        ///< below this margin (see CoarseResult::confidence) the
                                          ///< match is not trusted: a global search follows
 
     // --- Odometry (optional) -------------------------------------------------------------------
