@@ -155,6 +155,14 @@ TEST(Refiner, BadInputIsARejectionWithAReason) {
     EXPECT_EQ(r.source, PoseSource::None);
     EXPECT_GT(r.pose.cov(0, 0), 1e6);  // no confident pose out of nothing
 
+    // A heat map with a NaN.
+    auto nan_heat = refs;
+    nan_heat[0].heat_map = cv::Mat(good.size(), CV_32F, cv::Scalar(1.0f));
+    nan_heat[0].heat_map.at<float>(5, 5) = std::numeric_limits<float>::quiet_NaN();
+    r = refiner.refine(good, s.camera, s.on_vehicle, {{}, coarse, {}}, nan_heat);
+    EXPECT_EQ(r.status, RefineStatus::NoReferences);
+    EXPECT_NE(r.reason.find("heat map"), std::string::npos) << r.reason;
+
     // Hint naming an id that is not in the set.
     r = refiner.refine(good, s.camera, s.on_vehicle, {{42}, coarse, {}}, refs);
     EXPECT_EQ(r.status, RefineStatus::NoReferences);

@@ -116,6 +116,11 @@ RefineResult Refiner::refine(const cv::Mat& query_image, const mrpt::img::TCamer
             skipped += " reference " + std::to_string(r.id) + ": " + bad + ";";
         } else if (r.image.empty() || r.image.type() != CV_8UC1) {
             skipped += " reference " + std::to_string(r.id) + ": image empty or not CV_8UC1;";
+        } else if (!r.heat_map.empty() &&
+                   (r.heat_map.type() != CV_32FC1 || r.heat_map.size() != r.image.size() ||
+                    !cv::checkRange(r.heat_map))) {
+            skipped += " reference " + std::to_string(r.id) +
+                       ": heat map not CV_32FC1 of the image size, or not finite;";
         } else {
             refs.push_back(&r);
             ref_cams.push_back(cam);
