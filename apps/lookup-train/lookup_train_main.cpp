@@ -1,0 +1,106 @@
+// lookup-train: self-supervised training of the FCN sample-point selector (paper Sec. III-B)
+// and heat maps for every reference of a database.
+//   lookup-train --db DB --train QUERY.rawlog[,...] [--ini FILE] [--out-model FILE]
+//                [--out DIR] [--init-model FILE] [--no-heatmaps] [--quiet]
+
+#include <mrpt/3rdparty/tclap/CmdLine.h>
+#include <mrpt/config/CConfigFile.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <sstream>
+
+#include "lookup/fcn/train_app.h"
+
+namespace {
+
+std::vector<std::string> splitList(const std::string& s) {
+    std::vector<std::string> out;
+    std::stringstream in(s);
+    for (std::string item; std::getline(in, item, ',');) {
+        if (!item.empty()) out.push_back(item);
+    }
+    return out;
+}
+
+// --ini, else share/lookup/train.ini (source tree, then installed), else built-in defaults.
+std::string defaultIni() {
+    for (const char* dir : {LOOKUP_SOURCE_SHARE_DIR, LOOKUP_INSTALL_SHARE_DIR}) {
+        const std::string f = std::string(dir) + "/train.ini";
+        if (std::filesystem::is_regular_file(f)) return f;
+    }
+    return "";
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    try {
+        TCLAP::CmdLine cmd("lookup-train: FCN sample-point selector (LibTorch) and heat maps",
+                           ' ', "0.1");
+        TCLAP::ValueArg<std::string> db("", "db", "reference database folder", true, "", "DB",
+                                        cmd);
+        TCLAP::ValueArg<std::string> train("", "train",
+                                           "training query rawlogs, comma separated (each with "
+                                           "its .GT.txt); the last held_out_share of each is "
+                                           "held out for evaluation",
+                                           true, "", "FILES", cmd);
+        TCLAP::ValueArg<std::string> ini("", "ini",
+                                         "options [fcn.network] [fcn.labels] [fcn.training] "
+                                         "(default: share/lookup/train.ini)",
+                                         false, "", "FILE", cmd);
+        TCLAP::ValueArg<std::string> out_model("", "out-model", "model file (default DB/fcn_model.pt)",
+                                               false, "", "FILE", cmd);
+        TCLAP::ValueArg<std::string> out("", "out",
+                                         "folder for train_report.json and train_curve.png "
+                                         "(default DB)",
+                                         false, "", "DIR", cmd);
+        TCLAP::ValueArg<std::string> init("", "init-model", "start from this model", false, "",
+                                          "FILE", cmd);
+        TCLAP::SwitchArg no_heat("", "no-heatmaps", "do not write heat maps into the database",
+                                 cmd);
+        TCLAP::SwitchArg quiet("", "quiet", "no progress bars", cmd);
+        cmd.parse(argc, argv);
+
+        lookup::fcn::TrainOptions options;
+        const std::string ini_file = ini.getValue().empty() ? defaultIni() : ini.getValue();
+        if (!ini_file.empty()) {
+            if (!std::filesystem::is_regular_file(ini_file)) {
+                throw std::runtime_error(ini_file + ": no such file");
+            }
+            mrpt::config::CConfigFile cfg(ini_file);
+            options.loadFromConfigFile(cfg, "fcn");
+        }
+        options.check();
+
+        lookup::fcn::TrainRequest req;
+        req.db_dir = db.getValue();
+        req.train_rawlogs = splitList(train.getValue());
+        req.out_model = out_model.getValue();
+        req.report_dir = out.getValue();
+        req.init_model = init.getValue();
+        req.write_heat_maps = !no_heat.getValue();
+        req.progress = !quiet.getValue();
+        const auto r = lookup::fcn::runTraining(req, options);
+
+        std::printf(
+            "labels: %zu pairs (%zu training, %zu held out), inlier share %.3f, %.1f s\n"
+            "training: %zu images, %d epochs, val loss %.4f -> %.4f, %.1f s\n"
+            "held out: best_point_inlier_share %.3f, random_point_inlier_share %.3f "
+            "(%zu pairs)\n"
+            "model: %s\nheat maps: %s (%zu)\nreport: %s\n",
+            r.labels.usable_pairs, r.labels.training_pairs, r.labels.held_out_pairs,
+            r.labels.inlierShare(), r.labels.seconds, r.training_samples,
+            int(r.training.epochs.size()), r.training.initial_val_loss,
+            r.training.epochs.empty() ? 0.0 : r.training.epochs.back().val_loss,
+            r.training.seconds, r.evaluation.best_point_inlier_share,
+            r.evaluation.random_point_inlier_share, r.evaluation.pairs, r.model_file.c_str(),
+            r.heat_maps.directory.c_str(), r.heat_maps.count, r.report_file.c_str());
+        for (const auto& w : r.warnings) std::fprintf(stderr, "warning: %s\n", w.c_str());
+        return 0;
+    } catch (const std::exception& e) {
+        std::cerr << "lookup-train: " << e.what() << "\n";
+        return 1;
+    }
+}

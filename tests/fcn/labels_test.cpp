@@ -1,0 +1,128 @@
+// Self-supervised labels on the pipe fixture: both classes appear, pipes are outliers, the
+// clean ceiling inliers; the time split and the same-traverse exclusion hold; bad input is
+// refused naming the file.
+
+#include <gtest/gtest.h>
+
+#include "fixture.h"
+#include "lookup/database/reference_database.h"
+#include "lookup/fcn/labels.h"
+#include "lookup/refine/geometry.h"
+#include "lookup/refine/labels.h"
+
+using namespace lookup;
+using namespace lookup::fcn;
+namespace fs = std::filesystem;
+
+namespace {
+
+struct Shares {
+    double inlier_in_pipes = 0, inlier_on_ceiling = 0;
+    int in_pipes = 0, on_ceiling = 0;
+};
+
+Shares sharesByRegion(const std::vector<refine::PointMatch>& matches, const cv::Mat& mask) {
+    Shares s;
+    double in_p = 0, in_c = 0;
+    for (const auto& m : matches) {
+        // Points whose patch is fully inside one region.
+        const cv::Rect patch(int(m.reference_px.x) - 10, int(m.reference_px.y) - 10, 20, 20);
+        const double pipe_share = cv::mean(mask(patch))[0] / 255.0;
+        if (pipe_share > 0.99) {
+            ++s.in_pipes;
+            in_p += m.inlier;
+        } else if (pipe_share < 0.01) {
+            ++s.on_ceiling;
+            in_c += m.inlier;
+        }
+    }
+    s.inlier_in_pipes = s.in_pipes ? in_p / s.in_pipes : 0;
+    s.inlier_on_ceiling = s.on_ceiling ? in_c / s.on_ceiling : 0;
+    return s;
+}
+
+}  // namespace
+
+TEST(Labels, PipesAreOutliersAndTheCeilingInliers) {
+    const auto& sc = fixture::scene();
+    const mrpt::poses::CPose3D ref_pose(1.0, 0, 0, 0, 0, 0), query_pose(1.3, 0.2, 0, 0.03, 0, 0);
+    const cv::Mat ref = sc.render(ref_pose), query = sc.render(query_pose);
+    const auto options = fixture::smallOptions().labels;
+
+    refine::Pinhole cam;
+    ASSERT_TRUE(refine::pinholeFrom(sc.camera, cam, nullptr));
+    const cv::Matx33d H = refine::ceilingHomography(cam, ref_pose + sc.mount, cam,
+                                                    query_pose + sc.mount, fixture::kCeilingHeight);
+    refine::HomographyResult fit;
+    const auto matches = labelPair(ref, query, options, &H, &fit);
+    ASSERT_TRUE(fit.ok) << fit.reason;
+    const Shares s = sharesByRegion(matches, sc.pipeMask(ref_pose));
+    ASSERT_GT(s.in_pipes, 10);
+    ASSERT_GT(s.on_ceiling, 10);
+    EXPECT_LT(s.inlier_in_pipes, 0.2);
+    EXPECT_GT(s.inlier_on_ceiling, 0.7);
+
+    // Same grid and the same labels as refine::labelGridPoints when the prior is zero motion.
+    const auto plain = labelPair(ref, query, options, nullptr);
+    const auto reference_impl =
+        refine::labelGridPoints(ref, query, options.grid_step_px, options.matcher, options.homography);
+    ASSERT_EQ(plain.size(), reference_impl.size());
+    for (std::size_t i = 0; i < plain.size(); ++i) {
+        EXPECT_EQ(plain[i].reference_px, reference_impl[i].reference_px);
+        EXPECT_EQ(plain[i].inlier, reference_impl[i].inlier);
+    }
+}
+
+TEST(Labels, GeneratedFromRawlogsWithATimeSplit) {
+    const auto dir = fixture::freshDir("labels");
+    std::vector<double> xs;
+    for (double x = -3; x <= 3.01; x += 0.5) xs.push_back(x);
+    fixture::writeDatabase((dir / "db").string(), xs);
+    const auto track = fixture::drive(-2.6, 2.6, 0.2, 0.15);
+    fixture::writeQuery((dir / "q.rawlog").string(), track);
+
+    const auto db = database::ReferenceDatabase::load((dir / "db").string());
+    auto options = fixture::smallOptions().labels;
+    std::size_t calls = 0;
+    const auto set = generateLabels(db, {(dir / "q.rawlog").string()}, options,
+                                    [&](std::size_t, std::size_t) { ++calls; });
+    EXPECT_EQ(set.stats.query_frames, track.size());
+    EXPECT_EQ(calls, track.size());
+    EXPECT_EQ(set.stats.pairs, 2 * track.size());
+    EXPECT_GT(set.stats.training_pairs, 10u);
+    EXPECT_GT(set.stats.held_out_pairs, 2u);
+    EXPECT_GT(set.stats.inlierShare(), 0.3);
+    EXPECT_LT(set.stats.inlierShare(), 0.95);
+    // Every held-out frame comes after every training frame.
+    double last_train = 0, first_held = 1e18;
+    for (const auto& p : set.pairs) {
+        if (p.held_out) first_held = std::min(first_held, p.query_time_s);
+        else last_train = std::max(last_train, p.query_time_s);
+        EXPECT_EQ(p.points.size(), p.inlier.size());
+        EXPECT_LE(p.distance_m, options.max_reference_distance_m);
+    }
+    EXPECT_LT(last_train, first_held);
+
+    // References surveyed at the query's own time are skipped (a traverse in the database).
+    options.min_time_gap_s = 1e12;
+    const auto none = generateLabels(db, {(dir / "q.rawlog").string()}, options);
+    EXPECT_EQ(none.stats.pairs, 0u);
+    EXPECT_EQ(none.stats.frames_without_reference, track.size());
+}
+
+TEST(Labels, MissingGroundTruthAndWrongCameraLabelAreRefusedNamingTheFile) {
+    const auto dir = fixture::freshDir("labels_bad");
+    fixture::writeDatabase((dir / "db").string(), {0.0, 0.5});
+    fixture::writeQuery((dir / "q.rawlog").string(), fixture::drive(0, 0.4, 0.2, 0.1));
+    const auto db = database::ReferenceDatabase::load((dir / "db").string());
+    const auto options = fixture::smallOptions().labels;
+    fs::remove(dir / "q.rawlog.GT.txt");
+    try {
+        generateLabels(db, {(dir / "q.rawlog").string()}, options);
+        FAIL() << "a rawlog without ground truth was accepted";
+    } catch (const std::runtime_error& e) {
+        EXPECT_NE(std::string(e.what()).find("q.rawlog.GT.txt"), std::string::npos) << e.what();
+    }
+    EXPECT_THROW(generateLabels(db, {(dir / "missing.rawlog").string()}, options),
+                 std::exception);
+}
