@@ -320,7 +320,7 @@ void ScenarioOptions::check() const {
     c.require(traverse_gap_s >= 0, "traverse_gap_s", ">= 0");
     const WorldOptions& w = world;
     c.require(w.layout == "single" || w.layout == "twin", "world.layout", "single or twin");
-    c.require(w.length_m >= 20 && w.length_m <= 20000, "world.length_m", "in [20, 20000]");
+    c.require(w.length_m >= 10 && w.length_m <= 20000, "world.length_m", "in [10, 20000]");
     c.require(w.width_m >= 2 && w.width_m <= 20, "world.width_m", "in [2, 20]");
     c.require(w.ceiling_height_m >= 2 && w.ceiling_height_m <= 20, "world.ceiling_height_m",
               "in [2, 20]");

@@ -100,6 +100,28 @@ void writeDatasetIni(const std::string& path, const ScenarioOptions& sc) {
 
 }  // namespace
 
+mrpt::obs::CObservation2DRangeScan simulateLidar(const mrpt::maps::COccupancyGridMap2D& grid,
+                                                 const mrpt::poses::CPose2D& vehicle,
+                                                 const LidarOptions& lidar, uint32_t noise_key) {
+    mrpt::obs::CObservation2DRangeScan scan;
+    scan.sensorLabel = lidar.label;
+    scan.aperture = static_cast<float>(mrpt::DEG2RAD(lidar.aperture_deg));
+    scan.rightToLeft = true;
+    scan.maxRange = static_cast<float>(lidar.max_range_m);
+    scan.stdError = static_cast<float>(lidar.noise_std_m);
+    scan.sensorPose = lidar.mount.pose();
+    const std::size_t rays =
+        static_cast<std::size_t>(std::lround(lidar.aperture_deg / lidar.resolution_deg)) + 1;
+    grid.laserScanSimulator(scan, vehicle, 0.5f, rays, 0);
+    for (std::size_t r = 0; r < scan.getScanSize(); ++r) {
+        if (!scan.getScanRangeValidity(r)) continue;
+        const double noise =
+            lidar.noise_std_m * gaussian(hash3(noise_key, r, 1), hash3(noise_key, r, 2));
+        scan.setScanRange(r, static_cast<float>(std::max(0.0, scan.getScanRange(r) + noise)));
+    }
+    return scan;
+}
+
 common::PoseTrack vehicleTrack(const TunnelWorld& world, const TraverseOptions& tr,
                                const VehicleOptions& vehicle, double start_time_s) {
     const auto& route = world.route();
@@ -268,18 +290,11 @@ TraverseSummary Simulator::runTraverse(std::size_t index, const std::string& out
                                  scenario_.threads);
     const mrpt::poses::CPose3D ceiling_on_vehicle = scenario_.ceiling_camera.mount.pose();
     const mrpt::poses::CPose3D forward_on_vehicle = scenario_.forward_camera.mount.pose();
-    const mrpt::poses::CPose3D lidar_on_vehicle = scenario_.lidar.mount.pose();
 
     common::RawlogWriter writer(stem + ".rawlog");
     mrpt::poses::CPose2D odometry;  // accumulated, drifting
     mrpt::poses::CPose2D last_true;
     bool have_last = false;
-    const double lidar_fov = mrpt::DEG2RAD(scenario_.lidar.aperture_deg);
-    const std::size_t lidar_rays =
-        static_cast<std::size_t>(
-            std::lround(scenario_.lidar.aperture_deg / scenario_.lidar.resolution_deg)) +
-        1;
-
     auto cameraConditions = [&](const CameraOptions& cam, const CameraRenderer& renderer,
                                 const mrpt::poses::CPose3D& on_vehicle, double t, Sensor s,
                                 std::size_t k, bool blur) {
@@ -332,23 +347,10 @@ TraverseSummary Simulator::runTraverse(std::size_t index, const std::string& out
                 break;
             }
             case Sensor::Lidar: {
-                mrpt::obs::CObservation2DRangeScan scan;
-                scan.sensorLabel = scenario_.lidar.label;
+                mrpt::obs::CObservation2DRangeScan scan =
+                    simulateLidar(grid, mrpt::poses::CPose2D(vehicle), scenario_.lidar,
+                                  hash3(seed, 1000 + ev.index, 7));
                 scan.timestamp = stamp;
-                scan.aperture = static_cast<float>(lidar_fov);
-                scan.rightToLeft = true;
-                scan.maxRange = static_cast<float>(scenario_.lidar.max_range_m);
-                scan.stdError = static_cast<float>(scenario_.lidar.noise_std_m);
-                scan.sensorPose = lidar_on_vehicle;
-                grid.laserScanSimulator(scan, mrpt::poses::CPose2D(vehicle), 0.5f, lidar_rays, 0);
-                const uint32_t key = hash3(seed, 1000 + ev.index, 7);
-                for (std::size_t r = 0; r < scan.getScanSize(); ++r) {
-                    if (!scan.getScanRangeValidity(r)) continue;
-                    const double noise =
-                        scenario_.lidar.noise_std_m * gaussian(hash3(key, r, 1), hash3(key, r, 2));
-                    scan.setScanRange(
-                        r, static_cast<float>(std::max(0.0, scan.getScanRange(r) + noise)));
-                }
                 writer.write(scan);
                 sum.lidar_scans++;
                 break;

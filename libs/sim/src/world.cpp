@@ -206,20 +206,22 @@ void TunnelWorld::buildLayout() {
 }
 
 void TunnelWorld::buildBuckets() {
-    bucket_nx_ = static_cast<int>(std::ceil((hi_.x() - lo_.x()) / bucket_m_)) + 1;
-    bucket_ny_ = static_cast<int>(std::ceil((hi_.y() - lo_.y()) / bucket_m_)) + 1;
+    // A margin around the tunnels, so points just inside the rock get their true distance.
+    bucket_origin_ = lo_ - Vector2d(4, 4);
+    bucket_nx_ = static_cast<int>(std::ceil((hi_.x() - lo_.x() + 8) / bucket_m_)) + 1;
+    bucket_ny_ = static_cast<int>(std::ceil((hi_.y() - lo_.y() + 8) / bucket_m_)) + 1;
     buckets_.assign(static_cast<std::size_t>(bucket_nx_) * bucket_ny_, {});
     const double reach = bucket_m_ * 0.7072 + 3.0;  // half diagonal + margin for outside queries
     for (int si = 0; si < static_cast<int>(segments_.size()); ++si) {
         const TunnelSegment& s = segments_[si];
         const double r = s.half_width + reach;
-        const Vector2d lo = s.a.cwiseMin(s.b) - Vector2d::Constant(r) - lo_;
-        const Vector2d hi = s.a.cwiseMax(s.b) + Vector2d::Constant(r) - lo_;
+        const Vector2d lo = s.a.cwiseMin(s.b) - Vector2d::Constant(r) - bucket_origin_;
+        const Vector2d hi = s.a.cwiseMax(s.b) + Vector2d::Constant(r) - bucket_origin_;
         for (int by = std::max(0, int(lo.y() / bucket_m_));
              by <= std::min(bucket_ny_ - 1, int(hi.y() / bucket_m_)); ++by) {
             for (int bx = std::max(0, int(lo.x() / bucket_m_));
                  bx <= std::min(bucket_nx_ - 1, int(hi.x() / bucket_m_)); ++bx) {
-                const Vector2d c = lo_ + bucket_m_ * Vector2d(bx + 0.5, by + 0.5);
+                const Vector2d c = bucket_origin_ + bucket_m_ * Vector2d(bx + 0.5, by + 0.5);
                 const double t = std::clamp((c - s.a).dot(s.dir), 0.0, s.length);
                 if ((c - (s.a + t * s.dir)).norm() <= r) {
                     buckets_[by * bucket_nx_ + bx].push_back(si);
@@ -350,8 +352,8 @@ void TunnelWorld::buildFurniture(const std::vector<Vector2d>& raw) {
 
 WallQuery TunnelWorld::query(double x, double y) const {
     WallQuery out;
-    const int bx = static_cast<int>(std::floor((x - lo_.x()) / bucket_m_));
-    const int by = static_cast<int>(std::floor((y - lo_.y()) / bucket_m_));
+    const int bx = static_cast<int>(std::floor((x - bucket_origin_.x()) / bucket_m_));
+    const int by = static_cast<int>(std::floor((y - bucket_origin_.y()) / bucket_m_));
     if (bx < 0 || by < 0 || bx >= bucket_nx_ || by >= bucket_ny_) return out;
     const Vector2d p(x, y);
     for (int si : buckets_[by * bucket_nx_ + bx]) {

@@ -83,7 +83,7 @@ struct CameraOptions {
     MountPose mount;         ///< camera pose on the vehicle (+Z optical axis, MRPT convention)
     double exposure_ms = 4;  ///< exposure time, sets the motion-blur length [ms]
     double exposure_variation = 0.15;  ///< relative amplitude of per-frame exposure changes
-    double noise_std_dn = 2.0;         ///< read-noise standard deviation [grey levels]
+    double noise_std_dn = 1.2;         ///< read-noise standard deviation [grey levels]
     double light_gain = 1.0;  ///< vehicle-light intensity (1: ceiling at nominal range ~ albedo)
     double light_falloff_exp = 1.5;  ///< vehicle-light beam: intensity ~ cos(off-axis)^exp
     double max_range_m = 60;         ///< rays beyond this see darkness [m]

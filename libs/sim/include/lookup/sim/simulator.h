@@ -7,6 +7,9 @@
 #include "lookup/sim/world.h"
 
 #include <lookup/common/pose_files.h>
+#include <mrpt/maps/COccupancyGridMap2D.h>
+#include <mrpt/obs/CObservation2DRangeScan.h>
+#include <mrpt/poses/CPose2D.h>
 
 #include <cstdint>
 #include <functional>
@@ -48,6 +51,13 @@ std::string formatSummary(const SimulationResult& result);
 /// A vehicle's drive along the route: dense ground truth (100 Hz) in the traverse's time base.
 common::PoseTrack vehicleTrack(const TunnelWorld& world, const TraverseOptions& traverse,
                                const VehicleOptions& vehicle, double start_time_s);
+
+/// One scan of the 2-D lidar at `vehicle` (map frame), simulated by MRPT's
+/// COccupancyGridMap2D::laserScanSimulator against `grid`, plus Gaussian range noise drawn
+/// deterministically from `noise_key`. Rays that reach no wall within range are invalid.
+mrpt::obs::CObservation2DRangeScan simulateLidar(const mrpt::maps::COccupancyGridMap2D& grid,
+                                                 const mrpt::poses::CPose2D& vehicle,
+                                                 const LidarOptions& lidar, uint32_t noise_key);
 
 class Simulator {
   public:

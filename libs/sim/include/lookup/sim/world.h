@@ -128,6 +128,7 @@ class TunnelWorld {
     Eigen::Vector2d lo_, hi_;
     // Plan-view buckets of nearby segments, so a query tests only a few pieces.
     double bucket_m_ = 8.0;
+    Eigen::Vector2d bucket_origin_;
     int bucket_nx_ = 0, bucket_ny_ = 0;
     std::vector<std::vector<int>> buckets_;
     // Ceiling relief sampled every kBumpCell metres over the bounding box (bilinear), so the

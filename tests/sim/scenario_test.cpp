@@ -1,0 +1,124 @@
+// Scenario files: presets load and validate, the resolved form round-trips, and malformed files
+// are refused with the file, section and key in the message.
+
+#include <gtest/gtest.h>
+#include <lookup/common/config.h>
+#include <lookup/sim/scenario.h>
+#include <mrpt/config/CConfigFileMemory.h>
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+namespace {
+
+using lookup::common::ConfigError;
+using lookup::sim::ScenarioOptions;
+
+const char* kPresets[] = {"mine-a", "mine-b", "mine-a-mini", "mine-b-mini"};
+
+std::string presetPath(const std::string& name) {
+    return lookup::sim::findPreset(name, {std::string(LOOKUP_SOURCE_SHARE_DIR) + "/scenarios"});
+}
+
+std::string writeTemp(const std::string& name, const std::string& text) {
+    const auto dir = std::filesystem::temp_directory_path() / "lookup_sim_scenario_test";
+    std::filesystem::create_directories(dir);
+    const std::string path = (dir / name).string();
+    std::ofstream(path) << text;
+    return path;
+}
+
+std::string readFile(const std::string& path) {
+    std::ifstream f(path);
+    return std::string(std::istreambuf_iterator<char>(f), {});
+}
+
+/// The error message `fromFile` gives for `text`, or "" if it was accepted.
+std::string refusal(const std::string& name, const std::string& text) {
+    const std::string path = writeTemp(name, text);
+    try {
+        ScenarioOptions::fromFile(path);
+    } catch (const ConfigError& e) {
+        return e.what();
+    }
+    return "";
+}
+
+TEST(Scenario, DefaultOptionsAreValidOnceTraversesExist) {
+    ScenarioOptions s;
+    EXPECT_THROW(s.check(), ConfigError);  // no traverse
+    s.traverses.push_back({});
+    s.traverses.back().name = "t";
+    s.traverses.back().roles = "reference";
+    EXPECT_NO_THROW(s.check());
+}
+
+TEST(Scenario, EveryPresetLoadsAndRoundTrips) {
+    for (const char* name : kPresets) {
+        SCOPED_TRACE(name);
+        const ScenarioOptions s = ScenarioOptions::fromFile(presetPath(name));
+        EXPECT_EQ(s.name, name);
+        const std::string text = s.toIniText();
+        const std::string path = writeTemp(std::string(name) + "-resolved.ini", text);
+        const ScenarioOptions back = ScenarioOptions::fromFile(path);
+        EXPECT_EQ(back.toIniText(), text);
+        EXPECT_EQ(back.traverses.size(), s.traverses.size());
+    }
+}
+
+TEST(Scenario, PresetsHaveThePapersTraverses) {
+    const ScenarioOptions b = ScenarioOptions::fromFile(presetPath("mine-b"));
+    ASSERT_EQ(b.traverses.size(), 4u);
+    EXPECT_EQ(b.traverses[0].name, "left");
+    EXPECT_EQ(b.traverses[3].roles, "query");
+    const ScenarioOptions a = ScenarioOptions::fromFile(presetPath("mine-a"));
+    ASSERT_EQ(a.traverses.size(), 9u);
+    int refs = 0, queries = 0;
+    for (const auto& t : a.traverses) {
+        refs += t.roles.find("reference") != std::string::npos;
+        queries += t.roles.find("query") != std::string::npos;
+    }
+    EXPECT_EQ(refs, 4);
+    EXPECT_EQ(queries, 5);
+}
+
+TEST(Scenario, UnknownKeyIsRefusedWithFileSectionAndKey) {
+    std::string text = readFile(presetPath("mine-b-mini"));
+    text.replace(text.find("speed_kmh"), 9, "sped_kmh");
+    const std::string msg = refusal("typo.ini", text);
+    EXPECT_NE(msg.find("typo.ini"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("[traverse_0]"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("sped_kmh"), std::string::npos) << msg;
+}
+
+TEST(Scenario, MalformedNumberIsRefusedWithFileSectionAndKey) {
+    std::string text = readFile(presetPath("mine-b-mini"));
+    text.replace(text.find("width_m = 5.5"), 13, "width_m = 5,5");
+    const std::string msg = refusal("comma.ini", text);
+    EXPECT_NE(msg.find("comma.ini"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("[world] width_m"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("5,5"), std::string::npos) << msg;
+}
+
+TEST(Scenario, OutOfRangeValueNamesTheField) {
+    std::string text = readFile(presetPath("mine-b-mini"));
+    text.replace(text.find("width_m = 5.5"), 13, "width_m = 1.0");
+    const std::string msg = refusal("narrow.ini", text);
+    EXPECT_NE(msg.find("narrow.ini"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("world.width_m"), std::string::npos) << msg;
+}
+
+TEST(Scenario, UnknownSectionAndMissingTraverseAreRefused) {
+    std::string text = readFile(presetPath("mine-b-mini"));
+    EXPECT_NE(refusal("extra.ini", text + "\n[travers_9]\nname = x\n").find("[travers_9]"),
+              std::string::npos);
+    std::string fewer = text;
+    fewer.replace(fewer.find("traverse_count = 4"), 18, "traverse_count = 5");
+    EXPECT_NE(refusal("fewer.ini", fewer).find("[traverse_4]"), std::string::npos);
+    EXPECT_NE(refusal("missing.ini", "").find("[scenario]"), std::string::npos);
+    EXPECT_THROW(ScenarioOptions::fromFile("/nonexistent/x.ini"), ConfigError);
+    EXPECT_THROW(lookup::sim::findPreset("no-such-mine", {LOOKUP_SOURCE_SHARE_DIR}), ConfigError);
+}
+
+}  // namespace
