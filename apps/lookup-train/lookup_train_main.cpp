@@ -37,10 +37,9 @@ std::string defaultIni() {
 
 int main(int argc, char** argv) {
     try {
-        TCLAP::CmdLine cmd("lookup-train: FCN sample-point selector (LibTorch) and heat maps",
-                           ' ', "0.1");
-        TCLAP::ValueArg<std::string> db("", "db", "reference database folder", true, "", "DB",
-                                        cmd);
+        TCLAP::CmdLine cmd("lookup-train: FCN sample-point selector (LibTorch) and heat maps", ' ',
+                           "0.1");
+        TCLAP::ValueArg<std::string> db("", "db", "reference database folder", true, "", "DB", cmd);
         TCLAP::ValueArg<std::string> train("", "train",
                                            "training query rawlogs, comma separated (each with "
                                            "its .GT.txt); the last held_out_share of each is "
@@ -50,8 +49,8 @@ int main(int argc, char** argv) {
                                          "options [fcn.network] [fcn.labels] [fcn.training] "
                                          "(default: share/lookup/train.ini)",
                                          false, "", "FILE", cmd);
-        TCLAP::ValueArg<std::string> out_model("", "out-model", "model file (default DB/fcn_model.pt)",
-                                               false, "", "FILE", cmd);
+        TCLAP::ValueArg<std::string> out_model(
+            "", "out-model", "model file (default DB/fcn_model.pt)", false, "", "FILE", cmd);
         TCLAP::ValueArg<std::string> out("", "out",
                                          "folder for train_report.json and train_curve.png "
                                          "(default DB)",
@@ -93,10 +92,10 @@ int main(int argc, char** argv) {
             r.labels.usable_pairs, r.labels.training_pairs, r.labels.held_out_pairs,
             r.labels.inlierShare(), r.labels.seconds, r.training_samples,
             int(r.training.epochs.size()), r.training.initial_val_loss,
-            r.training.epochs.empty() ? 0.0 : r.training.epochs.back().val_loss,
-            r.training.seconds, r.evaluation.best_point_inlier_share,
-            r.evaluation.random_point_inlier_share, r.evaluation.pairs, r.model_file.c_str(),
-            r.heat_maps.directory.c_str(), r.heat_maps.count, r.report_file.c_str());
+            r.training.epochs.empty() ? 0.0 : r.training.epochs.back().val_loss, r.training.seconds,
+            r.evaluation.best_point_inlier_share, r.evaluation.random_point_inlier_share,
+            r.evaluation.pairs, r.model_file.c_str(), r.heat_maps.directory.c_str(),
+            r.heat_maps.count, r.report_file.c_str());
         for (const auto& w : r.warnings) std::fprintf(stderr, "warning: %s\n", w.c_str());
         return 0;
     } catch (const std::exception& e) {

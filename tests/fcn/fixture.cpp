@@ -131,6 +131,7 @@ TrainOptions smallOptions() {
     o.training.epochs = 25;
     o.training.batch_size = 4;
     o.training.learning_rate = 3e-3;
+    o.training.threads = 1;  // tiny tensors: a second thread only adds OpenMP overhead
     return o;
 }
 

@@ -64,8 +64,8 @@ TEST(Labels, PipesAreOutliersAndTheCeilingInliers) {
 
     // Same grid and the same labels as refine::labelGridPoints when the prior is zero motion.
     const auto plain = labelPair(ref, query, options, nullptr);
-    const auto reference_impl =
-        refine::labelGridPoints(ref, query, options.grid_step_px, options.matcher, options.homography);
+    const auto reference_impl = refine::labelGridPoints(ref, query, options.grid_step_px,
+                                                        options.matcher, options.homography);
     ASSERT_EQ(plain.size(), reference_impl.size());
     for (std::size_t i = 0; i < plain.size(); ++i) {
         EXPECT_EQ(plain[i].reference_px, reference_impl[i].reference_px);
@@ -96,8 +96,10 @@ TEST(Labels, GeneratedFromRawlogsWithATimeSplit) {
     // Every held-out frame comes after every training frame.
     double last_train = 0, first_held = 1e18;
     for (const auto& p : set.pairs) {
-        if (p.held_out) first_held = std::min(first_held, p.query_time_s);
-        else last_train = std::max(last_train, p.query_time_s);
+        if (p.held_out)
+            first_held = std::min(first_held, p.query_time_s);
+        else
+            last_train = std::max(last_train, p.query_time_s);
         EXPECT_EQ(p.points.size(), p.inlier.size());
         EXPECT_LE(p.distance_m, options.max_reference_distance_m);
     }
@@ -123,6 +125,5 @@ TEST(Labels, MissingGroundTruthAndWrongCameraLabelAreRefusedNamingTheFile) {
     } catch (const std::runtime_error& e) {
         EXPECT_NE(std::string(e.what()).find("q.rawlog.GT.txt"), std::string::npos) << e.what();
     }
-    EXPECT_THROW(generateLabels(db, {(dir / "missing.rawlog").string()}, options),
-                 std::exception);
+    EXPECT_THROW(generateLabels(db, {(dir / "missing.rawlog").string()}, options), std::exception);
 }

@@ -52,8 +52,7 @@ TEST(Model, SaveLoadRoundTripGivesIdenticalOutputs) {
     EXPECT_TRUE(loaded.options() == small());
     EXPECT_EQ(cv::norm(model.predict(image), loaded.predict(image), cv::NORM_INF), 0.0);
     // A different seed gives different weights (the comparison above can fail).
-    EXPECT_GT(cv::norm(model.predict(image), HeatMapModel(small(), 4).predict(image),
-                       cv::NORM_INF),
+    EXPECT_GT(cv::norm(model.predict(image), HeatMapModel(small(), 4).predict(image), cv::NORM_INF),
               0.0);
 }
 

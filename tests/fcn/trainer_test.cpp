@@ -3,6 +3,8 @@
 
 #include <gtest/gtest.h>
 
+#include <chrono>
+#include <cstdio>
 #include <opencv2/imgproc.hpp>
 
 #include "fixture.h"
@@ -55,8 +57,11 @@ TEST(Trainer, LearnsToScorePipesBelowTheCeiling) {
     ASSERT_GT(cv::countNonZero(core_ceiling), 200);
 
     int steps_seen = 0;
-    const TrainResult r = train(model, d.train, d.val, o.training,
-                                [&](int, int, int, double) { ++steps_seen; });
+    const auto t0 = std::chrono::steady_clock::now();
+    const TrainResult r =
+        train(model, d.train, d.val, o.training, [&](int, int, int, double) { ++steps_seen; });
+    std::printf("labels %.2f s, train %.2f s, %d steps, %zu samples %zu points\n",
+                d.labels.stats.seconds, r.seconds, r.steps, d.train.size(), d.labels.stats.points);
     EXPECT_EQ(steps_seen, r.steps);
     ASSERT_EQ(int(r.epochs.size()), o.training.epochs);
     EXPECT_LT(r.epochs.back().train_loss, 0.8 * r.epochs.front().train_loss);

@@ -132,8 +132,7 @@ HeatMapsWritten writeHeatMaps(const database::ReferenceDatabase& db, const HeatM
     }
     // The previous maps are no longer referenced.
     const std::string previous = db.info().heatmaps_dir;
-    if (!previous.empty() && previous != result.directory &&
-        previous.rfind("heatmaps_", 0) == 0) {
+    if (!previous.empty() && previous != result.directory && previous.rfind("heatmaps_", 0) == 0) {
         std::error_code ec;
         fs::remove_all(db_dir / previous, ec);
     }

@@ -91,8 +91,10 @@ std::vector<refine::PointMatch> labelPair(const cv::Mat& reference, const cv::Ma
                                           refine::HomographyResult* result) {
     CV_Assert(reference.type() == CV_8UC1 && query.type() == CV_8UC1);
     const int levels = refine::effectivePyramidLevels(options.matcher);
-    const auto ref = refine::ImagePyramid::build(reference, levels, options.matcher.normalize_brightness);
-    const auto qry = refine::ImagePyramid::build(query, levels, options.matcher.normalize_brightness);
+    const auto ref =
+        refine::ImagePyramid::build(reference, levels, options.matcher.normalize_brightness);
+    const auto qry =
+        refine::ImagePyramid::build(query, levels, options.matcher.normalize_brightness);
     std::vector<cv::Point2f> points;
     const int margin = options.matcher.patch_px / 2;
     for (int y = margin; y + margin < reference.rows; y += options.grid_step_px) {
@@ -105,9 +107,9 @@ std::vector<refine::PointMatch> labelPair(const cv::Mat& reference, const cv::Ma
         offsets.reserve(points.size());
         for (const auto& p : points) {
             const cv::Vec3d q = (*reference_to_query) * cv::Vec3d(p.x, p.y, 1.0);
-            offsets.emplace_back(q[2] > 1e-9 ? cv::Point2f(float(q[0] / q[2] - p.x),
-                                                           float(q[1] / q[2] - p.y))
-                                             : cv::Point2f(0, 0));
+            offsets.emplace_back(
+                q[2] > 1e-9 ? cv::Point2f(float(q[0] / q[2] - p.x), float(q[1] / q[2] - p.y))
+                            : cv::Point2f(0, 0));
         }
     }
     auto matches = refine::matchPoints(ref, qry, points, offsets, options.matcher);
@@ -142,9 +144,9 @@ LabelSet generateLabels(const database::ReferenceDatabase& db,
     }
     for (std::size_t r = 0; r < rawlogs.size(); ++r) {
         auto& frames = all_frames[r];
-        const double split = frames.front().time_s +
-                             (1.0 - options.held_out_share) *
-                                 (frames.back().time_s - frames.front().time_s);
+        const double split =
+            frames.front().time_s +
+            (1.0 - options.held_out_share) * (frames.back().time_s - frames.front().time_s);
         for (auto& f : frames) jobs.push_back({&rawlogs[r], &f, f.time_s >= split});
     }
 

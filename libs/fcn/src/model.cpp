@@ -30,16 +30,18 @@ int stageChannels(const NetworkOptions& o, int stage) {
 SamplePointNetImpl::SamplePointNetImpl(const NetworkOptions& o) {
     int in = 1;
     for (int i = 0; i < o.depth; ++i) {
-        encoder.push_back(register_module("enc" + std::to_string(i), convBlock(in, stageChannels(o, i))));
+        encoder.push_back(
+            register_module("enc" + std::to_string(i), convBlock(in, stageChannels(o, i))));
         in = stageChannels(o, i);
     }
     decoder.resize(std::max(0, o.depth - 1));
     for (int i = o.depth - 2; i >= 0; --i) {
-        decoder[i] = register_module("dec" + std::to_string(i),
-                                     convBlock(stageChannels(o, i + 1) + stageChannels(o, i),
-                                               stageChannels(o, i)));
+        decoder[i] = register_module(
+            "dec" + std::to_string(i),
+            convBlock(stageChannels(o, i + 1) + stageChannels(o, i), stageChannels(o, i)));
     }
-    head = register_module("head", torch::nn::Conv2d(torch::nn::Conv2dOptions(stageChannels(o, 0), 1, 1)));
+    head = register_module("head",
+                           torch::nn::Conv2d(torch::nn::Conv2dOptions(stageChannels(o, 0), 1, 1)));
 }
 
 torch::Tensor SamplePointNetImpl::forward(torch::Tensor x) {

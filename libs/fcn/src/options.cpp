@@ -58,14 +58,14 @@ void NetworkOptions::check() const {
 }
 
 bool NetworkOptions::operator==(const NetworkOptions& o) const {
-    return base_channels == o.base_channels && max_channels == o.max_channels &&
-           depth == o.depth && input_scale == o.input_scale;
+    return base_channels == o.base_channels && max_channels == o.max_channels && depth == o.depth &&
+           input_scale == o.input_scale;
 }
 
 std::string NetworkOptions::describe() const {
     std::ostringstream s;
-    s << "base_channels=" << base_channels << " max_channels=" << max_channels
-      << " depth=" << depth << " input_scale=" << input_scale;
+    s << "base_channels=" << base_channels << " max_channels=" << max_channels << " depth=" << depth
+      << " input_scale=" << input_scale;
     return s.str();
 }
 
@@ -96,8 +96,7 @@ void LabelOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& sourc
     }
 }
 
-void LabelOptions::saveToConfigFile(mrpt::config::CConfigFileBase& t,
-                                    const std::string& s) const {
+void LabelOptions::saveToConfigFile(mrpt::config::CConfigFileBase& t, const std::string& s) const {
     put(t, s, "grid_step_px", grid_step_px);
     put(t, s, "references_per_query", references_per_query);
     put(t, s, "max_reference_distance_m", max_reference_distance_m);
@@ -135,8 +134,8 @@ void LabelOptions::check() const {
 void TrainingOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
                                          const std::string& section) {
     const IniSection s(source, section, sourceName(source));
-    s.rejectUnknownKeys({"epochs", "batch_size", "learning_rate", "weight_decay", "augment",
-                         "seed", "threads"});
+    s.rejectUnknownKeys(
+        {"epochs", "batch_size", "learning_rate", "weight_decay", "augment", "seed", "threads"});
     epochs = s.getInt("epochs", epochs);
     batch_size = s.getInt("batch_size", batch_size);
     learning_rate = s.getDouble("learning_rate", learning_rate);

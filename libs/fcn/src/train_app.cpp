@@ -37,7 +37,8 @@ bool plotCurve(const TrainResult& r, const std::string& dir, std::string& png,
     {
         std::ofstream d(dat);
         d << "# epoch train_loss val_loss\n0 NaN " << r.initial_val_loss << "\n";
-        for (const auto& e : r.epochs) d << e.epoch << " " << e.train_loss << " " << e.val_loss << "\n";
+        for (const auto& e : r.epochs)
+            d << e.epoch << " " << e.train_loss << " " << e.val_loss << "\n";
     }
     for (const char* terminal : {"pngcairo", "png"}) {
         {
@@ -74,8 +75,8 @@ TrainReport runTraining(const TrainRequest& req, const TrainOptions& options) {
     const auto image_of = [&db](std::size_t i) { return db.ceilingImage(i).clone(); };
 
     // 1. Labels (paper Sec. III-B), split by time into training and held-out frames.
-    const LabelSet labels = generateLabels(
-        db, req.train_rawlogs, options.labels, [&](std::size_t d, std::size_t n) {
+    const LabelSet labels =
+        generateLabels(db, req.train_rawlogs, options.labels, [&](std::size_t d, std::size_t n) {
             if (req.progress) bar("labels", d, n, "");
         });
     report.labels = labels.stats;
@@ -88,8 +89,8 @@ TrainReport runTraining(const TrainRequest& req, const TrainOptions& options) {
             rawlog_list + ": too few usable pairs with " + req.db_dir + " (training " +
             std::to_string(st.training_pairs) + ", held out " + std::to_string(st.held_out_pairs) +
             "; need " + std::to_string(options.labels.min_training_pairs) + " and " +
-            std::to_string(options.labels.min_held_out_pairs) + "): " +
-            std::to_string(st.frames_without_reference) + " of " +
+            std::to_string(options.labels.min_held_out_pairs) +
+            "): " + std::to_string(st.frames_without_reference) + " of " +
             std::to_string(st.query_frames) + " frames have no reference within " +
             std::to_string(options.labels.max_reference_distance_m) + " m, " +
             std::to_string(st.pairs - st.usable_pairs) + " of " + std::to_string(st.pairs) +
@@ -162,8 +163,9 @@ void writeTrainReport(const TrainReport& r, const TrainRequest& req, const Train
     json j = {
         {"db", req.db_dir},
         {"train_rawlogs", req.train_rawlogs},
-        {"split", "by time: the last held_out_share of each training rawlog is held out "
-                  "(validation loss and evaluation); the rest is trained on"},
+        {"split",
+         "by time: the last held_out_share of each training rawlog is held out "
+         "(validation loss and evaluation); the rest is trained on"},
         {"model_file", r.model_file},
         {"parameters", r.parameters},
         {"best_point_inlier_share", r.evaluation.best_point_inlier_share},

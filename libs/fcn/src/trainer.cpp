@@ -94,8 +94,7 @@ double meanLoss(SamplePointNet& net, const std::vector<Prepared>& data) {
 
 }  // namespace
 
-std::vector<TrainingSample> samplesFromPairs(const std::vector<LabelledPair>& pairs,
-                                             bool held_out,
+std::vector<TrainingSample> samplesFromPairs(const std::vector<LabelledPair>& pairs, bool held_out,
                                              const std::function<cv::Mat(std::size_t)>& image_of) {
     std::map<std::size_t, TrainingSample> by_reference;
     for (const auto& p : pairs) {
@@ -121,15 +120,15 @@ TrainResult train(HeatMapModel& model, const std::vector<TrainingSample>& train_
             throw std::invalid_argument("training images differ in size");
         }
         if (s.points.size() != s.labels.size()) {
-            throw std::invalid_argument("a training sample has points and labels of different counts");
+            throw std::invalid_argument(
+                "a training sample has points and labels of different counts");
         }
         positives += std::count(s.labels.begin(), s.labels.end(), 1);
         total += s.labels.size();
     }
     if (positives == 0 || positives == total) {
         throw std::invalid_argument(std::string("every labelled training point is an ") +
-                                    (positives ? "inlier" : "outlier") +
-                                    ": nothing to learn");
+                                    (positives ? "inlier" : "outlier") + ": nothing to learn");
     }
     const auto t0 = std::chrono::steady_clock::now();
     torch::set_num_threads(options.threads);
@@ -139,13 +138,13 @@ TrainResult train(HeatMapModel& model, const std::vector<TrainingSample>& train_
     TrainResult result;
     result.positive_weight = double(total) / (2.0 * positives);
     result.negative_weight = double(total) / (2.0 * (total - positives));
-    const auto data =
-        prepare(model, train_samples, result.positive_weight, result.negative_weight);
+    const auto data = prepare(model, train_samples, result.positive_weight, result.negative_weight);
     const auto val = prepare(model, validation, result.positive_weight, result.negative_weight);
 
     auto& net = model.impl().net;
-    torch::optim::Adam adam(net->parameters(), torch::optim::AdamOptions(options.learning_rate)
-                                                   .weight_decay(options.weight_decay));
+    torch::optim::Adam adam(
+        net->parameters(),
+        torch::optim::AdamOptions(options.learning_rate).weight_decay(options.weight_decay));
     result.initial_val_loss = meanLoss(net, val);
     std::vector<std::size_t> order(data.size());
     std::iota(order.begin(), order.end(), 0);
@@ -202,7 +201,8 @@ PointEvaluation evaluatePoints(const HeatMapModel& model, const std::vector<Labe
     for (const auto& p : pairs) {
         if (!p.usable || !p.held_out || p.points.empty()) continue;
         auto it = heat.find(p.reference);
-        if (it == heat.end()) it = heat.emplace(p.reference, model.predict(image_of(p.reference))).first;
+        if (it == heat.end())
+            it = heat.emplace(p.reference, model.predict(image_of(p.reference))).first;
         const auto scores = sampleAt(it->second, p.points);
         std::vector<std::size_t> rank(scores.size());
         std::iota(rank.begin(), rank.end(), 0);

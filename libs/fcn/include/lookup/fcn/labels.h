@@ -24,25 +24,25 @@ struct LabelledPair {
     std::string query_rawlog;
     std::size_t query_record = 0;  ///< rawlog record of the query image
     double query_time_s = 0;
-    double distance_m = 0;  ///< between the reference and query vehicle positions [m]
-    bool held_out = false;  ///< evaluation / validation pair (never trained on)
-    bool usable = false;    ///< homography found with >= min_pair_inliers inliers
-    std::string reason;     ///< why not usable
+    double distance_m = 0;             ///< between the reference and query vehicle positions [m]
+    bool held_out = false;             ///< evaluation / validation pair (never trained on)
+    bool usable = false;               ///< homography found with >= min_pair_inliers inliers
+    std::string reason;                ///< why not usable
     std::vector<cv::Point2f> points;   ///< grid points in the reference image [px]
     std::vector<std::uint8_t> inlier;  ///< label per point: 1 = RANSAC inlier
     int inliers = 0;
 };
 
 struct LabelStats {
-    std::size_t query_frames = 0;     ///< ceiling frames used (after query_stride)
+    std::size_t query_frames = 0;              ///< ceiling frames used (after query_stride)
     std::size_t frames_without_reference = 0;  ///< no reference in range (distance, time gap)
-    std::size_t pairs = 0;            ///< pairs labelled
-    std::size_t usable_pairs = 0;     ///< of which usable
-    std::size_t training_pairs = 0;   ///< usable and not held out
-    std::size_t held_out_pairs = 0;   ///< usable and held out
-    std::size_t points = 0;           ///< labelled points of usable pairs
-    std::size_t inlier_points = 0;    ///< of which inliers
-    double seconds = 0;               ///< wall time of label generation
+    std::size_t pairs = 0;                     ///< pairs labelled
+    std::size_t usable_pairs = 0;              ///< of which usable
+    std::size_t training_pairs = 0;            ///< usable and not held out
+    std::size_t held_out_pairs = 0;            ///< usable and held out
+    std::size_t points = 0;                    ///< labelled points of usable pairs
+    std::size_t inlier_points = 0;             ///< of which inliers
+    double seconds = 0;                        ///< wall time of label generation
     double inlierShare() const { return points ? double(inlier_points) / points : 0.0; }
 };
 

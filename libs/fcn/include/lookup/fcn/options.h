@@ -17,10 +17,10 @@ namespace lookup::fcn {
 /// Encoder-decoder with skip connections (the paper's FCN: VGG16 encoder, 1x1 conv, three
 /// up-sampling layers with skips to layer3 / layer4; here small and from scratch).
 struct NetworkOptions : public mrpt::config::CLoadableOptions {
-    int base_channels = 16;     ///< channels of the first encoder stage (doubled per stage)
-    int max_channels = 64;      ///< cap on channels of any stage
-    int depth = 4;              ///< encoder stages (each halves the resolution but the last)
-    double input_scale = 0.5;   ///< image scale fed to the network, in (0, 1]
+    int base_channels = 16;    ///< channels of the first encoder stage (doubled per stage)
+    int max_channels = 64;     ///< cap on channels of any stage
+    int depth = 4;             ///< encoder stages (each halves the resolution but the last)
+    double input_scale = 0.5;  ///< image scale fed to the network, in (0, 1]
 
     void loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
                             const std::string& section) override;
@@ -35,8 +35,8 @@ struct NetworkOptions : public mrpt::config::CLoadableOptions {
 
 /// Self-supervised labels (paper Sec. III-B: dense grid -> matcher -> RANSAC inliers).
 struct LabelOptions : public mrpt::config::CLoadableOptions {
-    int grid_step_px = 10;             ///< spacing of the dense label grid [px]
-    int references_per_query = 2;      ///< nearest references labelled per query frame
+    int grid_step_px = 10;                  ///< spacing of the dense label grid [px]
+    int references_per_query = 2;           ///< nearest references labelled per query frame
     double max_reference_distance_m = 1.5;  ///< references farther from the query are skipped [m]
     double min_time_gap_s = 20.0;  ///< references closer in time to the query are skipped [s]
                                    ///< (a training traverse that is also in the database)
@@ -65,13 +65,13 @@ struct LabelOptions : public mrpt::config::CLoadableOptions {
 
 /// Adam on the class-balanced binary cross-entropy over the labelled points.
 struct TrainingOptions : public mrpt::config::CLoadableOptions {
-    int epochs = 15;               ///< passes over the training references
-    int batch_size = 8;            ///< reference images per Adam step
-    double learning_rate = 2e-3;   ///< Adam step size
-    double weight_decay = 1e-4;    ///< Adam L2 penalty
-    bool augment = true;           ///< random horizontal / vertical flips of image and labels
-    int seed = 1;                  ///< torch::manual_seed and shuffling (deterministic runs)
-    int threads = 2;               ///< torch::set_num_threads
+    int epochs = 15;              ///< passes over the training references
+    int batch_size = 8;           ///< reference images per Adam step
+    double learning_rate = 2e-3;  ///< Adam step size
+    double weight_decay = 1e-4;   ///< Adam L2 penalty
+    bool augment = true;          ///< random horizontal / vertical flips of image and labels
+    int seed = 1;                 ///< torch::manual_seed and shuffling (deterministic runs)
+    int threads = 2;              ///< torch::set_num_threads
 
     void loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
                             const std::string& section) override;

@@ -14,13 +14,13 @@
 namespace lookup::fcn {
 
 struct TrainRequest {
-    std::string db_dir;                       ///< reference database folder (lookup-survey)
-    std::vector<std::string> train_rawlogs;   ///< training query rawlogs (with .GT.txt beside)
-    std::string out_model;                    ///< "" = <db_dir>/fcn_model.pt
-    std::string report_dir;                   ///< "" = db_dir: train_report.json, train_curve.png
-    std::string init_model;                   ///< optional model to start from (same architecture)
+    std::string db_dir;                      ///< reference database folder (lookup-survey)
+    std::vector<std::string> train_rawlogs;  ///< training query rawlogs (with .GT.txt beside)
+    std::string out_model;                   ///< "" = <db_dir>/fcn_model.pt
+    std::string report_dir;                  ///< "" = db_dir: train_report.json, train_curve.png
+    std::string init_model;                  ///< optional model to start from (same architecture)
     bool write_heat_maps = true;
-    bool progress = true;                     ///< progress bars on stderr
+    bool progress = true;  ///< progress bars on stderr
 };
 
 struct TrainReport {

@@ -25,14 +25,13 @@ struct TrainingSample {
 
 /// Groups the usable pairs (held out or not, as asked) by reference. `image_of` returns a
 /// reference's grey image by database index.
-std::vector<TrainingSample> samplesFromPairs(const std::vector<LabelledPair>& pairs,
-                                             bool held_out,
+std::vector<TrainingSample> samplesFromPairs(const std::vector<LabelledPair>& pairs, bool held_out,
                                              const std::function<cv::Mat(std::size_t)>& image_of);
 
 struct EpochStats {
-    int epoch = 0;            ///< 1-based
-    double train_loss = 0;    ///< mean class-balanced BCE over the epoch's steps
-    double val_loss = 0;      ///< same loss on the validation samples after the epoch (eval mode)
+    int epoch = 0;          ///< 1-based
+    double train_loss = 0;  ///< mean class-balanced BCE over the epoch's steps
+    double val_loss = 0;    ///< same loss on the validation samples after the epoch (eval mode)
     double seconds = 0;
 };
 
@@ -60,13 +59,13 @@ double evaluateLoss(const HeatMapModel& model, const std::vector<TrainingSample>
 
 /// The paper's metric on held-out pairs (Sec. IV: "best sample point classification").
 struct PointEvaluation {
-    std::size_t pairs = 0;                  ///< usable held-out pairs evaluated
-    double best_point_inlier_share = 0;     ///< pairs whose best-scored labelled point is an
-                                            ///< inlier
-    double random_point_inlier_share = 0;   ///< expectation for a uniformly random labelled point
-    double top12_inlier_share = 0;          ///< mean inlier share of the 12 best-scored points
-    double heat_inlier_mean = 0;            ///< mean heat at inlier points
-    double heat_outlier_mean = 0;           ///< mean heat at outlier points
+    std::size_t pairs = 0;                 ///< usable held-out pairs evaluated
+    double best_point_inlier_share = 0;    ///< pairs whose best-scored labelled point is an
+                                           ///< inlier
+    double random_point_inlier_share = 0;  ///< expectation for a uniformly random labelled point
+    double top12_inlier_share = 0;         ///< mean inlier share of the 12 best-scored points
+    double heat_inlier_mean = 0;           ///< mean heat at inlier points
+    double heat_outlier_mean = 0;          ///< mean heat at outlier points
 };
 
 /// Scores every usable pair with `held_out` == true (heat map of its reference, argmax among

@@ -1,0 +1,90 @@
+// Heat maps are written in the localiser's format (localize::loadHeatMap reads them back), db.ini
+// lists them, a second run replaces them, and db.ini keeps every other line.
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+
+#include "fixture.h"
+#include "lookup/database/reference_database.h"
+#include "lookup/fcn/heat_maps.h"
+#include "lookup/localize/localizer.h"
+
+using namespace lookup;
+using namespace lookup::fcn;
+namespace fs = std::filesystem;
+
+namespace {
+std::string slurp(const fs::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+}
+}  // namespace
+
+TEST(HeatMaps, WrittenInTheLocalisersFormatAndListedInDbIni) {
+    const auto dir = fixture::freshDir("heat");
+    const std::string db_dir = (dir / "db").string();
+    fixture::writeDatabase(db_dir, {0.0, 0.5, 1.0});
+    const std::string before = slurp(fs::path(db_dir) / "db.ini");
+    const HeatMapModel model(fixture::smallOptions().network, 5);
+    {
+        const auto db = database::ReferenceDatabase::load(db_dir);
+        EXPECT_TRUE(db.info().heatmaps_dir.empty());
+        std::size_t calls = 0;
+        const auto w = writeHeatMaps(db, model, [&](std::size_t, std::size_t) { ++calls; });
+        EXPECT_EQ(w.count, 3u);
+        EXPECT_EQ(calls, 3u);
+        EXPECT_FALSE(fs::exists(fs::path(db_dir) / (w.directory + ".tmp")));
+    }
+    const auto db = database::ReferenceDatabase::load(db_dir);
+    ASSERT_FALSE(db.info().heatmaps_dir.empty());
+    const std::string first_dir = db.info().heatmaps_dir;
+    for (std::size_t i = 0; i < db.size(); ++i) {
+        EXPECT_TRUE(fs::exists(fs::path(db_dir) / first_dir / localize::heatMapFileName(i)));
+        const cv::Mat stored = localize::loadHeatMap(db, i);
+        const cv::Mat predicted = model.predict(db.ceilingImage(i));
+        ASSERT_EQ(stored.size(), predicted.size());
+        EXPECT_LT(cv::norm(stored, predicted, cv::NORM_INF), 1.0 / 65535 + 1e-6);
+    }
+    // Every line of the survey's db.ini but the [heatmaps] directory is kept.
+    const std::string after = slurp(fs::path(db_dir) / "db.ini");
+    EXPECT_EQ(after.size(), before.size() + first_dir.size());
+    EXPECT_NE(after.find("directory = " + first_dir), std::string::npos);
+
+    // A second run replaces the maps and removes the unreferenced folder.
+    const auto w2 = writeHeatMaps(db, HeatMapModel(fixture::smallOptions().network, 6));
+    EXPECT_NE(w2.directory, first_dir);
+    EXPECT_FALSE(fs::exists(fs::path(db_dir) / first_dir));
+    EXPECT_EQ(database::ReferenceDatabase::load(db_dir).info().heatmaps_dir, w2.directory);
+}
+
+TEST(HeatMaps, SetDirectoryAddsTheSectionWhenAbsentAndRefusesAMissingFile) {
+    const auto dir = fixture::freshDir("heat_ini");
+    const auto ini = dir / "db.ini";
+    fixture::writeDatabase((dir / "db").string(), {0.0});
+    // Strip the [heatmaps] section to simulate an older db.ini.
+    std::string text = slurp(dir / "db" / "db.ini");
+    const auto at = text.find("[heatmaps]");
+    ASSERT_NE(at, std::string::npos);
+    text.replace(at, std::string("[heatmaps]\ndirectory = \n").size(), "");
+    std::ofstream(ini) << text;
+    setHeatMapsDirectory(ini.string(), "heatmaps_007");
+    EXPECT_EQ(database::readDatabaseInfo(ini.string()).heatmaps_dir, "heatmaps_007");
+    EXPECT_FALSE(fs::exists(dir / "db.ini.tmp"));
+    try {
+        setHeatMapsDirectory((dir / "nope.ini").string(), "x");
+        FAIL();
+    } catch (const std::runtime_error& e) {
+        EXPECT_NE(std::string(e.what()).find("nope.ini"), std::string::npos);
+    }
+}
+
+TEST(HeatMaps, EncodingSaturatesToSixteenBits) {
+    cv::Mat heat = (cv::Mat_<float>(1, 4) << -0.5f, 0.f, 0.5f, 2.f);
+    const cv::Mat e = encodeHeatMap(heat);
+    ASSERT_EQ(e.type(), CV_16UC1);
+    EXPECT_EQ(e.at<std::uint16_t>(0), 0);
+    EXPECT_EQ(e.at<std::uint16_t>(1), 0);
+    EXPECT_EQ(e.at<std::uint16_t>(2), 32768);
+    EXPECT_EQ(e.at<std::uint16_t>(3), 65535);
+}
