@@ -83,7 +83,7 @@ CameraRenderer::CameraRenderer(const TunnelWorld& world, const CameraOptions& ca
 }
 
 double CameraRenderer::shadePixel(int index, const Eigen::Matrix3d& R, const Vector3d& o,
-                                  const std::vector<int>& cylinders,
+                                  const std::vector<ObjectInView>& cylinders,
                                   const std::vector<int>& lamps) const {
     const WorldOptions& w = world_.options();
     const Vector3d& ray = rays_[index];
@@ -158,13 +158,15 @@ double CameraRenderer::shadePixel(int index, const Eigen::Matrix3d& R, const Vec
     double t_best = hit.t;
     Vector3d n_obj;
     int obj = -1;
-    for (int ci : cylinders) {
+    const int pu = index % opt_.width_px, pv = index / opt_.width_px;
+    for (const ObjectInView& c : cylinders) {
+        if (pu < c.u0 || pu > c.u1 || pv < c.v0 || pv > c.v1) continue;
         double t;
         Vector3d n;
-        if (intersectCylinder(world_.cylinders()[ci], o, d, &t, &n) && t < t_best) {
+        if (intersectCylinder(world_.cylinders()[c.index], o, d, &t, &n) && t < t_best) {
             t_best = t;
             n_obj = n;
-            obj = ci;
+            obj = c.index;
         }
     }
     for (int li : lamps) {
@@ -210,8 +212,9 @@ double CameraRenderer::shadePixel(int index, const Eigen::Matrix3d& R, const Vec
 }
 
 void CameraRenderer::renderRows(const Eigen::Matrix3d& R, const Vector3d& o,
-                                const std::vector<int>& cylinders, const std::vector<int>& lamps,
-                                int first, int step, float* out) const {
+                                const std::vector<ObjectInView>& cylinders,
+                                const std::vector<int>& lamps, int first, int step,
+                                float* out) const {
     for (int v = first; v < opt_.height_px; v += step) {
         for (int u = 0; u < opt_.width_px; ++u) {
             const int i = v * opt_.width_px + u;
@@ -233,10 +236,34 @@ mrpt::img::CImage CameraRenderer::render(const mrpt::poses::CPose3D& camera_in_m
                                         std::cos(std::min(half_diag_fov_, 1.4)) +
                                     1.0);
     }
-    std::vector<int> cylinders, lamps;
+    std::vector<ObjectInView> cylinders;
+    std::vector<int> lamps;
+    const Eigen::Matrix3d Rt = R.transpose();
+    const double f = camera_.fx(), cx = camera_.cx(), cy = camera_.cy();
     for (int i = 0; i < static_cast<int>(world_.cylinders().size()); ++i) {
         const Cylinder& c = world_.cylinders()[i];
-        if (distanceToBox(o, c.lo, c.hi) <= reach) cylinders.push_back(i);
+        if (distanceToBox(o, c.lo, c.hi) > reach) continue;
+        // Image rectangle that holds the cylinder: its axis clipped to the front of the camera,
+        // projected, widened by the radius at the nearest end (conservative).
+        Vector3d a = Rt * (c.a - o), b = Rt * (c.a + c.length * c.axis - o);
+        constexpr double kNear = 0.05;
+        if (a.z() < kNear && b.z() < kNear) continue;
+        if (a.z() < kNear) a += (b - a) * ((kNear - a.z()) / (b.z() - a.z()));
+        if (b.z() < kNear) b += (a - b) * ((kNear - b.z()) / (a.z() - b.z()));
+        const double grow = c.radius * f / std::min(a.z(), b.z()) + 2;
+        const double ua = cx + f * a.x() / a.z(), va = cy + f * a.y() / a.z();
+        const double ub = cx + f * b.x() / b.z(), vb = cy + f * b.y() / b.z();
+        auto clampPx = [](double x, int hi) {
+            return static_cast<int>(std::clamp(x, -1.0, static_cast<double>(hi)));
+        };
+        ObjectInView v;
+        v.index = i;
+        v.u0 = clampPx(std::floor(std::min(ua, ub) - grow), opt_.width_px);
+        v.u1 = clampPx(std::ceil(std::max(ua, ub) + grow), opt_.width_px);
+        v.v0 = clampPx(std::floor(std::min(va, vb) - grow), opt_.height_px);
+        v.v1 = clampPx(std::ceil(std::max(va, vb) + grow), opt_.height_px);
+        if (v.u1 < 0 || v.v1 < 0 || v.u0 >= opt_.width_px || v.v0 >= opt_.height_px) continue;
+        cylinders.push_back(v);
     }
     for (int i = 0; i < static_cast<int>(world_.lamps().size()); ++i) {
         if ((world_.lamps()[i].centre - o).norm() <= std::max(reach, 12.0)) lamps.push_back(i);

@@ -432,10 +432,10 @@ double TunnelWorld::roofAlbedo(double x, double y, const WallQuery& q, double fp
         albedo = (1 - b) * ((1 - a) * texel(iu, iv) + a * texel(iu + 1, iv)) +
                  b * ((1 - a) * texel(iu, iv + 1) + a * texel(iu + 1, iv + 1));
     } else {
-        // Multi-scale rock: 1.2 m blocks down to ~2 cm grain; its gradient is the micro-relief
+        // Multi-scale rock: 0.6 m blocks down to ~2 cm grain; its gradient is the micro-relief
         // that the vehicle light shades.
-        const NoiseSample rock = fbm(x, y, seed_ + kRock, 7, 1.2, 0.62, min_wl);
-        albedo = 0.45 + opt_.rock_contrast * 2.0 * (rock.v - 0.5);
+        const NoiseSample rock = fbm(x, y, seed_ + kRock, 6, 0.6, 0.75, min_wl);
+        albedo = std::clamp(0.45 + opt_.rock_contrast * 3.0 * (rock.v - 0.5), 0.05, 0.95);
         *slope_x += 0.05 * opt_.rock_contrast * rock.dx;
         *slope_y += 0.05 * opt_.rock_contrast * rock.dy;
         // Dark joints along the ridges of a rotated, warped mid-scale noise.
@@ -443,7 +443,7 @@ double TunnelWorld::roofAlbedo(double x, double y, const WallQuery& q, double fp
             const double wx = 0.8 * x + 0.6 * y + 0.25 * rock.v, wy = -0.6 * x + 0.8 * y;
             const NoiseSample c = valueNoise(wx / 0.45, wy / 0.3, seed_ + kCrack);
             const double ridge = std::abs(2 * c.v - 1);
-            albedo *= 1.0 - 0.4 * opt_.rock_contrast * smoothstep(0.06, 0.0, ridge);
+            albedo *= 1.0 - 0.3 * opt_.rock_contrast * smoothstep(0.04, 0.0, ridge);
         }
     }
     // Shotcrete patches: smoother and lighter, hiding the rock.
@@ -453,7 +453,7 @@ double TunnelWorld::roofAlbedo(double x, double y, const WallQuery& q, double fp
         const double w = smoothstep(th - 0.03, th + 0.03, m);
         if (w > 0) {
             const NoiseSample sc = fbm(x, y, seed_ + kShotcrete + 5, 4, 0.25, 0.5, min_wl);
-            albedo = (1 - w) * albedo + w * (0.62 + 0.35 * (sc.v - 0.5));
+            albedo = (1 - w) * albedo + w * (0.6 + 0.7 * (sc.v - 0.5));
             *slope_x *= 1 - 0.7 * w;
             *slope_y *= 1 - 0.7 * w;
         }

@@ -43,11 +43,17 @@ class CameraRenderer {
                              const FrameConditions& frame) const;
 
   private:
+    /// A furniture piece and the image rectangle it can cover in the current frame.
+    struct ObjectInView {
+        int index = 0;
+        int u0 = 0, u1 = 0, v0 = 0, v1 = 0;
+    };
     void renderRows(const Eigen::Matrix3d& R, const Eigen::Vector3d& o,
-                    const std::vector<int>& cylinders, const std::vector<int>& lamps, int first,
-                    int step, float* out) const;
+                    const std::vector<ObjectInView>& cylinders, const std::vector<int>& lamps,
+                    int first, int step, float* out) const;
     double shadePixel(int index, const Eigen::Matrix3d& R, const Eigen::Vector3d& o,
-                      const std::vector<int>& cylinders, const std::vector<int>& lamps) const;
+                      const std::vector<ObjectInView>& cylinders,
+                      const std::vector<int>& lamps) const;
 
     const TunnelWorld& world_;
     CameraOptions opt_;
