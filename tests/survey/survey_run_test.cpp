@@ -90,6 +90,34 @@ TEST(SurveyRun, PoseFileGivesCameraPosesEqualToTruthComposedWithMount) {
     EXPECT_LT(result.traverses.at(0).error.max_m, 1e-6);
 }
 
+TEST(SurveyRun, PosesFromEachTraverseGroundTruth) {
+    const auto dir = tempDir("posesgt");
+    const auto f = lookup::test::makeSurveyRawlog(dir.string(), "corridor", 4.0);
+    auto in = inputsFor(f, dir / "db");
+    in.poses_file = kPosesFromGroundTruth;
+    const auto result = Survey(shareOptions(), shareIni()).run(in);
+    ASSERT_TRUE(result.ok()) << result.reason;
+    const auto db = lookup::database::ReferenceDatabase::load((dir / "db").string());
+    const auto gt =
+        lookup::common::makeInterpolator(lookup::common::readPoseFile(f.ground_truth), 1.0);
+    ASSERT_GT(db.size(), 5u);
+    for (const auto& r : db.references()) {
+        mrpt::poses::CPose3D truth;
+        bool valid = false;
+        gt.interpolate(mrpt::Clock::fromDouble(r.time_s), truth, valid);
+        ASSERT_TRUE(valid);
+        EXPECT_NEAR((r.vehicle_pose.asVectorVal() - truth.asVectorVal()).norm(), 0, 1e-6);
+    }
+
+    // A traverse without ground truth cannot use it: refused, naming the rawlog.
+    in.traverses.at(0).ground_truth.clear();
+    in.out_dir = (dir / "db2").string();
+    const auto refused = Survey(shareOptions(), shareIni()).run(in);
+    ASSERT_FALSE(refused.ok());
+    EXPECT_NE(refused.reason.find("corridor.rawlog"), std::string::npos) << refused.reason;
+    EXPECT_FALSE(fs::exists(dir / "db2"));
+}
+
 TEST(SurveyRun, LaserPathPosesCloseToTruth) {
     const auto dir = tempDir("laser");
     const auto f = lookup::test::makeSurveyRawlog(dir.string(), "corridor", 12.0);

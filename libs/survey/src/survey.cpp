@@ -220,15 +220,32 @@ SurveyResult Survey::run(const SurveyInputs& in) const {
         std::optional<mrpt::maps::COccupancyGridMap2D> grid;
         mrpt::system::CTicTac timer;
         if (!laser) {
-            result.pose_source = "file:" + fs::absolute(in.poses_file).string();
-            LaserTrack file_track;
-            file_track.poses = common::readPoseFile(in.poses_file);
             mrpt::math::CMatrixDouble33 cov;
             cov.setZero();
             cov(0, 0) = cov(1, 1) = std::pow(options_.pose_file_std_xy_m, 2);
             cov(2, 2) = std::pow(mrpt::DEG2RAD(options_.pose_file_std_yaw_deg), 2);
-            file_track.covs.assign(file_track.poses.size(), cov);
-            for (auto& t : tracks) t = file_track;
+            const auto trackFrom = [&](const std::string& file) {
+                LaserTrack track;
+                track.poses = common::readPoseFile(file);
+                track.covs.assign(track.poses.size(), cov);
+                return track;
+            };
+            if (in.poses_file == kPosesFromGroundTruth) {
+                // Each traverse's own surveyed track (e.g. <traverse>.rawlog.GT.txt).
+                result.pose_source = "ground-truth files";
+                for (std::size_t i = 0; i < tracks.size(); ++i) {
+                    if (in.traverses[i].ground_truth.empty()) {
+                        throw common::ConfigError(in.traverses[i].rawlog +
+                                                  ": --poses ground-truth, but this traverse "
+                                                  "has no ground-truth file");
+                    }
+                    tracks[i] = trackFrom(in.traverses[i].ground_truth);
+                }
+            } else {
+                result.pose_source = "file:" + fs::absolute(in.poses_file).string();
+                const LaserTrack file_track = trackFrom(in.poses_file);
+                for (auto& t : tracks) t = file_track;
+            }
             if (!in.map_file.empty()) grid = loadGridMap(in.map_file);
         } else {
             const auto startOf = [&](std::size_t i,

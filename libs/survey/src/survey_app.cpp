@@ -93,7 +93,8 @@ bool SurveyApp::initialize(int argc, const char* const* argv) {
     TCLAP::ValueArg<std::string> out("o", "out", "database folder to create", true, "", "DB", cmd);
     TCLAP::ValueArg<std::string> poses("p", "poses",
                                        "surveyed vehicle poses (MRPT .GT.txt or TUM) replacing "
-                                       "the laser stage",
+                                       "the laser stage; 'ground-truth' = each traverse's own "
+                                       "ground-truth file",
                                        false, "", "FILE", cmd);
     TCLAP::ValueArg<std::string> map("m", "map", "existing grid map replacing ICP-SLAM", false, "",
                                      "FILE.gridmap[.gz]", cmd);

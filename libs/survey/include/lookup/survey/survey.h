@@ -23,10 +23,15 @@ struct TraverseSpec {
     bool reference = true;     ///< its ceiling images become references
 };
 
+/// SurveyInputs::poses_file value meaning "each traverse's own ground-truth file" (surveyed
+/// poses per traverse, e.g. from a total station), instead of one pose file for all.
+inline constexpr const char* kPosesFromGroundTruth = "ground-truth";
+
 struct SurveyInputs {
     std::vector<TraverseSpec> traverses;
     std::string out_dir;          ///< database folder to (re)create
-    std::string poses_file;       ///< surveyed poses replacing the laser stage ("" = laser)
+    std::string poses_file;       ///< surveyed poses replacing the laser stage ("" = laser,
+                                  ///< kPosesFromGroundTruth = each traverse's ground truth)
     std::string map_file;         ///< existing grid map replacing ICP-SLAM ("" = build one)
     std::string name;             ///< database name (e.g. the dataset's)
     double ceiling_height_m = 0;  ///< from the dataset; 0 = SurveyOptions::ceiling_height_m
