@@ -303,10 +303,9 @@ mrpt::img::CImage CameraRenderer::render(const mrpt::poses::CPose3D& camera_in_m
         const double x = src[i] * frame.exposure_gain;
         double dn = kind_ == Kind::Ceiling ? 235.0 * x : 255.0 * (1.0 - std::exp(-2.2 * x));
         if (opt_.noise_std_dn > 0) {
-            const uint32_t h1 = hash3(frame.noise_key, static_cast<uint32_t>(i), 1);
-            const uint32_t h2 = hash3(frame.noise_key, static_cast<uint32_t>(i), 2);
+            const uint32_t h = hash3(frame.noise_key, static_cast<uint32_t>(i), 1);
             const double sigma = opt_.noise_std_dn * std::sqrt(1.0 + std::max(dn, 0.0) / 64.0);
-            dn += sigma * gaussian(h1, h2);
+            dn += sigma * fastGaussian(h);
         }
         dst[i] = static_cast<uint8_t>(std::clamp(std::lround(dn), 0L, 255L));
     }
