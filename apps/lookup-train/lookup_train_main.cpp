@@ -11,7 +11,12 @@
 #include <iostream>
 #include <sstream>
 
+#include <opencv2/imgcodecs.hpp>
+
+#include "lookup/database/reference_database.h"
 #include "lookup/fcn/train_app.h"
+#include "lookup/localize/localizer.h"
+#include "lookup/refine/sampler.h"
 
 namespace {
 
@@ -31,6 +36,24 @@ std::string defaultIni() {
         if (std::filesystem::is_regular_file(f)) return f;
     }
     return "";
+}
+
+// The reference's stored heat map (as the localiser loads it) and the points it would sample
+// (refiner.ini defaults: 12 points, rho 0.5, l_n 10 px, 20 px margin).
+void drawFigure(const std::string& db_dir, int index, const std::string& png) {
+    const auto db = lookup::database::ReferenceDatabase::load(db_dir);
+    if (db.size() == 0) throw std::runtime_error(db_dir + ": no references");
+    const std::size_t i = index < 0 ? db.size() / 2 : std::size_t(index);
+    if (i >= db.size()) throw std::runtime_error(db_dir + ": no reference " + std::to_string(i));
+    const cv::Mat heat = lookup::localize::loadHeatMap(db, i);
+    if (heat.empty()) throw std::runtime_error(db_dir + "/db.ini: no heat maps (train first)");
+    const lookup::refine::SamplerOptions s;
+    const auto points = lookup::refine::heatMapPoints(heat, s.heat_map_points, s.damping_ratio,
+                                                      s.damping_side_px, s.border_margin_px);
+    if (!cv::imwrite(png, lookup::fcn::heatMapFigure(db.ceilingImage(i), heat, points))) {
+        throw std::runtime_error(png + ": cannot write");
+    }
+    std::printf("%s: reference %zu of %s\n", png.c_str(), i, db_dir.c_str());
 }
 
 }  // namespace
@@ -60,7 +83,18 @@ int main(int argc, char** argv) {
         TCLAP::SwitchArg no_heat("", "no-heatmaps", "do not write heat maps into the database",
                                  cmd);
         TCLAP::SwitchArg quiet("", "quiet", "no progress bars", cmd);
+        TCLAP::ValueArg<std::string> figure("", "figure",
+                                            "only draw reference --figure-ref beside its stored "
+                                            "heat map and the 12 points the localiser samples "
+                                            "into this PNG (no training)",
+                                            false, "", "FILE.png", cmd);
+        TCLAP::ValueArg<int> figure_ref("", "figure-ref", "reference index for --figure", false, -1,
+                                        "N", cmd);
         cmd.parse(argc, argv);
+        if (!figure.getValue().empty()) {
+            drawFigure(db.getValue(), figure_ref.getValue(), figure.getValue());
+            return 0;
+        }
 
         lookup::fcn::TrainOptions options;
         const std::string ini_file = ini.getValue().empty() ? defaultIni() : ini.getValue();

@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 #include <sstream>
 #include <stdexcept>
 
@@ -139,6 +140,33 @@ HeatMapsWritten writeHeatMaps(const database::ReferenceDatabase& db, const HeatM
     result.count = db.size();
     result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return result;
+}
+
+}  // namespace lookup::fcn
+
+namespace lookup::fcn {
+
+cv::Mat heatMapFigure(const cv::Mat& image, const cv::Mat& heat,
+                      const std::vector<cv::Point2f>& points) {
+    CV_Assert(image.type() == CV_8UC1 && heat.type() == CV_32FC1 && image.size() == heat.size());
+    cv::Mat left, heat8, right;
+    cv::cvtColor(image, left, cv::COLOR_GRAY2BGR);
+    double lo = 0, hi = 1;
+    cv::minMaxLoc(heat, &lo, &hi);
+    heat.convertTo(heat8, CV_8U, hi > lo ? 255.0 / (hi - lo) : 0.0,
+                   hi > lo ? -255.0 * lo / (hi - lo) : 0.0);
+    cv::applyColorMap(heat8, right, cv::COLORMAP_JET);
+    for (cv::Mat* m : {&left, &right}) {
+        for (const auto& p : points) {
+            cv::circle(*m, p, 4, cv::Scalar(255, 255, 255), 2);
+            cv::circle(*m, p, 4, cv::Scalar(0, 160, 0), 1);
+        }
+    }
+    cv::Mat out;
+    cv::hconcat(
+        std::vector<cv::Mat>{left, cv::Mat(image.rows, 6, CV_8UC3, cv::Scalar::all(255)), right},
+        out);
+    return out;
 }
 
 }  // namespace lookup::fcn

@@ -36,3 +36,13 @@ cv::Mat encodeHeatMap(const cv::Mat& heat);
 void setHeatMapsDirectory(const std::string& db_ini_path, const std::string& directory);
 
 }  // namespace lookup::fcn
+
+namespace lookup::fcn {
+
+/// A figure for people: the grey reference image beside its heat map (colour map, blue = low,
+/// red = high) with the `points` the localiser would sample (refine::heatMapPoints) drawn on
+/// both. CV_8UC3.
+cv::Mat heatMapFigure(const cv::Mat& image, const cv::Mat& heat,
+                      const std::vector<cv::Point2f>& points);
+
+}  // namespace lookup::fcn
