@@ -7,8 +7,11 @@
 #include <lookup/sim/simulator.h>
 #include <mrpt/config/CConfigFile.h>
 #include <mrpt/core/Clock.h>
+#include <mrpt/io/CFileGZInputStream.h>
+#include <mrpt/maps/COccupancyGridMap2D.h>
 #include <mrpt/obs/CObservationImage.h>
 #include <mrpt/obs/CObservationOdometry.h>
+#include <mrpt/serialization/CArchive.h>
 
 #include <chrono>
 #include <filesystem>
@@ -95,6 +98,16 @@ TEST(Simulator, WritesTheDatasetLayout) {
     EXPECT_EQ(ini.read_string("traverse_1", "rawlog", ""), "zigzag.rawlog");
     EXPECT_EQ(ini.read_string("traverse_1", "roles", ""), "query");
     EXPECT_DOUBLE_EQ(ini.read_double("dataset", "ceiling_height_m", 0), 5.0);
+    // The map is an MRPT occupancy grid: free along the route, occupied rock beside it.
+    mrpt::maps::COccupancyGridMap2D grid;
+    {
+        mrpt::io::CFileGZInputStream f((dir / "map.gridmap.gz").string());
+        auto arch = mrpt::serialization::archiveFrom(f);
+        arch >> grid;
+    }
+    const auto& start = sim.world().route()[20];
+    EXPECT_GT(grid.getPos(start.x(), start.y()), 0.9f);
+    EXPECT_LT(grid.getPos(start.x(), start.y() + sc.world.width_m), 0.1f);
     // The resolved scenario reads back as the same scenario.
     EXPECT_EQ(ScenarioOptions::fromFile((dir / "scenario.ini").string()).toIniText(),
               sc.toIniText());
