@@ -97,9 +97,7 @@ void writeQuery(const std::string& rawlog, const common::PoseTrack& track) {
     common::RawlogWriter writer(rawlog);
     for (std::size_t i = 0; i < track.size(); ++i) {
         auto obs = observation(track[i].pose, track[i].time_s);
-        char name[32];
-        std::snprintf(name, sizeof name, "ceiling_%04zu.png", i);
-        writer.writeWithExternalImage(*obs, name);
+        writer.writeWithExternalImage(*obs, "ceiling_" + std::to_string(i) + ".png");
     }
     writer.close();
     common::writeMrptPoseFile(rawlog + ".GT.txt", track);

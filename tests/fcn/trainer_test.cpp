@@ -57,7 +57,6 @@ TEST(Trainer, LearnsToScorePipesBelowTheCeiling) {
     ASSERT_GT(cv::countNonZero(core_ceiling), 200);
 
     int steps_seen = 0;
-    const auto t0 = std::chrono::steady_clock::now();
     const TrainResult r =
         train(model, d.train, d.val, o.training, [&](int, int, int, double) { ++steps_seen; });
     std::printf("labels %.2f s, train %.2f s, %d steps, %zu samples %zu points\n",

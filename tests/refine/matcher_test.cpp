@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 
 #include "lookup/refine/geometry.h"
 #include "lookup/refine/matcher.h"
@@ -159,4 +160,71 @@ TEST(Matcher, MismatchedImageGivesInconsistentOrRejectedMatches) {
         if (m.matched() && cv::norm(m.query_px - m.reference_px) < 1.0) ++consistent;
     }
     EXPECT_LE(consistent, 2);
+}
+
+TEST(Matcher, MotionCompensationMatchesARotatedView) {
+    // 12 deg of yaw: plain SAD compares patches whose outer pixels have moved by several pixels
+    // and loses most points; warping the reference by a prediction (here 2 deg and 3 px off the
+    // truth, as a coarse pose would be) aligns the patches and recovers true correspondences.
+    const double yaw = 12.0 * M_PI / 180.0;
+    const Pair pair = makePair(0.1, -0.05, yaw);
+    const Pair predicted = makePair(0.14, -0.05, yaw - 2.0 * M_PI / 180.0);
+    MatcherOptions o;
+    const auto points = gridPoints(pair.ref.size(), 24, o.patch_px / 2);
+    const ImagePyramid r = ImagePyramid::build(pair.ref, 2), q = ImagePyramid::build(pair.qry, 2);
+    std::vector<cv::Point2f> offsets;
+    for (const auto& p : points) {
+        const cv::Point2d t = apply(predicted.H, p);
+        offsets.emplace_back(float(t.x - p.x), float(t.y - p.y));
+    }
+    const auto plain = matchPoints(r, q, points, offsets, o);
+    const auto compensated = matchPointsCompensated(r, q, points, predicted.H, o);
+    ASSERT_EQ(compensated.size(), points.size());
+    int good_plain = 0, good_compensated = 0;
+    for (std::size_t i = 0; i < points.size(); ++i) {
+        if (plain[i].matched() &&
+            cv::norm(cv::Point2d(plain[i].query_px) - apply(pair.H, plain[i].reference_px)) < 0.5) {
+            ++good_plain;
+        }
+        const PointMatch& m = compensated[i];
+        if (!m.matched()) continue;
+        // Returned pixels are true reference pixels, near the requested sample point.
+        EXPECT_LT(cv::norm(m.reference_px - points[i]), 1.5) << "point " << points[i];
+        const double err = cv::norm(cv::Point2d(m.query_px) - apply(pair.H, m.reference_px));
+        EXPECT_LT(err, 0.5) << "point " << points[i];
+        if (err < 0.5) ++good_compensated;
+    }
+    std::printf("rotated view: %d plain, %d compensated of %zu\n", good_plain, good_compensated,
+                points.size());
+    EXPECT_GE(good_compensated, 18);
+    EXPECT_LT(good_plain, good_compensated / 2);
+}
+
+TEST(Matcher, MotionCompensationWithIdentityEqualsPlainMatching) {
+    const Pair pair = makePair(0.05, 0.03);
+    MatcherOptions o;
+    const auto points = gridPoints(pair.ref.size(), 24, o.patch_px / 2 + 2);
+    const ImagePyramid r = ImagePyramid::build(pair.ref, 2), q = ImagePyramid::build(pair.qry, 2);
+    const auto plain = matchPoints(r, q, points, {}, o);
+    const auto compensated = matchPointsCompensated(r, q, points, cv::Matx33d::eye(), o);
+    for (std::size_t i = 0; i < points.size(); ++i) {
+        EXPECT_EQ(plain[i].status, compensated[i].status) << "point " << points[i];
+        if (plain[i].matched()) {
+            EXPECT_NEAR(plain[i].query_px.x, compensated[i].query_px.x, 1e-3);
+            EXPECT_NEAR(plain[i].query_px.y, compensated[i].query_px.y, 1e-3);
+        }
+    }
+}
+
+TEST(Matcher, MotionCompensationRefusesADegenerateHomography) {
+    const Pair pair = makePair(0.05, 0.03);
+    MatcherOptions o;
+    const auto points = gridPoints(pair.ref.size(), 12, o.patch_px / 2);
+    const ImagePyramid r = ImagePyramid::build(pair.ref, 2), q = ImagePyramid::build(pair.qry, 2);
+    for (const cv::Matx33d& H :
+         {cv::Matx33d::zeros(), cv::Matx33d(1, 0, NAN, 0, 1, 0, 0, 0, 1)}) {
+        for (const auto& m : matchPointsCompensated(r, q, points, H, o)) {
+            EXPECT_FALSE(m.matched());
+        }
+    }
 }

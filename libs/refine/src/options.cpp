@@ -112,7 +112,8 @@ void MatcherOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& sou
     const IniSection s(source, section, sourceName(source));
     s.rejectUnknownKeys({"search_range_px", "patch_px", "pyramid_levels", "min_top_patch_px",
                          "refine_radius_px", "min_texture", "min_distinctiveness",
-                         "exclusion_radius_px", "subpixel", "use_simd", "normalize_brightness"});
+                         "exclusion_radius_px", "subpixel", "use_simd", "normalize_brightness",
+                         "compensate_motion"});
     search_range_px = s.getInt("search_range_px", search_range_px);
     patch_px = s.getInt("patch_px", patch_px);
     pyramid_levels = s.getInt("pyramid_levels", pyramid_levels);
@@ -124,6 +125,7 @@ void MatcherOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& sou
     subpixel = parseSubpixel(s, "subpixel", subpixel);
     use_simd = s.getBool("use_simd", use_simd);
     normalize_brightness = s.getBool("normalize_brightness", normalize_brightness);
+    compensate_motion = s.getBool("compensate_motion", compensate_motion);
 }
 
 void MatcherOptions::saveToConfigFile(mrpt::config::CConfigFileBase& t,
@@ -139,6 +141,7 @@ void MatcherOptions::saveToConfigFile(mrpt::config::CConfigFileBase& t,
     write(t, s, "subpixel", std::string(toString(subpixel)));
     write(t, s, "use_simd", std::string(use_simd ? "true" : "false"));
     write(t, s, "normalize_brightness", std::string(normalize_brightness ? "true" : "false"));
+    write(t, s, "compensate_motion", std::string(compensate_motion ? "true" : "false"));
 }
 
 void MatcherOptions::check() const {

@@ -8,6 +8,7 @@
 #include <limits>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
+#include <optional>
 
 #include "lookup/refine/matcher.h"
 #include "lookup/refine/sampler.h"
@@ -208,26 +209,38 @@ RefineResult Refiner::refine(const cv::Mat& query_image, const mrpt::img::TCamer
         t0 = Clock::now();
         const std::vector<cv::Point2f> points =
             selectSamplePoints(ref.image.size(), ref.heat_map, o.sampler);
-        // With a coarse pose, centre each search window on the plane-induced prediction.
+        // With a coarse pose, the plane-induced prediction: either warp the reference into the
+        // query frame (compensated) or centre each search window on the predicted offset.
         std::vector<cv::Point2f> predicted;
+        std::optional<cv::Matx33d> reference_to_query;
         if (hint.vehicle_pose) {
             const mrpt::poses::CPose3D query_cam_in_map = *hint.vehicle_pose + camera_on_vehicle;
-            for (const auto& p : points) {
-                cv::Point2f offset(0.f, 0.f);
-                const auto on_ceiling =
-                    backProjectToCeiling(ref_cams[k], ref.cameraInMap(), cv::Point2d(p), h0);
-                if (on_ceiling) {
-                    if (const auto q = projectToImage(query_cam, query_cam_in_map, *on_ceiling)) {
-                        offset = cv::Point2f(float(q->x - p.x), float(q->y - p.y));
+            if (o.matcher.compensate_motion) {
+                reference_to_query = ceilingHomography(ref_cams[k], ref.cameraInMap(), query_cam,
+                                                       query_cam_in_map, h0);
+            } else {
+                for (const auto& p : points) {
+                    cv::Point2f offset(0.f, 0.f);
+                    const auto on_ceiling =
+                        backProjectToCeiling(ref_cams[k], ref.cameraInMap(), cv::Point2d(p), h0);
+                    if (on_ceiling) {
+                        if (const auto q =
+                                projectToImage(query_cam, query_cam_in_map, *on_ceiling)) {
+                            offset = cv::Point2f(float(q->x - p.x), float(q->y - p.y));
+                        }
                     }
+                    predicted.push_back(offset);
                 }
-                predicted.push_back(offset);
             }
         }
         res.times.select_ms += msSince(t0);
 
         t0 = Clock::now();
-        outcome.matches = matchPoints(*ref_pyramid, query_pyramid, points, predicted, o.matcher);
+        outcome.matches =
+            reference_to_query
+                ? matchPointsCompensated(*ref_pyramid, query_pyramid, points, *reference_to_query,
+                                         o.matcher)
+                : matchPoints(*ref_pyramid, query_pyramid, points, predicted, o.matcher);
         res.times.match_ms += msSince(t0);
 
         t0 = Clock::now();

@@ -37,4 +37,26 @@ std::vector<PointMatch> matchPoints(const ImagePyramid& reference, const ImagePy
                                     const std::vector<cv::Point2f>& predicted_offsets,
                                     const MatcherOptions& options, SimdLevel simd);
 
+/// Motion-compensated matching (MatcherOptions::compensate_motion): the reference level 0 is
+/// warped into the query frame by `reference_to_query` (the homography predicted from the
+/// coarse pose, e.g. ceilingHomography), so SAD compares patches that the predicted rotation,
+/// scale and tilt have already aligned; each point is searched around its predicted position
+/// H * p with the usual L_SR window. Returned matches carry true reference pixels (the integer
+/// warped-frame centre mapped back through H^-1) and query pixels, ready for the homography
+/// estimator. Points whose predicted position is not finite or whose warped patch would need
+/// reference pixels outside the reference image are OutOfImage. With H = identity this is
+/// matchPoints without offsets.
+std::vector<PointMatch> matchPointsCompensated(const ImagePyramid& reference,
+                                               const ImagePyramid& query,
+                                               const std::vector<cv::Point2f>& points,
+                                               const cv::Matx33d& reference_to_query,
+                                               const MatcherOptions& options, SimdLevel simd);
+
+/// Same with the kernel chosen by options.use_simd.
+std::vector<PointMatch> matchPointsCompensated(const ImagePyramid& reference,
+                                               const ImagePyramid& query,
+                                               const std::vector<cv::Point2f>& points,
+                                               const cv::Matx33d& reference_to_query,
+                                               const MatcherOptions& options);
+
 }  // namespace lookup::refine

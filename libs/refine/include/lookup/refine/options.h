@@ -59,6 +59,11 @@ struct MatcherOptions : public mrpt::config::CLoadableOptions {
     SubpixelMethod subpixel = SubpixelMethod::Equiangular;
     bool use_simd = true;              ///< false forces the scalar SAD (verification)
     bool normalize_brightness = true;  ///< per-image gain/offset normalisation before SAD
+    /// With a coarse pose: warp the reference by the predicted plane-induced homography into
+    /// the query frame before SAD, so rotated or tilted views compare aligned patches (an
+    /// extension of the paper, whose SAD assumes pure image translation); false = the paper's
+    /// plain search centred on the predicted offset.
+    bool compensate_motion = true;
 
     void loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
                             const std::string& section) override;
