@@ -262,6 +262,7 @@ void RefinerOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& sou
     homography.loadFromConfigFile(source, prefix + ".homography");
     estimator.loadFromConfigFile(source, prefix + ".estimator");
     acceptance.loadFromConfigFile(source, prefix + ".acceptance");
+    correspondence.loadFromConfigFile(source, prefix + ".correspondence");
 }
 
 void RefinerOptions::saveToConfigFile(mrpt::config::CConfigFileBase& target,
@@ -271,6 +272,7 @@ void RefinerOptions::saveToConfigFile(mrpt::config::CConfigFileBase& target,
     homography.saveToConfigFile(target, prefix + ".homography");
     estimator.saveToConfigFile(target, prefix + ".estimator");
     acceptance.saveToConfigFile(target, prefix + ".acceptance");
+    correspondence.saveToConfigFile(target, prefix + ".correspondence");
 }
 
 void RefinerOptions::check() const {
@@ -279,6 +281,7 @@ void RefinerOptions::check() const {
     homography.check();
     estimator.check();
     acceptance.check();
+    correspondence.check();
     OptionsCheck c("refine");
     c.require(sampler.border_margin_px >= matcher.patch_px / 2, "sampler.border_margin_px",
               ">= matcher.patch_px / 2 (patches must lie inside the reference image)");

@@ -10,6 +10,7 @@
 #include <opencv2/imgproc.hpp>
 #include <optional>
 
+#include "lookup/refine/correspondence_methods.h"
 #include "lookup/refine/matcher.h"
 #include "lookup/refine/sampler.h"
 
@@ -105,6 +106,7 @@ RefineResult Refiner::refine(const cv::Mat& query_image, const mrpt::img::TCamer
     std::vector<const Reference*> refs;
     std::vector<Pinhole> ref_cams;
     std::string skipped;
+    std::string matcher_notes;  // why a baseline matcher (orb, ecc) found nothing
     for (const Reference& r : references) {
         if (!hint.reference_ids.empty() &&
             std::find(hint.reference_ids.begin(), hint.reference_ids.end(), r.id) ==
@@ -236,11 +238,27 @@ RefineResult Refiner::refine(const cv::Mat& query_image, const mrpt::img::TCamer
         res.times.select_ms += msSince(t0);
 
         t0 = Clock::now();
-        outcome.matches =
-            reference_to_query
-                ? matchPointsCompensated(*ref_pyramid, query_pyramid, points, *reference_to_query,
-                                         o.matcher)
-                : matchPoints(*ref_pyramid, query_pyramid, points, predicted, o.matcher);
+        if (o.correspondence.method != CorrespondenceMethod::Sad) {
+            // Baselines (issue 6): ORB or ECC in place of SAD, from the same prediction.
+            std::optional<cv::Matx33d> H = reference_to_query;
+            if (!H && hint.vehicle_pose) {
+                H = ceilingHomography(ref_cams[k], ref.cameraInMap(), query_cam,
+                                      *hint.vehicle_pose + camera_on_vehicle, h0);
+            }
+            CorrespondenceResult c =
+                o.correspondence.method == CorrespondenceMethod::Orb
+                    ? matchOrb(ref_pyramid->levels[0], query_pyramid.levels[0], H, o.correspondence)
+                    : matchEcc(ref_pyramid->levels[0], query_pyramid.levels[0], points, H,
+                               o.correspondence);
+            outcome.matches = std::move(c.matches);
+            if (!c.ok) matcher_notes += "; reference " + std::to_string(ref.id) + ": " + c.reason;
+        } else {
+            outcome.matches =
+                reference_to_query
+                    ? matchPointsCompensated(*ref_pyramid, query_pyramid, points,
+                                             *reference_to_query, o.matcher)
+                    : matchPoints(*ref_pyramid, query_pyramid, points, predicted, o.matcher);
+        }
         res.times.match_ms += msSince(t0);
 
         t0 = Clock::now();
@@ -280,7 +298,7 @@ RefineResult Refiner::refine(const cv::Mat& query_image, const mrpt::img::TCamer
     if (!res.estimate.ok) {
         const bool few = res.inliers < o.estimator.min_inliers;
         return fallback(few ? RefineStatus::TooFewMatches : RefineStatus::EstimationFailed,
-                        counts + ": " + res.estimate.reason);
+                        counts + ": " + res.estimate.reason + matcher_notes);
     }
     // Acceptance (paper Sec. III-E).
     const mrpt::poses::CPose3D& refined = res.estimate.vehicle_in_map;

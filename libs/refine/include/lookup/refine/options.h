@@ -72,6 +72,34 @@ struct MatcherOptions : public mrpt::config::CLoadableOptions {
     void check() const;
 };
 
+/// What relates a reference to the query (issue 6: baselines in place of the paper's SAD).
+enum class CorrespondenceMethod {
+    Sad,  ///< the paper's SAD matcher at the sample points (MatcherOptions)
+    Orb,  ///< cv::ORB features + ratio test (correspondence_methods.h)
+    Ecc   ///< cv::findTransformECC homography sampled at the sample points
+};
+
+/// Correspondence method and the baselines' parameters, section `<prefix>.correspondence`
+/// (load, save and check in correspondence_methods.cpp).
+struct CorrespondenceOptions : public mrpt::config::CLoadableOptions {
+    CorrespondenceMethod method = CorrespondenceMethod::Sad;  ///< sad | orb | ecc (paper: sad)
+    int orb_features = 500;                                   ///< cv::ORB nfeatures per image
+    double orb_ratio = 0.8;       ///< Lowe ratio: best / second-best Hamming distance below it
+    int orb_min_matches = 20;     ///< fewer ratio-test matches: none at all (a handful of chance
+                                  ///< matches would otherwise pass as a least-squares fit)
+    int ecc_pyramid_levels = 2;   ///< ECC runs at 1/2^levels resolution first, then finer
+    int ecc_max_iterations = 50;  ///< ECC iterations per pyramid level
+    double ecc_epsilon = 1e-4;    ///< ECC stop: correlation increment below this
+    double ecc_min_correlation = 0.6;  ///< accepted warp: correlation coefficient >= this
+    int ecc_gauss_filter_px = 5;       ///< ECC Gaussian pre-filter side [px] (odd; 1 = none)
+
+    void loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
+                            const std::string& section) override;
+    void saveToConfigFile(mrpt::config::CConfigFileBase& target,
+                          const std::string& section) const override;
+    void check() const;
+};
+
 /// Homography Estimator (paper Sec. III-C).
 struct HomographyOptions : public mrpt::config::CLoadableOptions {
     int ransac_min_points = 10;        ///< RANSAC only when more points than this (paper: 10)
@@ -128,6 +156,7 @@ struct RefinerOptions : public mrpt::config::CLoadableOptions {
     HomographyOptions homography;
     EstimatorOptions estimator;
     AcceptanceOptions acceptance;
+    CorrespondenceOptions correspondence;  ///< `<prefix>.correspondence`: sad | orb | ecc
 
     /// `section` is the prefix (e.g. "refine" reads [refine.sampler] ...).
     void loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
