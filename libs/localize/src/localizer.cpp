@@ -325,6 +325,45 @@ std::shared_ptr<const refine::RefineResult> Localizer::refineAgainst(
     return result;
 }
 
+std::shared_ptr<const refine::RefineResult> Localizer::acquire(
+    const mrpt::obs::CObservationImage& query, const mrpt::poses::CPose2D& coarse,
+    std::shared_ptr<const refine::RefineResult> failed, FrameResult& out) {
+    // The SAD window covers only +-L_SR/2 pixels: refine against each reference around the
+    // coarse match, keep the best by inlier share, refuse it when a distant candidate scores
+    // nearly as well (aliased texture), then confirm it against the fix's neighbours.
+    struct Scored {
+        std::shared_ptr<const refine::RefineResult> result;
+        mrpt::poses::CPose2D fix;
+    };
+    std::vector<Scored> accepted;
+    for (std::size_t candidate : acquisitionCandidates(coarse)) {
+        const auto cand_pose = toPose2D(db_.reference(candidate).vehicle_pose);
+        auto single = refineAgainst(query, {candidate}, cand_pose, out);
+        if (single->accepted()) accepted.push_back({single, single->pose.mean});
+    }
+    if (accepted.empty()) return failed;
+    const auto best = std::max_element(accepted.begin(), accepted.end(), [](auto& a, auto& b) {
+        return a.result->inlier_share < b.result->inlier_share;
+    });
+    for (const auto& other : accepted) {
+        const double d = std::hypot(other.fix.x() - best->fix.x(), other.fix.y() - best->fix.y());
+        if (d > options_.acquisition_ambiguity_distance_m &&
+            other.result->inlier_share >
+                best->result->inlier_share - options_.acquisition_ambiguity_margin) {
+            auto ambiguous = std::make_shared<refine::RefineResult>(*best->result);
+            ambiguous->status = refine::RefineStatus::LowInlierShare;
+            ambiguous->reason = "acquisition ambiguous: fixes " + std::to_string(d) +
+                                " m apart with inlier shares " +
+                                std::to_string(best->result->inlier_share) + " and " +
+                                std::to_string(other.result->inlier_share);
+            return ambiguous;
+        }
+    }
+    const mrpt::poses::CPose2D fix = best->fix;
+    auto confirmed = refineAgainst(query, referencesNear(fix), fix, out);
+    return confirmed->accepted() ? confirmed : best->result;
+}
+
 FrameResult Localizer::processCeiling(const mrpt::obs::CObservationImage& query) {
     mrpt::system::CTicTac total;
     FrameResult out;
@@ -351,17 +390,7 @@ FrameResult Localizer::processCeiling(const mrpt::obs::CObservationImage& query)
     if ((!result || !result->accepted()) && coarse_fix) {
         result = refineAgainst(query, coarse_fix->references, coarse_fix->pose, out);
         if (!result->accepted() && options_.acquisition_radius_m > 0) {
-            // The SAD window covers only +-L_SR/2 pixels: try references around the coarse
-            // match one at a time, then refine against the neighbours of the first fix.
-            for (std::size_t candidate : acquisitionCandidates(*out.coarse_pose)) {
-                const auto cand_pose = toPose2D(db_.reference(candidate).vehicle_pose);
-                auto single = refineAgainst(query, {candidate}, cand_pose, out);
-                if (!single->accepted()) continue;
-                const mrpt::poses::CPose2D fix = single->pose.mean;
-                result = refineAgainst(query, referencesNear(fix), fix, out);
-                if (!result->accepted()) result = single;
-                break;
-            }
+            result = acquire(query, *out.coarse_pose, result, out);
         }
     }
 

@@ -9,7 +9,8 @@ void LocalizerOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& s
     const common::IniSection s(source, section, "localizer options");
     s.rejectUnknownKeys({"ceiling_camera_label", "forward_camera_label", "odometry_label",
                          "references_per_query", "use_tracking", "max_tracking_gap_s",
-                         "acquisition_radius_m", "acquisition_step_m", "coarse_traverse",
+                         "acquisition_radius_m", "acquisition_step_m", "acquisition_ambiguity_margin",
+                         "acquisition_ambiguity_distance_m", "coarse_traverse",
                          "realtime", "max_latency_s", "write_debug_images", "debug_image_every",
                          "image_cache_capacity"});
     ceiling_camera_label = s.getString("ceiling_camera_label", ceiling_camera_label);
@@ -20,6 +21,10 @@ void LocalizerOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& s
     max_tracking_gap_s = s.getDouble("max_tracking_gap_s", max_tracking_gap_s);
     acquisition_radius_m = s.getDouble("acquisition_radius_m", acquisition_radius_m);
     acquisition_step_m = s.getDouble("acquisition_step_m", acquisition_step_m);
+    acquisition_ambiguity_margin =
+        s.getDouble("acquisition_ambiguity_margin", acquisition_ambiguity_margin);
+    acquisition_ambiguity_distance_m =
+        s.getDouble("acquisition_ambiguity_distance_m", acquisition_ambiguity_distance_m);
     coarse_traverse = s.getString("coarse_traverse", coarse_traverse);
     realtime = s.getBool("realtime", realtime);
     max_latency_s = s.getDouble("max_latency_s", max_latency_s);
@@ -40,6 +45,8 @@ void LocalizerOptions::saveToConfigFile(mrpt::config::CConfigFileBase& target,
     target.write(section, "max_tracking_gap_s", max_tracking_gap_s);
     target.write(section, "acquisition_radius_m", acquisition_radius_m);
     target.write(section, "acquisition_step_m", acquisition_step_m);
+    target.write(section, "acquisition_ambiguity_margin", acquisition_ambiguity_margin);
+    target.write(section, "acquisition_ambiguity_distance_m", acquisition_ambiguity_distance_m);
     target.write(section, "coarse_traverse", coarse_traverse);
     target.write(section, "realtime", realtime);
     target.write(section, "max_latency_s", max_latency_s);
@@ -55,6 +62,9 @@ void LocalizerOptions::check() const {
     c.require(max_tracking_gap_s > 0, "max_tracking_gap_s", "> 0");
     c.require(acquisition_radius_m >= 0, "acquisition_radius_m", ">= 0");
     c.require(acquisition_step_m > 0, "acquisition_step_m", "> 0");
+    c.require(acquisition_ambiguity_margin >= 0 && acquisition_ambiguity_margin < 1,
+              "acquisition_ambiguity_margin", "in [0, 1)");
+    c.require(acquisition_ambiguity_distance_m > 0, "acquisition_ambiguity_distance_m", "> 0");
     c.require(max_latency_s > 0, "max_latency_s", "> 0");
     c.require(debug_image_every >= 1, "debug_image_every", ">= 1");
     c.require(image_cache_capacity >= static_cast<std::size_t>(references_per_query),

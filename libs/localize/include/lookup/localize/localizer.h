@@ -116,6 +116,9 @@ class Localizer {
     std::vector<std::size_t> referencesNearTime(double time_s) const;
     std::vector<std::size_t> referencesNear(const mrpt::poses::CPose2D& pose) const;
     std::vector<std::size_t> acquisitionCandidates(const mrpt::poses::CPose2D& pose) const;
+    std::shared_ptr<const refine::RefineResult> acquire(
+        const mrpt::obs::CObservationImage& query, const mrpt::poses::CPose2D& coarse,
+        std::shared_ptr<const refine::RefineResult> failed, FrameResult& out);
     std::shared_ptr<const refine::RefineResult> refineAgainst(
         const mrpt::obs::CObservationImage& query, const std::vector<std::size_t>& refs,
         const mrpt::poses::CPose2D& hint, FrameResult& out);

@@ -23,6 +23,11 @@ struct LocalizerOptions : public mrpt::config::CLoadableOptions {
     double acquisition_radius_m = 4.0;
     /// Spacing of the acquisition candidates along the surveyed route [m].
     double acquisition_step_m = 0.5;
+    /// Acquisition refines against every candidate and keeps the best by inlier share; it is
+    /// refused as ambiguous when a candidate more than acquisition_ambiguity_distance_m away
+    /// from the best fix scores within this margin of it (aliasing: rock-bolt grids, mesh).
+    double acquisition_ambiguity_margin = 0.1;
+    double acquisition_ambiguity_distance_m = 1.0;  ///< [m]
     /// Survey traverse whose forward images feed the coarse matcher ("" = the one with the most
     /// references). One traverse: several laterally offset ones would alias each other.
     std::string coarse_traverse;

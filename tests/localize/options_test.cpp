@@ -1,0 +1,53 @@
+#include <gtest/gtest.h>
+#include <mrpt/config/CConfigFile.h>
+#include <mrpt/config/CConfigFileMemory.h>
+
+#include "lookup/common/config.h"
+#include "lookup/localize/localizer_options.h"
+#include "lookup/refine/options.h"
+
+using namespace lookup;
+
+namespace {
+const std::string kShare = LOOKUP_SOURCE_SHARE_DIR;
+}
+
+// The per-mine files lookup-localize --ini reads must load strictly (a typo in a key is an
+// error, not a silent default) and carry the values they document.
+TEST(LocalizeIni, PerMineFilesLoadStrictly) {
+    for (const auto& [file, search, patch] :
+         {std::tuple{"localize-mine-a.ini", 40, 40}, std::tuple{"localize-mine-b.ini", 70, 60}}) {
+        mrpt::config::CConfigFile ini(kShare + "/" + file);
+        localize::LocalizerOptions lo;
+        ASSERT_NO_THROW(lo.loadFromConfigFile(ini, "localizer")) << file;
+        EXPECT_NO_THROW(lo.check()) << file;
+        refine::RefinerOptions ro;
+        ASSERT_NO_THROW(ro.loadFromConfigFile(ini, "refine")) << file;
+        EXPECT_NO_THROW(ro.check()) << file;
+        EXPECT_EQ(ro.matcher.search_range_px, search) << file;
+        EXPECT_EQ(ro.matcher.patch_px, patch) << file;
+        EXPECT_DOUBLE_EQ(ro.acceptance.min_inlier_share, 0.45) << file;
+        EXPECT_LT(ro.estimator.tilt_sigma_deg, 1.0) << file;
+    }
+}
+
+TEST(LocalizeIni, AcquisitionKeysRoundTripAndAreChecked) {
+    localize::LocalizerOptions o;
+    o.acquisition_ambiguity_margin = 0.25;
+    o.acquisition_ambiguity_distance_m = 2.5;
+    mrpt::config::CConfigFileMemory mem;
+    o.saveToConfigFile(mem, "localizer");
+    localize::LocalizerOptions back;
+    back.loadFromConfigFile(mem, "localizer");
+    EXPECT_DOUBLE_EQ(back.acquisition_ambiguity_margin, 0.25);
+    EXPECT_DOUBLE_EQ(back.acquisition_ambiguity_distance_m, 2.5);
+
+    back.acquisition_ambiguity_margin = 1.5;
+    try {
+        back.check();
+        FAIL() << "a margin of 1.5 was accepted";
+    } catch (const common::ConfigError& e) {
+        EXPECT_NE(std::string(e.what()).find("acquisition_ambiguity_margin"), std::string::npos)
+            << e.what();
+    }
+}
