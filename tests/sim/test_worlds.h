@@ -5,8 +5,8 @@
 
 namespace lookup::sim::testing {
 
-/// A straight 40 m tunnel along +x from the origin, no openings, furniture or relief; the rock
-/// texture stays unless `plain`.
+/// A straight 40 m tunnel along +x from the origin, no openings, niches, furniture or relief
+/// (straight smooth walls); the rock texture stays unless `plain`.
 inline WorldOptions straightTunnel(bool plain) {
     WorldOptions w;
     w.layout = "single";
@@ -21,6 +21,8 @@ inline WorldOptions straightTunnel(bool plain) {
     w.light_spacing_m = 0;
     w.sign_spacing_m = 0;
     w.grid_resolution_m = 0.05;
+    w.wall_roughness_m = 0;
+    w.niche_spacing_m = 0;
     if (plain) {
         w.rock_contrast = 0;
         w.bolt_spacing_m = 0;

@@ -123,6 +123,10 @@ KeyTable worldKeys(WorldOptions& w) {
     t.add("light_spacing_m", w.light_spacing_m);
     t.add("sign_spacing_m", w.sign_spacing_m);
     t.add("grid_resolution_m", w.grid_resolution_m);
+    t.add("wall_roughness_m", w.wall_roughness_m);
+    t.add("niche_spacing_m", w.niche_spacing_m);
+    t.add("niche_depth_m", w.niche_depth_m);
+    t.add("niche_width_m", w.niche_width_m);
     return t;
 }
 
@@ -365,6 +369,13 @@ void ScenarioOptions::check() const {
     c.require(w.sign_spacing_m == 0 || w.sign_spacing_m >= 5, "world.sign_spacing_m", "0 or >= 5");
     c.require(w.grid_resolution_m >= 0.02 && w.grid_resolution_m <= 0.5, "world.grid_resolution_m",
               "in [0.02, 0.5]");
+    c.require(w.wall_roughness_m >= 0 && w.wall_roughness_m <= 0.5, "world.wall_roughness_m",
+              "in [0, 0.5]");
+    c.require(w.niche_spacing_m == 0 || w.niche_spacing_m >= 5, "world.niche_spacing_m",
+              "0 or >= 5");
+    c.require(w.niche_depth_m > 0 && w.niche_depth_m <= 10, "world.niche_depth_m", "in (0, 10]");
+    c.require(w.niche_width_m >= 0.5 && w.niche_width_m <= 10, "world.niche_width_m",
+              "in [0.5, 10]");
     c.require(vehicle.wheelbase_m > 0.5, "vehicle.wheelbase_m", "> 0.5");
     c.require(vehicle.track_m > 0.5, "vehicle.track_m", "> 0.5");
     checkCamera(c, ceiling_camera, "ceiling_camera");

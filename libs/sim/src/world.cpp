@@ -19,6 +19,7 @@ using namespace detail;
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kRouteStep = 0.25;  // spacing of route() points [m]
 constexpr double kBumpCell = 0.2;    // sampling of the ceiling relief [m]
+constexpr double kReliefCell = 0.1;  // sampling of the wall relief [m]
 
 // Feature streams of the texture: each gets its own seed offset.
 enum Stream : uint32_t {
@@ -33,8 +34,17 @@ enum Stream : uint32_t {
     kWall = 97,
     kSign = 101,
     kSide = 113,
-    kDuctRib = 127
+    kDuctRib = 127,
+    kWallRelief = 131,
+    kNiche = 137
 };
+// Wall relief: fractal noise from 4 m down to ~0.5 m (4 octaves, /2.03 each, gain 0.7: rock
+// is rough at every scale), mapped through a tanh so that it stays within +-wall_roughness_m
+// with a standard deviation of about half of it.
+constexpr int kReliefOctaves = 4;
+constexpr double kReliefWavelength = 4.0;
+constexpr double kReliefGain = 0.7;
+constexpr double kReliefStretch = 6.0;
 
 Vector2d rot90(const Vector2d& v) { return {-v.y(), v.x()}; }
 
@@ -130,7 +140,7 @@ void TunnelWorld::buildLayout() {
             s0 += (pts[i] - pts[i - 1]).norm();
         }
     };
-    // Draw points (short side openings) and crossing tunnels along a main line.
+    // Draw points (short side openings), crossing tunnels and niches along a main line.
     auto addSides = [&](const std::vector<Vector2d>& pts, uint32_t stream, double flip) {
         double length = 0;
         for (std::size_t i = 1; i < pts.size(); ++i) length += (pts[i] - pts[i - 1]).norm();
@@ -146,6 +156,7 @@ void TunnelWorld::buildLayout() {
                 junctions.push_back(s);
             }
         }
+        std::vector<double> openings = junctions;  // where niches keep away from
         if (opt_.drawpoint_spacing_m > 0) {
             uint32_t k = 0;
             for (double s = 0.5 * opt_.drawpoint_spacing_m; s < length - 5;
@@ -162,8 +173,10 @@ void TunnelWorld::buildLayout() {
                 addSegment(c, c + d * (hw + opt_.drawpoint_length_m), opt_.drawpoint_width_m / 2,
                            s_side, false);
                 s_side += 1000;
+                openings.push_back(s);
             }
         }
+        addNiches(pts, stream + 500, openings, &s_side);
     };
 
     std::vector<Vector2d> raw_route;
@@ -201,8 +214,37 @@ void TunnelWorld::buildLayout() {
     }
     buildBuckets();
     buildBumps();
+    buildRelief();
     buildRoute(raw_route);
     buildFurniture(raw_route);
+}
+
+void TunnelWorld::addNiches(const std::vector<Vector2d>& pts, uint32_t stream,
+                            const std::vector<double>& openings, double* s_side) {
+    if (opt_.niche_spacing_m <= 0 || pts.size() < 2) return;
+    const double hw = opt_.width_m / 2, r = opt_.niche_width_m / 2;
+    // Sequential draws along the line, so a shorter tunnel keeps the same niches.
+    double s = 0, offset = 0;
+    std::size_t piece = 1;
+    for (uint32_t k = 0;; ++k) {
+        s += opt_.niche_spacing_m * (0.5 + unit(hash3(seed_, stream, 2 * k)));
+        while (piece < pts.size() && s > offset + (pts[piece] - pts[piece - 1]).norm()) {
+            offset += (pts[piece] - pts[piece - 1]).norm();
+            ++piece;
+        }
+        if (piece >= pts.size() || s > offset + (pts[piece] - pts[piece - 1]).norm() - 3) break;
+        bool near_opening = s < 5;
+        for (double o : openings) near_opening |= std::abs(o - s) < 8;
+        if (near_opening) continue;
+        const Vector2d dir = (pts[piece] - pts[piece - 1]).normalized();
+        const Vector2d c = pts[piece - 1] + dir * (s - offset);
+        const double side = unit(hash3(seed_, stream, 2 * k + 1)) < 0.5 ? 1.0 : -1.0;
+        const Vector2d n = rot90(dir) * side;
+        // A rounded alcove: a capsule across the wall line whose mouth is niche_width_m wide.
+        const double back = hw + opt_.niche_depth_m - r;
+        addSegment(c + n * std::min(hw - 0.5, back), c + n * back, r, *s_side, false);
+        *s_side += 1000;
+    }
 }
 
 void TunnelWorld::buildBuckets() {
@@ -245,6 +287,52 @@ void TunnelWorld::buildBumps() {
                                                          opt_.bump_amplitude_m);
         }
     }
+}
+
+void TunnelWorld::buildRelief() {
+    relief_.clear();
+    if (opt_.wall_roughness_m <= 0) return;
+    // Same origin as the bump samples (bounding box plus 2 m), finer cells.
+    relief_nx_ = static_cast<int>(std::ceil((hi_.x() - lo_.x() + 4) / kReliefCell)) + 2;
+    relief_ny_ = static_cast<int>(std::ceil((hi_.y() - lo_.y() + 4) / kReliefCell)) + 2;
+    relief_.assign(static_cast<std::size_t>(relief_nx_) * relief_ny_, 0.0f);
+    for (int j = 0; j < relief_ny_; ++j) {
+        for (int i = 0; i < relief_nx_; ++i) {
+            const double x = bump_origin_.x() + i * kReliefCell;
+            const double y = bump_origin_.y() + j * kReliefCell;
+            const NoiseSample n = fbm(x, y, seed_ + kWallRelief, kReliefOctaves,
+                                      kReliefWavelength, kReliefGain, 0);
+            relief_[j * relief_nx_ + i] = static_cast<float>(
+                std::tanh(kReliefStretch * (n.v - 0.5)) * opt_.wall_roughness_m);
+        }
+    }
+    // Steepest slope of the bilinear interpolant (bounds |grad| for sphere tracing).
+    float steepest = 0;
+    for (int j = 0; j + 1 < relief_ny_; ++j) {
+        for (int i = 0; i + 1 < relief_nx_; ++i) {
+            const float* r0 = &relief_[static_cast<std::size_t>(j) * relief_nx_ + i];
+            const float* r1 = r0 + relief_nx_;
+            steepest = std::max({steepest, std::abs(r0[1] - r0[0]), std::abs(r1[1] - r1[0]),
+                                 std::abs(r1[0] - r0[0]), std::abs(r1[1] - r0[1])});
+        }
+    }
+    relief_lipschitz_ = std::sqrt(2.0) * steepest / kReliefCell;
+}
+
+double TunnelWorld::wallRelief(double x, double y, double* gx, double* gy) const {
+    if (gx) *gx = 0;
+    if (gy) *gy = 0;
+    if (relief_.empty()) return 0;
+    const double u = (x - bump_origin_.x()) / kReliefCell, v = (y - bump_origin_.y()) / kReliefCell;
+    const double fu = std::floor(u), fv = std::floor(v);
+    const int i = static_cast<int>(fu), j = static_cast<int>(fv);
+    if (i < 0 || j < 0 || i + 1 >= relief_nx_ || j + 1 >= relief_ny_) return 0;
+    const double a = u - fu, b = v - fv;
+    const float* r0 = &relief_[static_cast<std::size_t>(j) * relief_nx_ + i];
+    const float* r1 = r0 + relief_nx_;
+    if (gx) *gx = ((1 - b) * (r0[1] - r0[0]) + b * (r1[1] - r1[0])) / kReliefCell;
+    if (gy) *gy = ((1 - a) * (r1[0] - r0[0]) + a * (r1[1] - r0[1])) / kReliefCell;
+    return (1 - b) * ((1 - a) * r0[0] + a * r0[1]) + b * ((1 - a) * r1[0] + a * r1[1]);
 }
 
 double TunnelWorld::bumpAt(double x, double y, double* gx, double* gy) const {
@@ -369,6 +457,16 @@ WallQuery TunnelWorld::query(double x, double y) const {
             out.d = rel.dot(s.left);
         }
     }
+    // Rough walls. Far from every wall (where the roof no longer depends on the distance) the
+    // relief is not evaluated; the distance is then understated by its bound so sphere tracing
+    // stays safe.
+    if (opt_.wall_roughness_m > 0 && out.segment >= 0) {
+        if (out.sdf > -(opt_.arch_radius_m + opt_.wall_roughness_m + 0.1)) {
+            out.sdf -= wallRelief(x, y, nullptr, nullptr);
+        } else {
+            out.sdf += opt_.wall_roughness_m;
+        }
+    }
     return out;
 }
 
@@ -389,7 +487,14 @@ Vector2d TunnelWorld::awayFromWall(double x, double y, const WallQuery& q) const
     const double t = std::clamp((p - s.a).dot(s.dir), 0.0, s.length);
     const Vector2d to_axis = s.a + t * s.dir - p;
     const double n = to_axis.norm();
-    return n > 1e-9 ? Vector2d(to_axis / n) : s.left;
+    Vector2d away = n > 1e-9 ? Vector2d(to_axis / n) : s.left;
+    // -grad sdf of the rough wall: the relief tilts the surface.
+    if (opt_.wall_roughness_m > 0) {
+        double gx, gy;
+        wallRelief(x, y, &gx, &gy);
+        away = (away + Vector2d(gx, gy)).normalized();
+    }
+    return away;
 }
 
 Vector2d TunnelWorld::roofSlope(double x, double y, const WallQuery& q) const {
@@ -580,7 +685,7 @@ SurfaceHit TunnelWorld::traceStatic(const Vector3d& o, const Vector3d& d, double
         // Largest step that cannot pass through a wall (sphere tracing in plan view) or the
         // roof (vertical clearance over the rate at which it can close), but at least a fraction
         // of the pixel footprint so grazing rays terminate.
-        const double step_wall = dxy > 1e-9 ? dw / dxy : 1e9;
+        const double step_wall = dxy > 1e-9 ? dw / (dxy * (1 + relief_lipschitz_)) : 1e9;
         const double step_roof = roof_rate > 1e-9 ? gap / roof_rate : 1e9;
         const double step = std::max({std::min(step_wall, step_roof), 0.004, 0.3 * t * rad_per_px});
         prev = t;

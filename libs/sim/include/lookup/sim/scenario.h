@@ -63,6 +63,15 @@ struct WorldOptions {
     double light_spacing_m = 25;     ///< distance between tunnel lights, 0 = none [m]
     double sign_spacing_m = 60;      ///< mean distance between reflective wall signs, 0 = none [m]
     double grid_resolution_m = 0.1;  ///< occupancy-grid cell size (map.gridmap.gz, lidar) [m]
+    /// Relief of the rock walls (+-) [m]: world-anchored multi-scale noise (wavelengths 4 m down
+    /// to 0.5 m) that moves the wall surface in and out, in the occupancy grid (so the lidar
+    /// sees it and is no longer degenerate along a straight drive) and in the rendered views.
+    /// 0 = perfectly straight walls.
+    double wall_roughness_m = 0.15;
+    double niche_spacing_m = 30;  ///< mean distance between niches (alcoves) along a main
+                                  ///< tunnel, random side, 0 = none [m]
+    double niche_depth_m = 1.5;   ///< depth of a niche into the wall [m]
+    double niche_width_m = 3.0;   ///< width of a niche's mouth along the wall [m]
 };
 
 /// The vehicle body: where its wheels touch the floor (pitch and roll follow the floor relief).

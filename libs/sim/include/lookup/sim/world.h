@@ -79,7 +79,12 @@ class TunnelWorld {
     Eigen::Vector2d minCorner() const { return lo_; }
     Eigen::Vector2d maxCorner() const { return hi_; }
 
+    /// Nearest tunnel piece and signed distance to the rock, walls roughened by wallRelief().
     WallQuery query(double x, double y) const;
+    /// Relief of the rock walls at a plan point [m] (+ = rock cut back, the tunnel wider),
+    /// within +-wall_roughness_m; its gradient in *gx, *gy when given. A pure function of
+    /// (x, y, seed): the same rock for every traverse, sensor and map cell.
+    double wallRelief(double x, double y, double* gx, double* gy) const;
     /// Height of the roof above the floor at a plan point `dist_to_wall` (= -sdf) from the wall:
     /// the arch near the walls, the ceiling height plus low-frequency relief elsewhere.
     double roofHeight(double x, double y, double dist_to_wall) const;
@@ -117,6 +122,8 @@ class TunnelWorld {
     void addSegment(const Eigen::Vector2d& a, const Eigen::Vector2d& b, double half_width,
                     double s0, bool on_route);
     bool solid(const Eigen::Vector3d& p, WallQuery* q) const;
+    void addNiches(const std::vector<Eigen::Vector2d>& line, uint32_t stream,
+                   const std::vector<double>& openings, double* s_side);
 
     WorldOptions opt_;
     uint32_t seed_;
@@ -135,6 +142,11 @@ class TunnelWorld {
     // inner loops of the ray caster do not evaluate noise.
     double bumpAt(double x, double y, double* gx, double* gy) const;
     std::vector<float> bump_;
+    // Wall relief, sampled likewise (finer: its shortest wavelength is 0.5 m).
+    void buildRelief();
+    std::vector<float> relief_;
+    int relief_nx_ = 0, relief_ny_ = 0;
+    double relief_lipschitz_ = 0;  ///< bound on |grad wallRelief| (sphere-tracing step)
     int bump_nx_ = 0, bump_ny_ = 0;
     Eigen::Vector2d bump_origin_;
     // Optional user texture (grey, row-major) tiled over the ceiling.
