@@ -2,6 +2,7 @@
 //   lookup-localize --db DB (--rawlog QUERY.rawlog | --live SENSORS.ini) --out RUN_DIR
 //                   [--ini FILE] [--method NAME]
 //                   [--coarse-matches F | --coarse-poses F] [--sampling grid|heatmap|auto]
+//                   [--matcher sad|orb|ecc]
 //                   [--realtime] [--max-frames N]
 
 #include <mrpt/3rdparty/tclap/CmdLine.h>
@@ -36,6 +37,11 @@ int main(int argc, char** argv) {
                                            false, "", "FILE", cmd);
         TCLAP::ValueArg<std::string> sampling("", "sampling", "grid, heatmap or auto", false, "",
                                               "MODE", cmd);
+        TCLAP::ValueArg<std::string> matcher(
+            "", "matcher",
+            "correspondences: sad (LookUP), orb or ecc (OpenCV baselines); the method name "
+            "defaults to lookup-orb / lookup-ecc",
+            false, "", "sad|orb|ecc", cmd);
         TCLAP::SwitchArg realtime("", "realtime",
                                   "replay at the recorded rate, dropping late "
                                   "frames",
@@ -49,7 +55,10 @@ int main(int argc, char** argv) {
         req.rawlog = rawlog.getValue();
         req.out_dir = out.getValue();
         req.ini_file = ini.getValue();
-        req.method = method.getValue();
+        req.matcher = matcher.getValue();
+        req.method = method.isSet() || req.matcher.empty() || req.matcher == "sad"
+                         ? method.getValue()
+                         : "lookup-" + req.matcher;
         req.coarse_matches = matches.getValue();
         req.coarse_poses = poses.getValue();
         req.sampling = sampling.getValue();

@@ -302,3 +302,37 @@ TEST(RefinerBaselines, UnrelatedCeilingIsNotAcceptedAsAFix) {
         EXPECT_FALSE(r.reason.empty());
     }
 }
+
+TEST(Ecc, PaddedPyramidViewsGiveTheSameWarpAsPlainImages) {
+    // The Refiner hands over ImagePyramid levels: views into buffers with 32 black columns on
+    // the right, which OpenCV filters may read past the view; the baselines copy them first.
+    // (In the Refiner on 640 x 480 pairs ECC then stopped at the identity or did not converge;
+    // this direct call did not reproduce that without the copy, so it checks the views work.)
+    const auto big = synthetic::SyntheticCeiling::make(5.0, 14.0, 0.008, 11);
+    const auto cam = synthetic::makeCamera(640, 480, 400);
+    const Pinhole pin{400, 400, 319.5, 239.5};
+    const CPose3D on_vehicle = synthetic::ceilingCameraOnVehicle();
+    // The third pair of bench/methods_bench.cpp (where the regression showed).
+    cv::RNG rng(5);
+    CPose3D ref, qry;
+    for (int i = 0; i < 3; ++i) {
+        ref = CPose3D(0.5 * i - 4.0, rng.uniform(-0.3, 0.3), 0, rng.uniform(-0.03, 0.03), 0, 0);
+        qry = ref + CPose3D(rng.uniform(-0.12, 0.12), rng.uniform(-0.12, 0.12), 0,
+                            rng.uniform(-0.035, 0.035), 0, 0);
+    }
+    const cv::Mat a = big.render(cam, ref + on_vehicle), b = big.render(cam, qry + on_vehicle);
+    const cv::Matx33d truth = ceilingHomography(pin, ref + on_vehicle, pin, qry + on_vehicle, 5.0);
+    const ImagePyramid pa = ImagePyramid::build(a, 2, true), pb = ImagePyramid::build(b, 2, true);
+    ASSERT_FALSE(pa.levels[0].isContinuous());  // the case under test
+    const auto points = gridPoints(a.size(), 24, 30);
+    const cv::Matx33d start = ceilingHomography(pin, ref + on_vehicle, pin, ref + on_vehicle, 5.0);
+    const auto c = matchEcc(pa.levels[0], pb.levels[0], points, start, CorrespondenceOptions());
+    ASSERT_TRUE(c.ok) << c.reason;
+    for (const auto& m : c.matches) {
+        if (!m.matched()) continue;
+        EXPECT_LT(cv::norm(cv::Point2d(m.query_px) - apply(truth, m.reference_px)), 0.2);
+    }
+    const auto o = matchOrb(pa.levels[0], pb.levels[0], start, CorrespondenceOptions());
+    ASSERT_TRUE(o.ok) << o.reason;
+    EXPECT_LT(inlierErrors(o.matches, truth).inlier_mean_px, 1.0);
+}

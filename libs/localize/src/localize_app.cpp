@@ -15,6 +15,7 @@
 #include "lookup/coarse/coarse_source.h"
 #include "lookup/common/config.h"
 #include "lookup/common/rawlog_io.h"
+#include "lookup/refine/correspondence_methods.h"
 
 namespace lookup::localize {
 
@@ -48,6 +49,10 @@ class Session {
         if (req.sampling == "grid") refiner_options_.sampler.mode = refine::SamplingMode::Grid;
         if (req.sampling == "heatmap") {
             refiner_options_.sampler.mode = refine::SamplingMode::HeatMap;
+        }
+        if (!req.matcher.empty() && !refine::parseCorrespondenceMethod(
+                                        req.matcher, refiner_options_.correspondence.method)) {
+            throw common::ConfigError("--matcher '" + req.matcher + "': not one of sad, orb, ecc");
         }
         options_.check();
         refiner_options_.check();

@@ -98,6 +98,11 @@ bool usableHomography(const cv::Matx33d& H) {
     return cv::checkRange(cv::Mat(H)) && std::abs(cv::determinant(H)) > 1e-12;
 }
 
+// The matcher's pyramids pad each row (ImagePyramid: a view into a wider buffer); OpenCV's
+// filters read pixels beyond a view's edge (no BORDER_ISOLATED inside ORB / ECC), so the black
+// padding would become a strong edge shared by both images. A compact copy has true borders.
+cv::Mat compact(const cv::Mat& image) { return image.isContinuous() ? image : image.clone(); }
+
 CorrespondenceResult failed(std::string reason) {
     CorrespondenceResult r;
     r.reason = std::move(reason);
@@ -106,13 +111,14 @@ CorrespondenceResult failed(std::string reason) {
 
 }  // namespace
 
-CorrespondenceResult matchOrb(const cv::Mat& reference, const cv::Mat& query,
+CorrespondenceResult matchOrb(const cv::Mat& reference_view, const cv::Mat& query_view,
                               const std::optional<cv::Matx33d>& reference_to_query,
                               const CorrespondenceOptions& options) {
-    if (reference.empty() || query.empty() || reference.type() != CV_8UC1 ||
-        query.type() != CV_8UC1) {
+    if (reference_view.empty() || query_view.empty() || reference_view.type() != CV_8UC1 ||
+        query_view.type() != CV_8UC1) {
         return failed("orb: reference or query image empty or not CV_8UC1");
     }
+    const cv::Mat reference = compact(reference_view), query = compact(query_view);
     // Detect on the reference as the query camera would see it, when a prediction exists, so
     // the descriptors compare aligned views; keypoints stay off the warp's black border.
     cv::Mat ref_view = reference, mask;
@@ -176,7 +182,7 @@ CorrespondenceResult matchOrb(const cv::Mat& reference, const cv::Mat& query,
     return res;
 }
 
-CorrespondenceResult matchEcc(const cv::Mat& reference, const cv::Mat& query,
+CorrespondenceResult matchEcc(const cv::Mat& reference_view, const cv::Mat& query_view,
                               const std::vector<cv::Point2f>& points,
                               const std::optional<cv::Matx33d>& reference_to_query,
                               const CorrespondenceOptions& options) {
@@ -188,11 +194,12 @@ CorrespondenceResult matchEcc(const cv::Mat& reference, const cv::Mat& query,
         m.status = MatchStatus::NotDistinctive;
         res.matches.push_back(m);
     }
-    if (reference.empty() || query.empty() || reference.type() != CV_8UC1 ||
-        query.type() != CV_8UC1) {
+    if (reference_view.empty() || query_view.empty() || reference_view.type() != CV_8UC1 ||
+        query_view.type() != CV_8UC1) {
         res.reason = "ecc: reference or query image empty or not CV_8UC1";
         return res;
     }
+    const cv::Mat reference = compact(reference_view), query = compact(query_view);
     cv::Matx33d W = reference_to_query.value_or(cv::Matx33d::eye());
     if (!usableHomography(W)) {
         res.reason = "ecc: predicted homography is singular or not finite";

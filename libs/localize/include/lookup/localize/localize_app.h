@@ -16,6 +16,8 @@ struct LocalizeRequest {
     std::string coarse_matches;     ///< optional: `query_time reference_time` file
     std::string coarse_poses;       ///< optional: coarse poses (TUM / MRPT)
     std::string sampling;           ///< optional override: "grid", "heatmap" or "auto"
+    std::string matcher;            ///< optional override of [refine.correspondence] method:
+                                    ///< "sad", "orb" or "ecc" (ORB / ECC baselines, issue 6)
     int realtime = -1;              ///< -1: from the ini; 0: as fast as possible; 1: recorded rate
     std::size_t max_frames = 0;     ///< stop after this many ceiling frames (0 = all)
     bool progress = true;           ///< progress bar on stderr when it is a terminal
