@@ -21,6 +21,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
+#include <limits>
 #include <sstream>
 
 namespace lookup::sim {
@@ -98,6 +99,40 @@ void writeDatasetIni(const std::string& path, const ScenarioOptions& sc) {
     if (!f) throw common::ConfigError(path + ": cannot write");
 }
 
+/// Distance from (x, y) along `angle` at which the ray enters the first cell that is not free
+/// (occupancy >= 0.5), by exact cell traversal; `max_range` if none before it.
+double cellEntryRange(const mrpt::maps::COccupancyGridMap2D& grid, double x, double y, double angle,
+                      double max_range) {
+    const double res = grid.getResolution();
+    const double dx = std::cos(angle), dy = std::sin(angle);
+    const double fx = (x - grid.getXMin()) / res, fy = (y - grid.getYMin()) / res;
+    int cx = static_cast<int>(std::floor(fx)), cy = static_cast<int>(std::floor(fy));
+    const int sx = dx >= 0 ? 1 : -1, sy = dy >= 0 ? 1 : -1;
+    const double inf = std::numeric_limits<double>::infinity();
+    // Ray parameter (in cells) to the next vertical / horizontal cell boundary, and per cell.
+    double tx = std::abs(dx) > 1e-12 ? ((sx > 0 ? cx + 1 - fx : fx - cx) / std::abs(dx)) : inf;
+    double ty = std::abs(dy) > 1e-12 ? ((sy > 0 ? cy + 1 - fy : fy - cy) / std::abs(dy)) : inf;
+    const double tdx = std::abs(dx) > 1e-12 ? 1 / std::abs(dx) : inf;
+    const double tdy = std::abs(dy) > 1e-12 ? 1 / std::abs(dy) : inf;
+    const double t_max = max_range / res;
+    const int nx = static_cast<int>(grid.getSizeX()), ny = static_cast<int>(grid.getSizeY());
+    double t = 0;
+    while (t <= t_max) {
+        if (cx < 0 || cy < 0 || cx >= nx || cy >= ny) break;
+        if (grid.getCell(cx, cy) <= 0.5f) return t * res;  // as MRPT: free > 0.5
+        if (tx < ty) {
+            t = tx;
+            tx += tdx;
+            cx += sx;
+        } else {
+            t = ty;
+            ty += tdy;
+            cy += sy;
+        }
+    }
+    return max_range;
+}
+
 }  // namespace
 
 mrpt::obs::CObservation2DRangeScan simulateLidar(const mrpt::maps::COccupancyGridMap2D& grid,
@@ -113,8 +148,18 @@ mrpt::obs::CObservation2DRangeScan simulateLidar(const mrpt::maps::COccupancyGri
     const std::size_t rays =
         static_cast<std::size_t>(std::lround(lidar.aperture_deg / lidar.resolution_deg)) + 1;
     grid.laserScanSimulator(scan, vehicle, 0.5f, rays, 0);
+    const mrpt::poses::CPose2D sensor = vehicle + mrpt::poses::CPose2D(scan.sensorPose);
     for (std::size_t r = 0; r < scan.getScanSize(); ++r) {
         if (!scan.getScanRangeValidity(r)) continue;
+        const double angle = sensor.phi() - scan.aperture / 2 +
+                             r * scan.aperture / static_cast<double>(scan.getScanSize() - 1);
+        const double exact = cellEntryRange(grid, sensor.x(), sensor.y(), angle,
+                                            scan.getScanRange(r) + 2 * grid.getResolution());
+        // Keep MRPT's answer if the exact traversal disagrees by more than a cell or two (a
+        // ray grazing a cell corner).
+        if (std::abs(exact - scan.getScanRange(r)) <= 2.5 * grid.getResolution()) {
+            scan.setScanRange(r, static_cast<float>(exact));
+        }
         const double noise =
             lidar.noise_std_m * gaussian(hash3(noise_key, r, 1), hash3(noise_key, r, 2));
         scan.setScanRange(r, static_cast<float>(std::max(0.0, scan.getScanRange(r) + noise)));

@@ -300,10 +300,10 @@ void TunnelWorld::buildRelief() {
         for (int i = 0; i < relief_nx_; ++i) {
             const double x = bump_origin_.x() + i * kReliefCell;
             const double y = bump_origin_.y() + j * kReliefCell;
-            const NoiseSample n = fbm(x, y, seed_ + kWallRelief, kReliefOctaves,
-                                      kReliefWavelength, kReliefGain, 0);
-            relief_[j * relief_nx_ + i] = static_cast<float>(
-                std::tanh(kReliefStretch * (n.v - 0.5)) * opt_.wall_roughness_m);
+            const NoiseSample n =
+                fbm(x, y, seed_ + kWallRelief, kReliefOctaves, kReliefWavelength, kReliefGain, 0);
+            relief_[j * relief_nx_ + i] =
+                static_cast<float>(std::tanh(kReliefStretch * (n.v - 0.5)) * opt_.wall_roughness_m);
         }
     }
     // Steepest slope of the bilinear interpolant (bounds |grad| for sphere tracing).

@@ -19,9 +19,24 @@
 #include <stdexcept>
 
 namespace lookup::survey {
+namespace {
+
+/// A copy of a range scan with returns beyond `max_range_m` invalid (0: the scan itself).
+mrpt::obs::CObservation::Ptr clipRange(const mrpt::obs::CObservation::Ptr& o, double max_range_m) {
+    auto scan = std::dynamic_pointer_cast<mrpt::obs::CObservation2DRangeScan>(o);
+    if (!scan || max_range_m <= 0) return o;
+    auto clipped = std::make_shared<mrpt::obs::CObservation2DRangeScan>(*scan);
+    for (std::size_t i = 0; i < clipped->getScanSize(); ++i) {
+        if (clipped->getScanRange(i) > max_range_m) clipped->setScanRangeValidity(i, false);
+    }
+    return clipped;
+}
+
+}  // namespace
 
 LaserMap buildMapIcpSlam(const TraverseData& traverse, const mrpt::config::CConfigFileBase& config,
-                         const mrpt::poses::CPose2D& start, const ProgressFn& progress) {
+                         const mrpt::poses::CPose2D& start, const ProgressFn& progress,
+                         double max_range_m) {
     mrpt::slam::CMetricMapBuilderICP builder;
     builder.setVerbosityLevel(mrpt::system::LVL_ERROR);
     builder.ICP_options.loadFromConfigFile(config, "MappingApplication");
@@ -57,7 +72,7 @@ LaserMap buildMapIcpSlam(const TraverseData& traverse, const mrpt::config::CConf
         mrpt::obs::CActionCollection action;
         action.insert(move);
         mrpt::obs::CSensoryFrame sf;
-        sf.insert(o);
+        sf.insert(clipRange(o, max_range_m));
         builder.processActionObservation(action, sf);
         const auto pdf = builder.getCurrentPoseEstimation();
         mrpt::poses::CPose3D mean;

@@ -280,7 +280,9 @@ SurveyResult Survey::run(const SurveyInputs& in) const {
                 map_origin = startOf(mapping, mrpt::poses::CPose2D());
                 timer.Tic();
                 ProgressBar bar(in.show_progress, "ICP-SLAM " + in.traverses[mapping].name);
-                grid = buildMapIcpSlam(data[mapping], config_, mrpt::poses::CPose2D(), bar).grid;
+                grid = buildMapIcpSlam(data[mapping], config_, mrpt::poses::CPose2D(), bar,
+                                       options_.icp_max_range_m)
+                           .grid;
                 result.mapping_time_s = timer.Tac();
             }
             for (std::size_t i = 0; i < data.size(); ++i) {

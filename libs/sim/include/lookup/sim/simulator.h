@@ -55,6 +55,11 @@ common::PoseTrack vehicleTrack(const TunnelWorld& world, const TraverseOptions& 
 /// One scan of the 2-D lidar at `vehicle` (map frame), simulated by MRPT's
 /// COccupancyGridMap2D::laserScanSimulator against `grid`, plus Gaussian range noise drawn
 /// deterministically from `noise_key`. Rays that reach no wall within range are invalid.
+/// MRPT 2.5.8 marches each ray in whole cells from the sensor, so its ranges are multiples of
+/// the cell size counted from the sensor: a pattern that moves with the vehicle and makes scan
+/// matching stick (a real lidar has no such quantisation). Each valid range is therefore
+/// replaced by the exact distance at which the ray enters its first occupied cell of the same
+/// grid (cell traversal, Amanatides & Woo), as newer MRPT versions do.
 mrpt::obs::CObservation2DRangeScan simulateLidar(const mrpt::maps::COccupancyGridMap2D& grid,
                                                  const mrpt::poses::CPose2D& vehicle,
                                                  const LidarOptions& lidar, uint32_t noise_key);

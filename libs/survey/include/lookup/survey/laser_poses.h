@@ -34,9 +34,11 @@ struct LaserMap {
 
 /// ICP-SLAM over the odometry + lidar sequence of `traverse`, starting at `start` (map frame).
 /// Reads [MappingApplication] and [ICP] of `config`; the map definition must contain an
-/// occupancy grid. Throws std::runtime_error naming the section when it does not.
+/// occupancy grid. Throws std::runtime_error naming the section when it does not. Returns
+/// beyond `max_range_m` are dropped first (0 = keep all; SurveyOptions::icp_max_range_m).
 LaserMap buildMapIcpSlam(const TraverseData& traverse, const mrpt::config::CConfigFileBase& config,
-                         const mrpt::poses::CPose2D& start, const ProgressFn& progress = {});
+                         const mrpt::poses::CPose2D& start, const ProgressFn& progress = {},
+                         double max_range_m = 0);
 
 /// MCL of `traverse` on `grid` (particles around `start`), with [PF_options], [KLD_options]
 /// and [LikelihoodOptions] of `config` and the odometry noise of `options`. One mean pose and

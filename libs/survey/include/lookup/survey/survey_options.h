@@ -44,6 +44,10 @@ struct SurveyOptions : public mrpt::config::CLoadableOptions {
     /// Start ICP-SLAM (and MCL) at the first ground-truth pose when a GT file exists, so the
     /// map frame is the dataset's; otherwise the map frame is the mapping traverse's start.
     bool start_at_ground_truth = true;
+    /// Lidar returns farther than this are dropped before ICP-SLAM [m] (0 = keep all). Far
+    /// returns graze the walls of a long drive sparsely and match the frontier of the map
+    /// built so far, which pulls every scan back and shrinks the map along the drive.
+    double icp_max_range_m = 0;
 
     // --- pose file (--poses) ---------------------------------------------------------------
     double pose_file_std_xy_m = 0.02;    ///< stated std of surveyed positions [m]
