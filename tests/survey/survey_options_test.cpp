@@ -15,6 +15,8 @@ TEST(SurveyOptions, ShareIniLoadsAndRoundTrips) {
     a.keyframe_spacing_m = 99;  // must be overwritten by the file
     a.loadFromConfigFile(file, "survey");
     EXPECT_DOUBLE_EQ(a.keyframe_spacing_m, 0.25);
+    EXPECT_DOUBLE_EQ(a.icp_max_range_m, 0.0);  // share/lookup/survey.ini: all returns
+    a.icp_max_range_m = 12.5;
     mrpt::config::CConfigFileMemory mem;
     a.saveToConfigFile(mem, "survey");
     SurveyOptions b;
@@ -25,6 +27,19 @@ TEST(SurveyOptions, ShareIniLoadsAndRoundTrips) {
     EXPECT_EQ(b.mcl_particles, a.mcl_particles);
     EXPECT_EQ(b.lidar_label, a.lidar_label);
     EXPECT_EQ(b.start_at_ground_truth, a.start_at_ground_truth);
+    EXPECT_DOUBLE_EQ(b.icp_max_range_m, 12.5);
+}
+
+TEST(SurveyOptions, NegativeIcpMaxRangeIsRefusedByName) {
+    mrpt::config::CConfigFileMemory mem;
+    mem.write("survey", "icp_max_range_m", -3.0);
+    SurveyOptions o;
+    try {
+        o.loadFromConfigFile(mem, "survey");
+        FAIL() << "negative icp_max_range_m accepted";
+    } catch (const lookup::common::ConfigError& e) {
+        EXPECT_NE(std::string(e.what()).find("icp_max_range_m"), std::string::npos);
+    }
 }
 
 TEST(SurveyOptions, RejectsBadFieldAndUnknownKey) {
