@@ -143,7 +143,7 @@ double CameraRenderer::shadePixel(int index, const Eigen::Matrix3d& R, const Vec
                         if (side == 1) ga *= 0.5;
                         side = 1;
                     }
-                    if (tb - ta < 0.002 || std::abs(gt) < 0.001) break;
+                    if (tb - ta < std::max(0.002, 0.3 * tb / fx) || std::abs(gt) < 0.001) break;
                 }
                 hit.t = tb;
                 hit.q = qb;

@@ -461,11 +461,10 @@ WallQuery TunnelWorld::query(double x, double y) const {
     // relief is not evaluated; the distance is then understated by its bound so sphere tracing
     // stays safe.
     if (opt_.wall_roughness_m > 0 && out.segment >= 0) {
-        if (out.sdf > -(opt_.arch_radius_m + opt_.wall_roughness_m + 0.1)) {
-            out.sdf -= wallRelief(x, y, nullptr, nullptr);
-        } else {
-            out.sdf += opt_.wall_roughness_m;
-        }
+        out.relief = out.sdf > -(opt_.arch_radius_m + opt_.wall_roughness_m + 0.1)
+                         ? wallRelief(x, y, nullptr, nullptr)
+                         : -opt_.wall_roughness_m;
+        out.sdf -= out.relief;
     }
     return out;
 }
@@ -685,9 +684,13 @@ SurfaceHit TunnelWorld::traceStatic(const Vector3d& o, const Vector3d& d, double
         // Largest step that cannot pass through a wall (sphere tracing in plan view) or the
         // roof (vertical clearance over the rate at which it can close), but at least a fraction
         // of the pixel footprint so grazing rays terminate.
-        const double step_wall = dxy > 1e-9 ? dw / (dxy * (1 + relief_lipschitz_)) : 1e9;
+        // Two safe plan-view clearances: the smooth wall minus the largest relief, and the
+        // rough wall's distance over its Lipschitz bound (better within the relief band).
+        const double clear =
+            std::max(dw + q.relief - opt_.wall_roughness_m, dw / (1 + relief_lipschitz_));
+        const double step_wall = dxy > 1e-9 ? clear / dxy : 1e9;
         const double step_roof = roof_rate > 1e-9 ? gap / roof_rate : 1e9;
-        const double step = std::max({std::min(step_wall, step_roof), 0.004, 0.3 * t * rad_per_px});
+        const double step = std::max({std::min(step_wall, step_roof), 0.004, 0.8 * t * rad_per_px});
         prev = t;
         t = std::min(t + step, t_end);
     }

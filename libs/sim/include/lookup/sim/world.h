@@ -31,6 +31,9 @@ struct WallQuery {
     int segment = -1;  ///< nearest tunnel piece (-1: none near)
     double s = 0;      ///< texture coordinate along that piece [m]
     double d = 0;      ///< lateral offset from its centre line, + left [m]
+    /// Wall relief included in sdf (sdf = distance to the smooth wall - relief) [m]; in the
+    /// tunnel's interior, where the relief is not evaluated, -wall_roughness_m (its bound).
+    double relief = 0;
 };
 
 enum class SurfaceKind { None, Roof, Wall, Floor, Duct, Pipe, Cable, Light };
