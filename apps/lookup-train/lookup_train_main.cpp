@@ -14,6 +14,8 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "lookup/database/reference_database.h"
+#include "lookup/fcn/heat_maps.h"
+#include "lookup/fcn/model.h"
 #include "lookup/fcn/train_app.h"
 #include "lookup/localize/localizer.h"
 #include "lookup/refine/sampler.h"
@@ -66,8 +68,14 @@ int main(int argc, char** argv) {
         TCLAP::ValueArg<std::string> train("", "train",
                                            "training query rawlogs, comma separated (each with "
                                            "its .GT.txt); the last held_out_share of each is "
-                                           "held out for evaluation",
-                                           true, "", "FILES", cmd);
+                                           "held out for evaluation (required unless "
+                                           "--heatmaps-only)",
+                                           false, "", "FILES", cmd);
+        TCLAP::ValueArg<std::string> heat_only(
+            "", "heatmaps-only",
+            "no training: write the heat maps of DB's references with this trained model "
+            "(e.g. one trained on another survey of the same mine)",
+            false, "", "MODEL.pt", cmd);
         TCLAP::ValueArg<std::string> ini("", "ini",
                                          "options [fcn.network] [fcn.labels] [fcn.training] "
                                          "(default: share/lookup/train.ini)",
@@ -106,6 +114,19 @@ int main(int argc, char** argv) {
             options.loadFromConfigFile(cfg, "fcn");
         }
         options.check();
+
+        if (!heat_only.getValue().empty()) {
+            const auto model = lookup::fcn::HeatMapModel::load(heat_only.getValue());
+            const auto database = lookup::database::ReferenceDatabase::load(db.getValue());
+            const auto w = lookup::fcn::writeHeatMaps(database, model);
+            std::printf("heat maps: %s/%s (%zu references, %.1f s) from %s\n",
+                        db.getValue().c_str(), w.directory.c_str(), w.count, w.seconds,
+                        heat_only.getValue().c_str());
+            return 0;
+        }
+        if (train.getValue().empty()) {
+            throw std::runtime_error("--train FILES is required (or --heatmaps-only MODEL)");
+        }
 
         lookup::fcn::TrainRequest req;
         req.db_dir = db.getValue();
