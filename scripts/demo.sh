@@ -60,7 +60,7 @@ localize() {  # localize DB QUERY RUN_NAME METHOD [extra flags]
     local db=$1 q=$2 name=$3 method=$4
     shift 4
     "$BIN/lookup-localize" --db "$db" --rawlog "$DATA/$q" --out "$OUT/runs/$name" \
-        --ini "$LOCALIZE_INI" --method "$method" -q "$@"
+        --ini "$LOCALIZE_INI" --method "$method" "$@"
     RUNS+=("$OUT/runs/$name")
 }
 for q in $QUERIES; do

@@ -1,6 +1,7 @@
 // lookup-eval: accuracy of localisation runs against ground truth, per traverse and method.
 //   lookup-eval --gt Q1.rawlog.GT.txt[,Q2...] --runs RUN1[,RUN2...] --out REPORT_DIR [--ini F]
 
+#include "lookup/common/cli.h"
 #include <mrpt/3rdparty/tclap/CmdLine.h>
 #include <mrpt/config/CConfigFile.h>
 #include <mrpt/core/exceptions.h>
@@ -21,7 +22,7 @@ int main(int argc, char** argv) {
         TCLAP::ValueArg<std::string> out_arg("", "out", "report folder", true, "", "DIR", cmd);
         TCLAP::ValueArg<std::string> ini_arg("", "ini", "options ([eval] section)", false, "",
                                              "FILE", cmd);
-        cmd.parse(argc, argv);
+        if (!cmd.parse(argc, argv)) return lookup::common::parseFailureExitCode(argc, argv);
 
         lookup::eval::EvalOptions options;
         if (!ini_arg.getValue().empty()) {

@@ -5,6 +5,7 @@
 //                   [--matcher sad|orb|ecc]
 //                   [--realtime] [--max-frames N]
 
+#include "lookup/common/cli.h"
 #include <mrpt/3rdparty/tclap/CmdLine.h>
 #include <mrpt/core/exceptions.h>
 
@@ -48,7 +49,7 @@ int main(int argc, char** argv) {
                                   cmd);
         TCLAP::ValueArg<int> max_frames("", "max-frames", "stop after N ceiling frames", false, 0,
                                         "N", cmd);
-        cmd.parse(argc, argv);
+        if (!cmd.parse(argc, argv)) return lookup::common::parseFailureExitCode(argc, argv);
 
         lookup::localize::LocalizeRequest req;
         req.db_dir = db.getValue();

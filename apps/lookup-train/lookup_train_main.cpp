@@ -3,6 +3,7 @@
 //   lookup-train --db DB --train QUERY.rawlog[,...] [--ini FILE] [--out-model FILE]
 //                [--out DIR] [--init-model FILE] [--no-heatmaps] [--quiet]
 
+#include "lookup/common/cli.h"
 #include <mrpt/3rdparty/tclap/CmdLine.h>
 #include <mrpt/config/CConfigFile.h>
 
@@ -98,7 +99,7 @@ int main(int argc, char** argv) {
                                             false, "", "FILE.png", cmd);
         TCLAP::ValueArg<int> figure_ref("", "figure-ref", "reference index for --figure", false, -1,
                                         "N", cmd);
-        cmd.parse(argc, argv);
+        if (!cmd.parse(argc, argv)) return lookup::common::parseFailureExitCode(argc, argv);
         if (!figure.getValue().empty()) {
             drawFigure(db.getValue(), figure_ref.getValue(), figure.getValue());
             return 0;

@@ -2,6 +2,7 @@
 //   lookup-sim --preset mine-b-mini --out /tmp/mine-b-mini [--seed N]
 //   lookup-sim --scenario my.ini --out DIR
 
+#include "lookup/common/cli.h"
 #include <lookup/common/config.h>
 #include <lookup/sim/simulator.h>
 #include <mrpt/3rdparty/tclap/CmdLine.h>
@@ -25,7 +26,7 @@ int main(int argc, char** argv) {
                                  cmd);
     TCLAP::SwitchArg quiet("q", "quiet", "no progress bar", cmd);
     try {
-        cmd.parse(argc, argv);
+        if (!cmd.parse(argc, argv)) return lookup::common::parseFailureExitCode(argc, argv);
     } catch (const TCLAP::ArgException& e) {
         std::cerr << "lookup-sim: " << e.error() << " (" << e.argId() << ")\n";
         return 2;

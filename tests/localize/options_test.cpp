@@ -1,4 +1,7 @@
 #include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <filesystem>
 #include <mrpt/config/CConfigFile.h>
 #include <mrpt/config/CConfigFileMemory.h>
 
@@ -49,5 +52,18 @@ TEST(LocalizeIni, AcquisitionKeysRoundTripAndAreChecked) {
     } catch (const common::ConfigError& e) {
         EXPECT_NE(std::string(e.what()).find("acquisition_ambiguity_margin"), std::string::npos)
             << e.what();
+    }
+}
+
+// MRPT's TCLAP reports a parse error by returning false, not by exiting: every app must stop
+// with a non-zero status on an unknown flag instead of running with half-parsed options.
+TEST(AppCommandLines, UnknownFlagFailsAndHelpSucceeds) {
+    const std::string bin = std::string(LOOKUP_BINARY_DIR) + "/bin/";
+    for (const char* app : {"lookup-localize", "lookup-eval", "lookup-sim", "lookup-survey",
+                            "lookup-coarse"}) {
+        const std::string exe = bin + app;
+        if (!std::filesystem::exists(exe)) continue;  // not built in this configuration
+        EXPECT_NE(std::system((exe + " --no-such-flag >/dev/null 2>&1").c_str()), 0) << app;
+        EXPECT_EQ(std::system((exe + " --help >/dev/null 2>&1").c_str()), 0) << app;
     }
 }

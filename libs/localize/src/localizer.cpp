@@ -389,7 +389,10 @@ FrameResult Localizer::processCeiling(const mrpt::obs::CObservationImage& query)
     }
     if ((!result || !result->accepted()) && coarse_fix) {
         result = refineAgainst(query, coarse_fix->references, coarse_fix->pose, out);
-        if (!result->accepted() && options_.acquisition_radius_m > 0) {
+        // Acquisition searches around the coarse match only when not tracking: with a recent
+        // fix a failed frame is a bad view (pipes, blur), not a lost vehicle, and searching
+        // would cost tens of milliseconds for nothing.
+        if (!result->accepted() && !prediction && options_.acquisition_radius_m > 0) {
             result = acquire(query, *out.coarse_pose, result, out);
         }
     }
