@@ -402,6 +402,17 @@ FrameResult Localizer::processCeiling(const mrpt::obs::CObservationImage& query)
         out.pose_source = "refined";
         out.has_pose = true;
         out.pose = result->pose;
+        // The fix is measured relative to the references: their survey uncertainty adds to it.
+        if (!out.reference_indices.empty()) {
+            mrpt::math::CMatrixDouble33 survey_cov;
+            survey_cov.setZero();
+            for (std::size_t i : out.reference_indices) survey_cov += db_.reference(i).vehicle_cov;
+            survey_cov *= 1.0 / double(out.reference_indices.size());
+            bool finite = true;
+            for (int r = 0; r < 3; ++r)
+                for (int c = 0; c < 3; ++c) finite = finite && std::isfinite(survey_cov(r, c));
+            if (finite) out.pose.cov += survey_cov;
+        }
         last_fix_ = Fix{out.time_s, out.pose.mean};
     } else {
         out.status = FrameStatus::Fallback;
