@@ -1,19 +1,10 @@
 #include <cmath>
 #include <opencv2/imgproc.hpp>
 
+#include "lookup/refine/geometry.h"
 #include "lookup/refine/matcher.h"
 
 namespace lookup::refine {
-namespace {
-
-bool apply(const cv::Matx33d& H, const cv::Point2d& p, cv::Point2d& out) {
-    const cv::Vec3d v = H * cv::Vec3d(p.x, p.y, 1.0);
-    if (!(std::abs(v[2]) > 1e-12)) return false;
-    out = {v[0] / v[2], v[1] / v[2]};
-    return std::isfinite(out.x) && std::isfinite(out.y);
-}
-
-}  // namespace
 
 std::vector<PointMatch> matchPointsCompensated(const ImagePyramid& reference,
                                                const ImagePyramid& query,
@@ -41,7 +32,7 @@ std::vector<PointMatch> matchPointsCompensated(const ImagePyramid& reference,
     std::vector<std::size_t> index;
     for (std::size_t i = 0; i < points.size(); ++i) {
         cv::Point2d q;
-        if (!apply(H, cv::Point2d(points[i]), q) || std::abs(q.x) > 1e6 || std::abs(q.y) > 1e6) {
+        if (!applyHomography(H, cv::Point2d(points[i]), q) || std::abs(q.x) > 1e6 || std::abs(q.y) > 1e6) {
             continue;
         }
         const cv::Point2d c(std::round(q.x), std::round(q.y));
@@ -50,7 +41,7 @@ std::vector<PointMatch> matchPointsCompensated(const ImagePyramid& reference,
              {cv::Point2d(-half - 1, -half - 1), cv::Point2d(half + 1, -half - 1),
               cv::Point2d(-half - 1, half + 1), cv::Point2d(half + 1, half + 1)}) {
             cv::Point2d r;
-            ok = ok && apply(H_inv, c + corner, r) && inside.contains(r);
+            ok = ok && applyHomography(H_inv, c + corner, r) && inside.contains(r);
         }
         if (!ok) continue;
         centres.emplace_back(float(c.x), float(c.y));
@@ -72,7 +63,7 @@ std::vector<PointMatch> matchPointsCompensated(const ImagePyramid& reference,
     for (std::size_t k = 0; k < index.size(); ++k) {
         PointMatch& m = matched[k];
         cv::Point2d r;
-        apply(H_inv, cv::Point2d(centres[k]), r);  // finite: checked with the corners
+        applyHomography(H_inv, cv::Point2d(centres[k]), r);  // finite: checked with the corners
         m.reference_px = cv::Point2f(float(r.x), float(r.y));
         if (!m.matched()) m.query_px = centres[k];
         out[index[k]] = m;

@@ -8,6 +8,7 @@
 #include <opencv2/video/tracking.hpp>
 
 #include "lookup/common/config.h"
+#include "lookup/refine/geometry.h"
 
 namespace lookup::refine {
 
@@ -87,12 +88,6 @@ void CorrespondenceOptions::check() const {
 // ---------------------------------------------------------------- matchers
 namespace {
 
-bool apply(const cv::Matx33d& H, const cv::Point2d& p, cv::Point2d& out) {
-    const cv::Vec3d v = H * cv::Vec3d(p.x, p.y, 1.0);
-    if (!(std::abs(v[2]) > 1e-12)) return false;
-    out = {v[0] / v[2], v[1] / v[2]};
-    return std::isfinite(out.x) && std::isfinite(out.y);
-}
 
 bool usableHomography(const cv::Matx33d& H) {
     return cv::checkRange(cv::Mat(H)) && std::abs(cv::determinant(H)) > 1e-12;
@@ -161,7 +156,7 @@ CorrespondenceResult matchOrb(const cv::Mat& reference_view, const cv::Mat& quer
         const cv::DMatch& best = pair[0];
         if (!(best.distance < options.orb_ratio * pair[1].distance)) continue;
         cv::Point2d ref_px;
-        if (!apply(H_inv, cv::Point2d(k_ref[best.queryIdx].pt), ref_px)) continue;
+        if (!applyHomography(H_inv, cv::Point2d(k_ref[best.queryIdx].pt), ref_px)) continue;
         PointMatch m;
         m.reference_px = cv::Point2f(float(ref_px.x), float(ref_px.y));
         m.query_px = k_qry[best.trainIdx].pt;
@@ -251,7 +246,7 @@ CorrespondenceResult matchEcc(const cv::Mat& reference_view, const cv::Mat& quer
     const cv::Rect2d inside(0.0, 0.0, query.cols - 1.0, query.rows - 1.0);
     for (PointMatch& m : res.matches) {
         cv::Point2d q;
-        if (!apply(W, cv::Point2d(m.reference_px), q) || !inside.contains(q)) {
+        if (!applyHomography(W, cv::Point2d(m.reference_px), q) || !inside.contains(q)) {
             m.status = MatchStatus::OutOfImage;
             continue;
         }

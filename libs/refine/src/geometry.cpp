@@ -64,4 +64,11 @@ cv::Matx33d ceilingHomography(const Pinhole& a, const mrpt::poses::CPose3D& a_in
     return H * (1.0 / H(2, 2));
 }
 
+bool applyHomography(const cv::Matx33d& H, const cv::Point2d& p, cv::Point2d& out) {
+    const cv::Vec3d v = H * cv::Vec3d(p.x, p.y, 1.0);
+    if (!(std::abs(v[2]) > 1e-12)) return false;
+    out = {v[0] / v[2], v[1] / v[2]};
+    return std::isfinite(out.x) && std::isfinite(out.y);
+}
+
 }  // namespace lookup::refine

@@ -35,6 +35,9 @@ std::optional<cv::Point2d> projectToImage(const Pinhole& camera,
                                           const mrpt::poses::CPose3D& camera_in_map,
                                           const cv::Point3d& p);
 
+/// `out` = H * p (homogeneous); false when the point maps to infinity or to a non-finite pixel.
+bool applyHomography(const cv::Matx33d& H, const cv::Point2d& p, cv::Point2d& out);
+
 /// Homography from pixels of camera A to pixels of camera B induced by the plane z = h.
 cv::Matx33d ceilingHomography(const Pinhole& a, const mrpt::poses::CPose3D& a_in_map,
                               const Pinhole& b, const mrpt::poses::CPose3D& b_in_map, double h);
