@@ -17,6 +17,8 @@ TEST(SurveyOptions, ShareIniLoadsAndRoundTrips) {
     EXPECT_DOUBLE_EQ(a.keyframe_spacing_m, 0.25);
     EXPECT_DOUBLE_EQ(a.icp_max_range_m, 0.0);  // share/lookup/survey.ini: all returns
     a.icp_max_range_m = 12.5;
+    EXPECT_DOUBLE_EQ(a.map_std_xy_m, 0.08);
+    a.map_std_xy_m = 0.3;
     mrpt::config::CConfigFileMemory mem;
     a.saveToConfigFile(mem, "survey");
     SurveyOptions b;
@@ -28,6 +30,7 @@ TEST(SurveyOptions, ShareIniLoadsAndRoundTrips) {
     EXPECT_EQ(b.lidar_label, a.lidar_label);
     EXPECT_EQ(b.start_at_ground_truth, a.start_at_ground_truth);
     EXPECT_DOUBLE_EQ(b.icp_max_range_m, 12.5);
+    EXPECT_DOUBLE_EQ(b.map_std_xy_m, 0.3);
 }
 
 TEST(SurveyOptions, NegativeIcpMaxRangeIsRefusedByName) {

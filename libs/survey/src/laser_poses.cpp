@@ -1,3 +1,4 @@
+#include <cmath>
 #include "lookup/survey/laser_poses.h"
 
 #include <mrpt/bayes/CParticleFilter.h>
@@ -143,7 +144,11 @@ LaserTrack localizeMcl(const TraverseData& traverse, const mrpt::maps::COccupanc
         sf.insert(o);
         pf.executeOn(pdf, &action, &sf);
 
-        const auto [cov, mean] = pdf.getCovarianceAndMean();
+        auto [cov, mean] = pdf.getCovarianceAndMean();
+        // MCL's spread is relative to the map; the map's own error comes on top.
+        cov(0, 0) += options.map_std_xy_m * options.map_std_xy_m;
+        cov(1, 1) += options.map_std_xy_m * options.map_std_xy_m;
+        cov(2, 2) += std::pow(mrpt::DEG2RAD(options.map_std_yaw_deg), 2);
         out.poses.push_back({mrpt::Clock::toDouble(o->timestamp), mrpt::poses::CPose3D(mean)});
         out.covs.push_back(cov);
         if (progress && (i % 64 == 0 || i + 1 == n)) progress(double(i + 1) / double(n));

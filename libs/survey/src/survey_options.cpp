@@ -14,7 +14,7 @@ void SurveyOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& sour
          "forward_max_dt_s",      "max_pose_gap_s",        "max_outside_fraction",
          "ceiling_height_m",      "mcl_particles",         "mcl_init_std_xy_m",
          "mcl_init_std_yaw_deg",  "odometry_min_std_xy_m", "odometry_min_std_yaw_deg",
-         "start_at_ground_truth", "icp_max_range_m",       "pose_file_std_xy_m",
+         "start_at_ground_truth", "icp_max_range_m", "map_std_xy_m", "map_std_yaw_deg",       "pose_file_std_xy_m",
          "pose_file_std_yaw_deg"});
     ceiling_camera_label = s.getString("ceiling_camera_label", ceiling_camera_label);
     forward_camera_label = s.getString("forward_camera_label", forward_camera_label);
@@ -36,6 +36,8 @@ void SurveyOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& sour
     odometry_min_std_yaw_deg = s.getDouble("odometry_min_std_yaw_deg", odometry_min_std_yaw_deg);
     start_at_ground_truth = s.getBool("start_at_ground_truth", start_at_ground_truth);
     icp_max_range_m = s.getDouble("icp_max_range_m", icp_max_range_m);
+    map_std_xy_m = s.getDouble("map_std_xy_m", map_std_xy_m);
+    map_std_yaw_deg = s.getDouble("map_std_yaw_deg", map_std_yaw_deg);
     pose_file_std_xy_m = s.getDouble("pose_file_std_xy_m", pose_file_std_xy_m);
     pose_file_std_yaw_deg = s.getDouble("pose_file_std_yaw_deg", pose_file_std_yaw_deg);
     check();
@@ -63,6 +65,8 @@ void SurveyOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
     c.write(section, "odometry_min_std_yaw_deg", odometry_min_std_yaw_deg);
     c.write(section, "start_at_ground_truth", start_at_ground_truth);
     c.write(section, "icp_max_range_m", icp_max_range_m);
+    c.write(section, "map_std_xy_m", map_std_xy_m);
+    c.write(section, "map_std_yaw_deg", map_std_yaw_deg);
     c.write(section, "pose_file_std_xy_m", pose_file_std_xy_m);
     c.write(section, "pose_file_std_yaw_deg", pose_file_std_yaw_deg);
 }
@@ -88,6 +92,8 @@ void SurveyOptions::check() const {
     c.require(odometry_min_std_xy_m > 0, "odometry_min_std_xy_m", "> 0");
     c.require(odometry_min_std_yaw_deg > 0, "odometry_min_std_yaw_deg", "> 0");
     c.require(icp_max_range_m >= 0, "icp_max_range_m", ">= 0 (0 = no limit)");
+    c.require(map_std_xy_m >= 0, "map_std_xy_m", ">= 0");
+    c.require(map_std_yaw_deg >= 0, "map_std_yaw_deg", ">= 0");
     c.require(pose_file_std_xy_m >= 0, "pose_file_std_xy_m", ">= 0");
     c.require(pose_file_std_yaw_deg >= 0, "pose_file_std_yaw_deg", ">= 0");
     c.throwIfFailed();

@@ -48,6 +48,11 @@ struct SurveyOptions : public mrpt::config::CLoadableOptions {
     /// returns graze the walls of a long drive sparsely and match the frontier of the map
     /// built so far, which pulls every scan back and shrinks the map along the drive.
     double icp_max_range_m = 0;
+    /// Error of the ICP-SLAM map itself, added to every laser pose's covariance: MCL's particle
+    /// spread is relative to the map and alone is over-confident (measured on mine-b-mini and
+    /// mine-a-mini: reference poses 0.03-0.11 m off with MCL sigmas of a few cm) [m].
+    double map_std_xy_m = 0.08;
+    double map_std_yaw_deg = 0.3;  ///< ... in heading [deg]
 
     // --- pose file (--poses) ---------------------------------------------------------------
     double pose_file_std_xy_m = 0.02;    ///< stated std of surveyed positions [m]
