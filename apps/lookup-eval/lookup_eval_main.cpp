@@ -1,7 +1,6 @@
 // lookup-eval: accuracy of localisation runs against ground truth, per traverse and method.
 //   lookup-eval --gt Q1.rawlog.GT.txt[,Q2...] --runs RUN1[,RUN2...] --out REPORT_DIR [--ini F]
 
-#include "lookup/common/cli.h"
 #include <mrpt/3rdparty/tclap/CmdLine.h>
 #include <mrpt/config/CConfigFile.h>
 #include <mrpt/core/exceptions.h>
@@ -10,6 +9,7 @@
 #include <fstream>
 #include <iostream>
 
+#include "lookup/common/cli.h"
 #include "lookup/eval/evaluator.h"
 
 int main(int argc, char** argv) {

@@ -5,13 +5,13 @@
 //                   [--matcher sad|orb|ecc]
 //                   [--realtime] [--max-frames N]
 
-#include "lookup/common/cli.h"
 #include <mrpt/3rdparty/tclap/CmdLine.h>
 #include <mrpt/core/exceptions.h>
 
 #include <cstdio>
 #include <iostream>
 
+#include "lookup/common/cli.h"
 #include "lookup/localize/localize_app.h"
 
 int main(int argc, char** argv) {

@@ -3,7 +3,6 @@
 //   lookup-train --db DB --train QUERY.rawlog[,...] [--ini FILE] [--out-model FILE]
 //                [--out DIR] [--init-model FILE] [--no-heatmaps] [--quiet]
 
-#include "lookup/common/cli.h"
 #include <mrpt/3rdparty/tclap/CmdLine.h>
 #include <mrpt/config/CConfigFile.h>
 
@@ -14,6 +13,7 @@
 
 #include <opencv2/imgcodecs.hpp>
 
+#include "lookup/common/cli.h"
 #include "lookup/database/reference_database.h"
 #include "lookup/fcn/heat_maps.h"
 #include "lookup/fcn/model.h"

@@ -2,7 +2,6 @@
 //   lookup-sim --preset mine-b-mini --out /tmp/mine-b-mini [--seed N]
 //   lookup-sim --scenario my.ini --out DIR
 
-#include "lookup/common/cli.h"
 #include <lookup/common/config.h>
 #include <lookup/sim/simulator.h>
 #include <mrpt/3rdparty/tclap/CmdLine.h>
@@ -11,6 +10,8 @@
 #include <unistd.h>
 #include <cstdio>
 #include <iostream>
+
+#include "lookup/common/cli.h"
 
 int main(int argc, char** argv) {
     TCLAP::CmdLine cmd("lookup-sim: synthetic underground mine with ground truth (MRPT rawlogs)",

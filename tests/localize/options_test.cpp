@@ -1,9 +1,9 @@
 #include <gtest/gtest.h>
 
-#include <cstdlib>
-#include <filesystem>
 #include <mrpt/config/CConfigFile.h>
 #include <mrpt/config/CConfigFileMemory.h>
+#include <cstdlib>
+#include <filesystem>
 
 #include "lookup/common/config.h"
 #include "lookup/localize/localizer_options.h"
@@ -59,8 +59,8 @@ TEST(LocalizeIni, AcquisitionKeysRoundTripAndAreChecked) {
 // with a non-zero status on an unknown flag instead of running with half-parsed options.
 TEST(AppCommandLines, UnknownFlagFailsAndHelpSucceeds) {
     const std::string bin = std::string(LOOKUP_BINARY_DIR) + "/bin/";
-    for (const char* app : {"lookup-localize", "lookup-eval", "lookup-sim", "lookup-survey",
-                            "lookup-coarse"}) {
+    for (const char* app :
+         {"lookup-localize", "lookup-eval", "lookup-sim", "lookup-survey", "lookup-coarse"}) {
         const std::string exe = bin + app;
         if (!std::filesystem::exists(exe)) continue;  // not built in this configuration
         EXPECT_NE(std::system((exe + " --no-such-flag >/dev/null 2>&1").c_str()), 0) << app;

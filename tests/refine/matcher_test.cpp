@@ -221,8 +221,7 @@ TEST(Matcher, MotionCompensationRefusesADegenerateHomography) {
     MatcherOptions o;
     const auto points = gridPoints(pair.ref.size(), 12, o.patch_px / 2);
     const ImagePyramid r = ImagePyramid::build(pair.ref, 2), q = ImagePyramid::build(pair.qry, 2);
-    for (const cv::Matx33d& H :
-         {cv::Matx33d::zeros(), cv::Matx33d(1, 0, NAN, 0, 1, 0, 0, 0, 1)}) {
+    for (const cv::Matx33d& H : {cv::Matx33d::zeros(), cv::Matx33d(1, 0, NAN, 0, 1, 0, 0, 0, 1)}) {
         for (const auto& m : matchPointsCompensated(r, q, points, H, o)) {
             EXPECT_FALSE(m.matched());
         }

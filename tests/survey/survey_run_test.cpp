@@ -1,8 +1,8 @@
 #include <gtest/gtest.h>
 
-#include <cmath>
 #include <mrpt/config/CConfigFile.h>
 #include <mrpt/obs/CObservationImage.h>
+#include <cmath>
 
 #include <filesystem>
 #include <fstream>

@@ -32,7 +32,8 @@ std::vector<PointMatch> matchPointsCompensated(const ImagePyramid& reference,
     std::vector<std::size_t> index;
     for (std::size_t i = 0; i < points.size(); ++i) {
         cv::Point2d q;
-        if (!applyHomography(H, cv::Point2d(points[i]), q) || std::abs(q.x) > 1e6 || std::abs(q.y) > 1e6) {
+        if (!applyHomography(H, cv::Point2d(points[i]), q) || std::abs(q.x) > 1e6 ||
+            std::abs(q.y) > 1e6) {
             continue;
         }
         const cv::Point2d c(std::round(q.x), std::round(q.y));

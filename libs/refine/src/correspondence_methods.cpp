@@ -88,7 +88,6 @@ void CorrespondenceOptions::check() const {
 // ---------------------------------------------------------------- matchers
 namespace {
 
-
 bool usableHomography(const cv::Matx33d& H) {
     return cv::checkRange(cv::Mat(H)) && std::abs(cv::determinant(H)) > 1e-12;
 }

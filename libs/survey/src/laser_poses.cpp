@@ -1,5 +1,5 @@
-#include <cmath>
 #include "lookup/survey/laser_poses.h"
+#include <cmath>
 
 #include <mrpt/bayes/CParticleFilter.h>
 #include <mrpt/io/CFileGZInputStream.h>

@@ -14,8 +14,8 @@ void SurveyOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& sour
          "forward_max_dt_s",      "max_pose_gap_s",        "max_outside_fraction",
          "ceiling_height_m",      "mcl_particles",         "mcl_init_std_xy_m",
          "mcl_init_std_yaw_deg",  "odometry_min_std_xy_m", "odometry_min_std_yaw_deg",
-         "start_at_ground_truth", "icp_max_range_m", "map_std_xy_m", "map_std_yaw_deg",       "pose_file_std_xy_m",
-         "pose_file_std_yaw_deg"});
+         "start_at_ground_truth", "icp_max_range_m",       "map_std_xy_m",
+         "map_std_yaw_deg",       "pose_file_std_xy_m",    "pose_file_std_yaw_deg"});
     ceiling_camera_label = s.getString("ceiling_camera_label", ceiling_camera_label);
     forward_camera_label = s.getString("forward_camera_label", forward_camera_label);
     lidar_label = s.getString("lidar_label", lidar_label);
