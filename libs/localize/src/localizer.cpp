@@ -334,14 +334,24 @@ std::shared_ptr<const refine::RefineResult> Localizer::acquire(
     struct Scored {
         std::shared_ptr<const refine::RefineResult> result;
         mrpt::poses::CPose2D fix;
+        std::size_t reference;
     };
+    // refineAgainst records its last attempt in `out`; the frame must report the one chosen.
+    const auto report = [&out](const std::shared_ptr<const refine::RefineResult>& r,
+                               std::vector<std::size_t> refs) {
+        out.refinement = r;
+        out.inlier_share = r->inlier_share;
+        out.reference_indices = std::move(refs);
+        return r;
+    };
+    const std::vector<std::size_t> failed_refs = out.reference_indices;
     std::vector<Scored> accepted;
     for (std::size_t candidate : acquisitionCandidates(coarse)) {
         const auto cand_pose = toPose2D(db_.reference(candidate).vehicle_pose);
         auto single = refineAgainst(query, {candidate}, cand_pose, out);
-        if (single->accepted()) accepted.push_back({single, single->pose.mean});
+        if (single->accepted()) accepted.push_back({single, single->pose.mean, candidate});
     }
-    if (accepted.empty()) return failed;
+    if (accepted.empty()) return report(failed, failed_refs);
     const auto best = std::max_element(accepted.begin(), accepted.end(), [](auto& a, auto& b) {
         return a.result->inlier_share < b.result->inlier_share;
     });
@@ -356,12 +366,12 @@ std::shared_ptr<const refine::RefineResult> Localizer::acquire(
                                 " m apart with inlier shares " +
                                 std::to_string(best->result->inlier_share) + " and " +
                                 std::to_string(other.result->inlier_share);
-            return ambiguous;
+            return report(ambiguous, {best->reference});
         }
     }
     const mrpt::poses::CPose2D fix = best->fix;
     auto confirmed = refineAgainst(query, referencesNear(fix), fix, out);
-    return confirmed->accepted() ? confirmed : best->result;
+    return confirmed->accepted() ? confirmed : report(best->result, {best->reference});
 }
 
 FrameResult Localizer::processCeiling(const mrpt::obs::CObservationImage& query) {
