@@ -1,5 +1,4 @@
 #include "lookup/survey/laser_poses.h"
-#include <cmath>
 
 #include <mrpt/bayes/CParticleFilter.h>
 #include <mrpt/io/CFileGZInputStream.h>
@@ -16,6 +15,7 @@
 #include <mrpt/slam/CMetricMapBuilderICP.h>
 #include <mrpt/slam/CMonteCarloLocalization2D.h>
 
+#include <cmath>
 #include <filesystem>
 #include <stdexcept>
 
@@ -31,6 +31,37 @@ mrpt::obs::CObservation::Ptr clipRange(const mrpt::obs::CObservation::Ptr& o, do
         if (clipped->getScanRange(i) > max_range_m) clipped->setScanRangeValidity(i, false);
     }
     return clipped;
+}
+
+/// Walks a traverse's time-ordered odometry and scans and calls `step(i, action, frame, scan)`
+/// per scan with the odometry increment since the previous scan as the action and the scan
+/// (clipped to `max_range_m`, 0 = as is) as the sensory frame: the form icp-slam and
+/// pf-localization take from actions/sensory-frames rawlogs, independent of odometry/scan
+/// time-stamp alignment.
+template <class Step>
+void forEachScanStep(const TraverseData& traverse,
+                     const mrpt::obs::CActionRobotMovement2D::TMotionModelOptions& motion,
+                     double max_range_m, Step&& step) {
+    bool have_odometry = false;
+    mrpt::poses::CPose2D last_used_odometry, latest_odometry;
+    for (std::size_t i = 0; i < traverse.laser_sequence.size(); ++i) {
+        const auto& o = traverse.laser_sequence[i];
+        if (auto odo = std::dynamic_pointer_cast<mrpt::obs::CObservationOdometry>(o)) {
+            latest_odometry = odo->odometry;
+            if (!have_odometry) last_used_odometry = latest_odometry;
+            have_odometry = true;
+            continue;
+        }
+        mrpt::obs::CActionRobotMovement2D move;
+        move.timestamp = o->timestamp;
+        move.computeFromOdometry(latest_odometry - last_used_odometry, motion);
+        last_used_odometry = latest_odometry;
+        mrpt::obs::CActionCollection action;
+        action.insert(move);
+        mrpt::obs::CSensoryFrame sf;
+        sf.insert(clipRange(o, max_range_m));
+        step(i, action, sf, *o);
+    }
 }
 
 }  // namespace
@@ -51,39 +82,22 @@ LaserMap buildMapIcpSlam(const TraverseData& traverse, const mrpt::config::CConf
     builder.initialize(mrpt::maps::CSimpleMap());
 
     LaserMap out;
-    // Fed as (odometry increment action, scan sensory frame) pairs, the form icp-slam uses for
-    // actions/sensory-frames rawlogs: independent of odometry/scan time-stamp alignment.
     mrpt::obs::CActionRobotMovement2D::TMotionModelOptions motion;
     motion.modelSelection = mrpt::obs::CActionRobotMovement2D::mmGaussian;
-    bool have_odometry = false;
-    mrpt::poses::CPose2D last_used_odometry, latest_odometry;
     const std::size_t n = traverse.laser_sequence.size();
-    for (std::size_t i = 0; i < n; ++i) {
-        const auto& o = traverse.laser_sequence[i];
-        if (auto odo = std::dynamic_pointer_cast<mrpt::obs::CObservationOdometry>(o)) {
-            latest_odometry = odo->odometry;
-            if (!have_odometry) last_used_odometry = latest_odometry;
-            have_odometry = true;
-            continue;
-        }
-        mrpt::obs::CActionRobotMovement2D move;
-        move.timestamp = o->timestamp;
-        move.computeFromOdometry(latest_odometry - last_used_odometry, motion);
-        last_used_odometry = latest_odometry;
-        mrpt::obs::CActionCollection action;
-        action.insert(move);
-        mrpt::obs::CSensoryFrame sf;
-        sf.insert(clipRange(o, max_range_m));
-        builder.processActionObservation(action, sf);
-        const auto pdf = builder.getCurrentPoseEstimation();
-        mrpt::poses::CPose3D mean;
-        pdf->getMean(mean);
-        out.icp_track.poses.push_back({mrpt::Clock::toDouble(o->timestamp), mean});
-        mrpt::math::CMatrixDouble33 cov;
-        cov.setZero();
-        out.icp_track.covs.push_back(cov);
-        if (progress && (i % 64 == 0 || i + 1 == n)) progress(double(i + 1) / double(n));
-    }
+    forEachScanStep(
+        traverse, motion, max_range_m,
+        [&](std::size_t i, auto& action, auto& sf, const mrpt::obs::CObservation& scan) {
+            builder.processActionObservation(action, sf);
+            const auto pdf = builder.getCurrentPoseEstimation();
+            mrpt::poses::CPose3D mean;
+            pdf->getMean(mean);
+            out.icp_track.poses.push_back({mrpt::Clock::toDouble(scan.timestamp), mean});
+            mrpt::math::CMatrixDouble33 cov;
+            cov.setZero();
+            out.icp_track.covs.push_back(cov);
+            if (progress && (i % 64 == 0 || i + 1 == n)) progress(double(i + 1) / double(n));
+        });
     const auto* maps = builder.getCurrentlyBuiltMetricMap();
     auto grid = maps ? maps->mapByClass<mrpt::maps::COccupancyGridMap2D>() : nullptr;
     if (!grid) {
@@ -122,37 +136,22 @@ LaserTrack localizeMcl(const TraverseData& traverse, const mrpt::maps::COccupanc
     motion.gaussianModel.minStdPHI = mrpt::DEG2RAD(options.odometry_min_std_yaw_deg);
 
     LaserTrack out;
-    bool have_odometry = false;
-    mrpt::poses::CPose2D last_used_odometry, latest_odometry;
     const std::size_t n = traverse.laser_sequence.size();
-    for (std::size_t i = 0; i < n; ++i) {
-        const auto& o = traverse.laser_sequence[i];
-        if (auto odo = std::dynamic_pointer_cast<mrpt::obs::CObservationOdometry>(o)) {
-            latest_odometry = odo->odometry;
-            if (!have_odometry) last_used_odometry = latest_odometry;
-            have_odometry = true;
-            continue;
-        }
-        // A scan: odometry increment since the previous scan as the action, the scan as the SF.
-        mrpt::obs::CActionRobotMovement2D move;
-        move.timestamp = o->timestamp;
-        move.computeFromOdometry(latest_odometry - last_used_odometry, motion);
-        last_used_odometry = latest_odometry;
-        mrpt::obs::CActionCollection action;
-        action.insert(move);
-        mrpt::obs::CSensoryFrame sf;
-        sf.insert(o);
-        pf.executeOn(pdf, &action, &sf);
+    forEachScanStep(
+        traverse, motion, 0.0,
+        [&](std::size_t i, auto& action, auto& sf, const mrpt::obs::CObservation& scan) {
+            pf.executeOn(pdf, &action, &sf);
 
-        auto [cov, mean] = pdf.getCovarianceAndMean();
-        // MCL's spread is relative to the map; the map's own error comes on top.
-        cov(0, 0) += options.map_std_xy_m * options.map_std_xy_m;
-        cov(1, 1) += options.map_std_xy_m * options.map_std_xy_m;
-        cov(2, 2) += std::pow(mrpt::DEG2RAD(options.map_std_yaw_deg), 2);
-        out.poses.push_back({mrpt::Clock::toDouble(o->timestamp), mrpt::poses::CPose3D(mean)});
-        out.covs.push_back(cov);
-        if (progress && (i % 64 == 0 || i + 1 == n)) progress(double(i + 1) / double(n));
-    }
+            auto [cov, mean] = pdf.getCovarianceAndMean();
+            // MCL's spread is relative to the map; the map's own error comes on top.
+            cov(0, 0) += options.map_std_xy_m * options.map_std_xy_m;
+            cov(1, 1) += options.map_std_xy_m * options.map_std_xy_m;
+            cov(2, 2) += std::pow(mrpt::DEG2RAD(options.map_std_yaw_deg), 2);
+            out.poses.push_back(
+                {mrpt::Clock::toDouble(scan.timestamp), mrpt::poses::CPose3D(mean)});
+            out.covs.push_back(cov);
+            if (progress && (i % 64 == 0 || i + 1 == n)) progress(double(i + 1) / double(n));
+        });
     return out;
 }
 

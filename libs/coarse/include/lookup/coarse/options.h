@@ -35,7 +35,7 @@ struct CoarseOptions : public mrpt::config::CLoadableOptions {
     // --- Online behaviour ----------------------------------------------------------------------
     int tracking_half_window_refs = 25;  ///< while tracking, candidates lie within this
                                          ///< half-width of the predicted reference [references]
-    double min_confidence = 0.2;        ///< below this margin (see CoarseResult::confidence) the
+    double min_confidence = 0.2;         ///< below this margin (see CoarseResult::confidence) the
                                          ///< match is not trusted: a global search follows
 
     // --- Odometry (optional) -------------------------------------------------------------------
