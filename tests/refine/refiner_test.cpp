@@ -130,6 +130,10 @@ TEST(Refiner, BadInputIsARejectionWithAReason) {
     auto r = refiner.refine(blank, s.camera, s.on_vehicle, {{}, coarse, {}}, refs);
     EXPECT_EQ(r.status, RefineStatus::TooFewMatches) << r.reason;
     EXPECT_NE(r.reason.find("inliers 0 of 24"), std::string::npos) << r.reason;
+    // The reason says why the points failed: on a flat query the SAD surface is flat and its
+    // first minimum is the window's corner.
+    EXPECT_NE(r.reason.find("(24 peak on the search-window border)"), std::string::npos)
+        << r.reason;
     EXPECT_EQ(r.source, PoseSource::Coarse);
 
     // NaN in the query intrinsics.

@@ -55,6 +55,22 @@ double msSince(Clock::time_point t0) {
     return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 }
 
+// Why sample points did not become inliers, for the fallback reason: "(12 matched, 9 not
+// distinctive, ...)". Points outside the image are left out, as from the inlier share.
+std::string matchStatusSummary(const std::vector<ReferenceOutcome>& references) {
+    constexpr MatchStatus kShown[] = {MatchStatus::Matched, MatchStatus::LowTexture,
+                                      MatchStatus::NotDistinctive, MatchStatus::BorderPeak};
+    std::string out;
+    for (MatchStatus status : kShown) {
+        int n = 0;
+        for (const auto& ref : references)
+            for (const auto& m : ref.matches) n += m.status == status ? 1 : 0;
+        if (n == 0) continue;
+        out += (out.empty() ? " (" : ", ") + std::to_string(n) + " " + toString(status);
+    }
+    return out.empty() ? out : out + ")";
+}
+
 // Rectified pixels for the estimator (matching runs on the raw images).
 std::vector<cv::Point2d> rectify(const std::vector<cv::Point2f>& px,
                                  const mrpt::img::TCamera& camera, const Pinhole& pinhole) {
@@ -294,7 +310,8 @@ RefineResult Refiner::refine(const cv::Mat& query_image, const mrpt::img::TCamer
     res.times.estimate_ms += msSince(t0);
 
     const auto counts = "inliers " + std::to_string(res.inliers) + " of " +
-                        std::to_string(res.sample_points) + " sample points";
+                        std::to_string(res.sample_points) + " sample points" +
+                        matchStatusSummary(res.references);
     if (!res.estimate.ok) {
         const bool few = res.inliers < o.estimator.min_inliers;
         return fallback(few ? RefineStatus::TooFewMatches : RefineStatus::EstimationFailed,
