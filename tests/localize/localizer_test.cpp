@@ -7,12 +7,16 @@
 
 #include <filesystem>
 #include <fstream>
+#include <opencv2/imgproc.hpp>
 
+#include "lookup/coarse/options.h"
 #include "lookup/common/pose_files.h"
 #include "lookup/common/rawlog_io.h"
 #include "lookup/database/database_writer.h"
+#include "lookup/database/reference_database.h"
 #include "lookup/eval/evaluator.h"
 #include "lookup/localize/localize_app.h"
+#include "lookup/localize/localizer.h"
 #include "lookup/refine/testing/synthetic_ceiling.h"
 
 namespace fs = std::filesystem;
@@ -152,6 +156,88 @@ TEST(Localize, RefinesCoarsePosesToCentimetresOnASyntheticCeiling) {
                        {eval::loadRun(live.base.out_dir)}, {});
     ASSERT_EQ(live_report.rows.size(), 2u);
     EXPECT_LT(live_report.rows[1].error.mean_m, 0.03);
+}
+
+// A forward view for frame k of a traverse: smooth random texture, distinct per frame and
+// per traverse (seed), as a tunnel seen from a different lateral position would be.
+mrpt::obs::CObservationImage::Ptr forwardView(int traverse_seed, int k, double t) {
+    cv::Mat img(96, 128, CV_8UC1);
+    cv::RNG rng(traverse_seed * 1000 + k);
+    rng.fill(img, cv::RNG::UNIFORM, 0, 255);
+    cv::GaussianBlur(img, img, cv::Size(0, 0), 3.0);
+    auto obs = mrpt::obs::CObservationImage::Create();
+    obs->sensorLabel = "FORWARD_CAM";
+    obs->timestamp = mrpt::Clock::fromDouble(t);
+    obs->image = mrpt::img::CImage(img, mrpt::img::DEEP_COPY);
+    return obs;
+}
+
+TEST(Localize, CoarseStageMatchesEachSurveyTraverseAsItsOwnSequence) {
+    Scene scene;
+    const auto dir = freshDir("traverses");
+    // Two survey traverses with unrelated forward views; "long" has more references, so a
+    // coarse stage fed one traverse by size would never see the query's own ("short").
+    const struct {
+        const char* name;
+        int seed, frames;
+        double t0;
+    } traverses[] = {{"long", 1, 60, 100.0}, {"short", 2, 45, 500.0}};
+    {
+        database::DatabaseWriter writer((dir / "db").string());
+        for (const auto& tr : traverses) {
+            for (int k = 0; k < tr.frames; ++k) {
+                database::ReferenceInput in;
+                in.traverse = tr.name;
+                in.vehicle_pose = mrpt::poses::CPose3D(-8 + 0.25 * k, 0, 0, 0, 0, 0);
+                in.forward_vehicle_pose = in.vehicle_pose;
+                in.vehicle_cov.setIdentity();
+                in.vehicle_cov *= 1e-4;
+                in.ceiling = scene.image(in.vehicle_pose, tr.t0 + 0.1 * k);
+                in.forward = forwardView(tr.seed, k, tr.t0 + 0.1 * k);
+                in.travelled_m = 0.25 * k;
+                writer.add(in);
+            }
+        }
+        database::DatabaseInfo info;
+        info.name = "two traverses";
+        info.ceiling_camera = scene.camera;
+        info.ceiling_height_m = kCeilingHeight;
+        info.pose_source = "test";
+        writer.commit(info);
+    }
+    const auto db = database::ReferenceDatabase::load((dir / "db").string());
+    coarse::CoarseOptions options;  // sequence_length 30
+    auto source = localize::makeSequenceCoarseSource(db, options, "");
+
+    // The query re-drives "short": its views plus a little sensor noise.
+    int usable = 0, on_short = 0, at_the_right_frame = 0;
+    for (int k = 0; k < 40; ++k) {
+        auto view = forwardView(2, k, 900.0 + 0.1 * k);
+        cv::Mat noisy = view->image.asCvMat<cv::Mat>(mrpt::img::SHALLOW_COPY).clone();
+        cv::Mat noise(noisy.size(), CV_8UC1);
+        cv::randu(noise, 0, 6);
+        noisy += noise;
+        view->image = mrpt::img::CImage(noisy, mrpt::img::DEEP_COPY);
+        coarse::CoarseQuery q;
+        q.time_s = 900.0 + 0.1 * k;
+        q.forward_image = &view->image;
+        const auto r = source->locate(q);
+        if (!r.usable()) continue;
+        ++usable;
+        const auto& ref = db.reference(r.reference_index);
+        on_short += ref.traverse == "short";
+        // References of "short" were written after the 60 of "long", one per frame.
+        at_the_right_frame +=
+            ref.traverse == "short" && std::abs(static_cast<int>(r.reference_index) - 60 - k) <= 1;
+    }
+    EXPECT_GE(usable, 8);  // from the 30th frame on
+    EXPECT_EQ(on_short, usable);
+    EXPECT_EQ(at_the_right_frame, usable);
+
+    // Naming a traverse restricts the coarse stage to it.
+    auto only_long = localize::makeSequenceCoarseSource(db, options, "long");
+    EXPECT_EQ(only_long->name().find('+'), std::string::npos);
+    EXPECT_THROW(localize::makeSequenceCoarseSource(db, options, "absent"), std::runtime_error);
 }
 
 TEST(Localize, MissingDatabaseAndRawlogWithoutCeilingImagesAreRefused) {

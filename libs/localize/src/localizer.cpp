@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <map>
 #include <opencv2/imgcodecs.hpp>
 
 #include "lookup/coarse/coarse_localizer.h"
@@ -42,18 +43,6 @@ mrpt::poses::CPosePDFGaussian gaussian(const mrpt::poses::CPose2D& mean, double 
     return mrpt::poses::CPosePDFGaussian(mean, cov);
 }
 
-// The traverse holding the most references: the natural default for the coarse sequence.
-std::string largestTraverse(const database::ReferenceDatabase& db) {
-    std::map<std::string, std::size_t> counts;
-    for (const auto& r : db.references()) counts[r.traverse] += r.has_forward;
-    std::string best;
-    std::size_t best_count = 0;
-    for (const auto& [name, n] : counts) {
-        if (n > best_count) best = name, best_count = n;
-    }
-    return best;
-}
-
 // Coarse source that reports database reference indices instead of sequence indices.
 class DatabaseSequenceSource : public coarse::CoarseSource {
   public:
@@ -70,6 +59,33 @@ class DatabaseSequenceSource : public coarse::CoarseSource {
   private:
     std::unique_ptr<coarse::CoarseLocalizer> inner_;
     std::vector<std::size_t> db_index_;
+};
+
+// One sequence matcher per survey traverse; per frame the most confident usable match wins.
+// Laterally offset traverses see the tunnel from different places: matched as separate
+// sequences they do not alias each other, and the one driven nearest the query's line wins.
+class MultiTraverseSource : public coarse::CoarseSource {
+  public:
+    explicit MultiTraverseSource(std::vector<std::unique_ptr<coarse::CoarseSource>> sources)
+        : sources_(std::move(sources)) {}
+    coarse::CoarseResult locate(const coarse::CoarseQuery& query) override {
+        std::optional<coarse::CoarseResult> best;
+        for (auto& source : sources_) {
+            auto r = source->locate(query);
+            const bool better = !best || (r.usable() && !best->usable()) ||
+                                (r.usable() == best->usable() && r.confidence > best->confidence);
+            if (better) best = std::move(r);
+        }
+        return *best;
+    }
+    std::string name() const override {
+        std::string out;
+        for (const auto& s : sources_) out += (out.empty() ? "" : "+") + s->name();
+        return out;
+    }
+
+  private:
+    std::vector<std::unique_ptr<coarse::CoarseSource>> sources_;
 };
 
 }  // namespace
@@ -94,26 +110,46 @@ std::string heatMapFileName(std::size_t index) {
 std::unique_ptr<coarse::CoarseSource> makeSequenceCoarseSource(
     const database::ReferenceDatabase& db, const coarse::CoarseOptions& coarse_options,
     const std::string& traverse) {
-    const std::string chosen = traverse.empty() ? largestTraverse(db) : traverse;
-    auto sequence = std::make_shared<coarse::ReferenceDescriptors>(coarse_options);
-    std::vector<std::size_t> db_index;
+    struct Sequence {
+        std::shared_ptr<coarse::ReferenceDescriptors> descriptors;
+        std::vector<std::size_t> db_index;
+    };
+    std::map<std::string, Sequence> sequences;  // by traverse name
     for (std::size_t i : db.forwardSequence()) {
         const auto& ref = db.reference(i);
-        if (ref.traverse != chosen) continue;
+        if (!traverse.empty() && ref.traverse != traverse) continue;
         const cv::Mat image = db.forwardImage(i);
-        if (sequence->empty()) sequence->setImageSize(image.cols, image.rows);
-        sequence->add(ref.forward_time_s,
-                      coarse::computeDescriptor(mrpt::img::CImage(image, mrpt::img::SHALLOW_COPY),
-                                                coarse_options),
-                      ref.vehicle_pose);
-        db_index.push_back(i);
+        auto& seq = sequences[ref.traverse];
+        if (!seq.descriptors) {
+            seq.descriptors = std::make_shared<coarse::ReferenceDescriptors>(coarse_options);
+            seq.descriptors->setImageSize(image.cols, image.rows);
+        }
+        seq.descriptors->add(ref.forward_time_s,
+                             coarse::computeDescriptor(
+                                 mrpt::img::CImage(image, mrpt::img::SHALLOW_COPY), coarse_options),
+                             ref.vehicle_pose);
+        seq.db_index.push_back(i);
     }
-    if (sequence->empty()) {
-        throw std::runtime_error(db.directory() + ": no forward images for traverse '" + chosen +
-                                 "': the coarse stage needs them (or give a coarse file)");
+    std::vector<std::unique_ptr<coarse::CoarseSource>> sources;
+    for (auto& [name, seq] : sequences) {
+        // A traverse shorter than one query sequence cannot be matched; others still can.
+        if (seq.descriptors->size() < static_cast<std::size_t>(coarse_options.sequence_length) &&
+            (traverse.empty() && sequences.size() > 1)) {
+            continue;
+        }
+        sources.push_back(std::make_unique<DatabaseSequenceSource>(
+            std::make_unique<coarse::CoarseLocalizer>(seq.descriptors, coarse_options),
+            std::move(seq.db_index)));
     }
-    return std::make_unique<DatabaseSequenceSource>(
-        std::make_unique<coarse::CoarseLocalizer>(sequence, coarse_options), std::move(db_index));
+    if (sources.empty()) {
+        throw std::runtime_error(db.directory() + ": no forward images" +
+                                 (traverse.empty()
+                                      ? std::string(" in any traverse long enough for a sequence")
+                                      : " for traverse '" + traverse + "'") +
+                                 ": the coarse stage needs them (or give a coarse file)");
+    }
+    if (sources.size() == 1) return std::move(sources.front());
+    return std::make_unique<MultiTraverseSource>(std::move(sources));
 }
 
 Localizer::Localizer(const database::ReferenceDatabase& db, const LocalizerOptions& options,

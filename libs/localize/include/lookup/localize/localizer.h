@@ -68,9 +68,10 @@ std::string heatMapFileName(std::size_t index);
 /// missing.
 cv::Mat loadHeatMap(const database::ReferenceDatabase& db, std::size_t index);
 
-/// Builds the built-in coarse stage: SeqSLAM over the forward images of one survey traverse of
-/// the database (LocalizerOptions::coarse_traverse). Throws std::runtime_error when the
-/// database has no forward images.
+/// Builds the built-in coarse stage: SeqSLAM over the forward images of the database, one
+/// sequence per survey traverse (or only `traverse`, LocalizerOptions::coarse_traverse); the
+/// most confident usable match wins per frame. Throws std::runtime_error when the database has
+/// no usable forward images.
 std::unique_ptr<coarse::CoarseSource> makeSequenceCoarseSource(
     const database::ReferenceDatabase& db, const coarse::CoarseOptions& coarse_options,
     const std::string& traverse);

@@ -28,8 +28,9 @@ struct LocalizerOptions : public mrpt::config::CLoadableOptions {
     /// from the best fix scores within this margin of it (aliasing: rock-bolt grids, mesh).
     double acquisition_ambiguity_margin = 0.1;
     double acquisition_ambiguity_distance_m = 1.0;  ///< [m]
-    /// Survey traverse whose forward images feed the coarse matcher ("" = the one with the most
-    /// references). One traverse: several laterally offset ones would alias each other.
+    /// Survey traverse whose forward images feed the coarse matcher. "" = every traverse, each
+    /// matched as its own sequence (laterally offset traverses would alias each other in one),
+    /// the most confident match winning per frame.
     std::string coarse_traverse;
 
     /// Replay at the recorded rate, dropping ceiling frames that the localiser cannot start
