@@ -7,6 +7,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <vector>
 #include <opencv2/imgproc.hpp>
 
 #include "lookup/coarse/options.h"
@@ -52,19 +53,47 @@ fs::path freshDir(const std::string& name) {
     return dir;
 }
 
-// References every 0.25 m along y = 0 from x = -8 to 8.
-void writeDatabase(const Scene& scene, const std::string& dir) {
+// A forward view for frame k of a traverse: smooth random texture, distinct per frame and
+// per traverse (seed), as a tunnel seen from a different lateral position would be.
+mrpt::obs::CObservationImage::Ptr forwardView(int traverse_seed, int k, double t) {
+    cv::Mat img(96, 128, CV_8UC1);
+    cv::RNG rng(traverse_seed * 1000 + k);
+    rng.fill(img, cv::RNG::UNIFORM, 0, 255);
+    cv::GaussianBlur(img, img, cv::Size(0, 0), 3.0);
+    auto obs = mrpt::obs::CObservationImage::Create();
+    obs->sensorLabel = "FORWARD_CAM";
+    obs->timestamp = mrpt::Clock::fromDouble(t);
+    obs->image = mrpt::img::CImage(img, mrpt::img::DEEP_COPY);
+    return obs;
+}
+
+// One survey traverse: `references` every 0.25 m along y = 0 from x = -8, 0.1 s apart from
+// t0; with forward views when forward_seed > 0.
+struct SurveyTraverse {
+    const char* name;
+    int references;
+    double t0;
+    int forward_seed = 0;
+};
+
+void writeDatabase(const Scene& scene, const std::string& dir,
+                   const std::vector<SurveyTraverse>& traverses) {
     database::DatabaseWriter writer(dir);
-    int k = 0;
-    for (double x = -8; x <= 8.001; x += 0.25, ++k) {
-        database::ReferenceInput in;
-        in.traverse = "survey";
-        in.vehicle_pose = mrpt::poses::CPose3D(x, 0, 0, 0, 0, 0);
-        in.vehicle_cov.setIdentity();
-        in.vehicle_cov *= 1e-4;
-        in.ceiling = scene.image(in.vehicle_pose, 100.0 + 0.1 * k);
-        in.travelled_m = x + 8;
-        writer.add(in);
+    for (const auto& tr : traverses) {
+        for (int k = 0; k < tr.references; ++k) {
+            database::ReferenceInput in;
+            in.traverse = tr.name;
+            in.vehicle_pose = mrpt::poses::CPose3D(-8 + 0.25 * k, 0, 0, 0, 0, 0);
+            in.vehicle_cov.setIdentity();
+            in.vehicle_cov *= 1e-4;
+            in.ceiling = scene.image(in.vehicle_pose, tr.t0 + 0.1 * k);
+            if (tr.forward_seed > 0) {
+                in.forward = forwardView(tr.forward_seed, k, tr.t0 + 0.1 * k);
+                in.forward_vehicle_pose = in.vehicle_pose;
+            }
+            in.travelled_m = 0.25 * k;
+            writer.add(in);
+        }
     }
     database::DatabaseInfo info;
     info.name = "synthetic";
@@ -79,7 +108,7 @@ void writeDatabase(const Scene& scene, const std::string& dir) {
 TEST(Localize, RefinesCoarsePosesToCentimetresOnASyntheticCeiling) {
     Scene scene;
     const auto dir = freshDir("planar");
-    writeDatabase(scene, (dir / "db").string());
+    writeDatabase(scene, (dir / "db").string(), {{"survey", 65, 100.0}});  // x = -8 .. 8
 
     // Query drive: 0.4 m to the left of the survey line, slightly rotated, 20 frames.
     common::PoseTrack truth, coarse;
@@ -158,53 +187,13 @@ TEST(Localize, RefinesCoarsePosesToCentimetresOnASyntheticCeiling) {
     EXPECT_LT(live_report.rows[1].error.mean_m, 0.03);
 }
 
-// A forward view for frame k of a traverse: smooth random texture, distinct per frame and
-// per traverse (seed), as a tunnel seen from a different lateral position would be.
-mrpt::obs::CObservationImage::Ptr forwardView(int traverse_seed, int k, double t) {
-    cv::Mat img(96, 128, CV_8UC1);
-    cv::RNG rng(traverse_seed * 1000 + k);
-    rng.fill(img, cv::RNG::UNIFORM, 0, 255);
-    cv::GaussianBlur(img, img, cv::Size(0, 0), 3.0);
-    auto obs = mrpt::obs::CObservationImage::Create();
-    obs->sensorLabel = "FORWARD_CAM";
-    obs->timestamp = mrpt::Clock::fromDouble(t);
-    obs->image = mrpt::img::CImage(img, mrpt::img::DEEP_COPY);
-    return obs;
-}
-
 TEST(Localize, CoarseStageMatchesEachSurveyTraverseAsItsOwnSequence) {
     Scene scene;
     const auto dir = freshDir("traverses");
     // Two survey traverses with unrelated forward views; "long" has more references, so a
     // coarse stage fed one traverse by size would never see the query's own ("short").
-    const struct {
-        const char* name;
-        int seed, frames;
-        double t0;
-    } traverses[] = {{"long", 1, 60, 100.0}, {"short", 2, 45, 500.0}};
-    {
-        database::DatabaseWriter writer((dir / "db").string());
-        for (const auto& tr : traverses) {
-            for (int k = 0; k < tr.frames; ++k) {
-                database::ReferenceInput in;
-                in.traverse = tr.name;
-                in.vehicle_pose = mrpt::poses::CPose3D(-8 + 0.25 * k, 0, 0, 0, 0, 0);
-                in.forward_vehicle_pose = in.vehicle_pose;
-                in.vehicle_cov.setIdentity();
-                in.vehicle_cov *= 1e-4;
-                in.ceiling = scene.image(in.vehicle_pose, tr.t0 + 0.1 * k);
-                in.forward = forwardView(tr.seed, k, tr.t0 + 0.1 * k);
-                in.travelled_m = 0.25 * k;
-                writer.add(in);
-            }
-        }
-        database::DatabaseInfo info;
-        info.name = "two traverses";
-        info.ceiling_camera = scene.camera;
-        info.ceiling_height_m = kCeilingHeight;
-        info.pose_source = "test";
-        writer.commit(info);
-    }
+    writeDatabase(scene, (dir / "db").string(),
+                  {{"long", 60, 100.0, /*forward_seed=*/1}, {"short", 45, 500.0, 2}});
     const auto db = database::ReferenceDatabase::load((dir / "db").string());
     coarse::CoarseOptions options;  // sequence_length 30
     auto source = localize::makeSequenceCoarseSource(db, options, "");
@@ -250,7 +239,7 @@ TEST(Localize, MissingDatabaseAndRawlogWithoutCeilingImagesAreRefused) {
     EXPECT_THROW(localize::runLocalization(req), std::exception);
 
     Scene scene;
-    writeDatabase(scene, (dir / "db").string());
+    writeDatabase(scene, (dir / "db").string(), {{"survey", 65, 100.0}});  // x = -8 .. 8
     {
         common::RawlogWriter rawlog(req.rawlog);
         mrpt::obs::CObservationOdometry odo;

@@ -33,28 +33,28 @@ TEST(SurveyOptions, ShareIniLoadsAndRoundTrips) {
     EXPECT_DOUBLE_EQ(b.map_std_xy_m, 0.3);
 }
 
-TEST(SurveyOptions, NegativeIcpMaxRangeIsRefusedByName) {
+namespace {
+// Loading `key = value` must fail with a ConfigError that names the key.
+void expectRefusedByName(const char* key, double value) {
     mrpt::config::CConfigFileMemory mem;
-    mem.write("survey", "icp_max_range_m", -3.0);
+    mem.write("survey", key, value);
     SurveyOptions o;
     try {
         o.loadFromConfigFile(mem, "survey");
-        FAIL() << "negative icp_max_range_m accepted";
+        FAIL() << key << " = " << value << " accepted";
     } catch (const lookup::common::ConfigError& e) {
-        EXPECT_NE(std::string(e.what()).find("icp_max_range_m"), std::string::npos);
+        EXPECT_NE(std::string(e.what()).find(key), std::string::npos) << e.what();
     }
+}
+}  // namespace
+
+TEST(SurveyOptions, NegativeIcpMaxRangeIsRefusedByName) {
+    expectRefusedByName("icp_max_range_m", -3.0);
 }
 
 TEST(SurveyOptions, RejectsBadFieldAndUnknownKey) {
-    mrpt::config::CConfigFileMemory mem;
-    mem.write("survey", "keyframe_spacing_m", -1.0);
+    expectRefusedByName("keyframe_spacing_m", -1.0);
     SurveyOptions o;
-    try {
-        o.loadFromConfigFile(mem, "survey");
-        FAIL() << "negative spacing accepted";
-    } catch (const lookup::common::ConfigError& e) {
-        EXPECT_NE(std::string(e.what()).find("keyframe_spacing_m"), std::string::npos);
-    }
     mrpt::config::CConfigFileMemory typo;
     typo.write("survey", "keyframe_spacin_m", 0.3);
     EXPECT_THROW(o.loadFromConfigFile(typo, "survey"), lookup::common::ConfigError);

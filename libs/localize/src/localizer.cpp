@@ -134,7 +134,7 @@ std::unique_ptr<coarse::CoarseSource> makeSequenceCoarseSource(
     for (auto& [name, seq] : sequences) {
         // A traverse shorter than one query sequence cannot be matched; others still can.
         if (seq.descriptors->size() < static_cast<std::size_t>(coarse_options.sequence_length) &&
-            (traverse.empty() && sequences.size() > 1)) {
+            sequences.size() > 1) {
             continue;
         }
         sources.push_back(std::make_unique<DatabaseSequenceSource>(
