@@ -157,6 +157,36 @@ BENCHMARK_CAPTURE(matcherBench, MineB_12pts_exhaustive_scalar, exhaustive(mineB(
                   SimdLevel::Scalar, false)
     ->Iterations(8);
 
+// Motion-compensated matching (what the localiser runs): the reference warped into the query
+// frame by the predicted ceiling homography (here the true one), then the SAD search. The
+// warp is done per sample point and pyramid level, so the cost follows the number of points.
+void compensatedMatcherBench(benchmark::State& state, MatcherOptions o, int points) {
+    OneCore one_core;
+    const World& w = world();
+    const auto sample =
+        gridPoints(cv::Size(640, 480), points, o.patch_px / 2 + o.search_range_px / 2);
+    double error_sum = 0;
+    long matched = 0, total = 0;
+    std::size_t i = 0;
+    for (auto _ : state) {
+        const auto& p = w.pairs[i++ % w.pairs.size()];
+        const auto m = matchPointsCompensated(p.ref_pyramid, p.query_pyramid, sample, p.H, o);
+        benchmark::DoNotOptimize(m.data());
+        for (const auto& x : m) {
+            ++total;
+            if (!x.matched()) continue;
+            ++matched;
+            error_sum +=
+                cv::norm(cv::Point2d(x.query_px) - apply(p.H, cv::Point2d(x.reference_px)));
+        }
+    }
+    state.SetItemsProcessed(state.iterations());
+    state.counters["err_px"] = matched ? error_sum / matched : -1;
+    state.counters["matched"] = total ? double(matched) / total : 0;
+}
+BENCHMARK_CAPTURE(compensatedMatcherBench, Compensated_MineA_12pts, mineA(), 12);
+BENCHMARK_CAPTURE(compensatedMatcherBench, Compensated_MineA_24pts, mineA(), 24);
+
 // The OpenCV way to do the same search: cv::matchTemplate (no SAD there; TM_SQDIFF), exhaustive
 // over the Mine B window, integer peak. Shows what the hand-written SAD path buys.
 void matchTemplateBench(benchmark::State& state, int points) {

@@ -1,3 +1,4 @@
+#include <algorithm>
 #include <cmath>
 #include <opencv2/imgproc.hpp>
 
@@ -50,14 +51,38 @@ std::vector<PointMatch> matchPointsCompensated(const ImagePyramid& reference,
     }
     if (centres.empty()) return out;
 
-    // The reference as the query camera would see it (black where the reference has no pixel;
-    // the corner test keeps every used patch off that area).
-    cv::Mat warped;
-    cv::warpPerspective(ref0, warped, cv::Mat(H), qry0.size(), cv::INTER_LINEAR,
-                        cv::BORDER_CONSTANT, cv::Scalar(0));
-    ImagePyramid warped_pyramid =
-        ImagePyramid::build(warped, int(query.levels.size()) - 1, /*normalize=*/false);
+    // The reference as the query camera would see it, but only where the matcher reads it:
+    // each point's patch on each pyramid level, warped from the reference's own level with
+    // the homography scaled to that level (level k pixel i sits at level-0 pixel 2^k i, as
+    // pyrDown has it). Warping whole images cost more than the search itself and did not
+    // shrink with fewer sample points.
+    const int n_levels = int(std::min(reference.levels.size(), query.levels.size()));
+    ImagePyramid warped_pyramid;
     warped_pyramid.normalized = reference.normalized;
+    for (int k = 0; k < n_levels; ++k) {
+        const cv::Mat& q = query.levels[k];
+        // Zero outside the patches; 32 spare columns as ImagePyramid::build leaves for SIMD.
+        cv::Mat buffer(q.rows, q.cols + 32, CV_8UC1, cv::Scalar(0));
+        cv::Mat level = buffer(cv::Rect(0, 0, q.cols, q.rows));
+        const double s = 1.0 / (1 << k);
+        const cv::Matx33d S(s, 0, 0, 0, s, 0, 0, 0, 1), S_inv(1 / s, 0, 0, 0, 1 / s, 0, 0, 0, 1);
+        const cv::Matx33d H_k = S * H * S_inv;
+        const int side = options.patch_px >> k;
+        for (const cv::Point2f& c : centres) {
+            // The matcher's patch at this level, one pixel wider each side.
+            const cv::Point centre(int(c.x) >> k, int(c.y) >> k);
+            const cv::Rect patch =
+                cv::Rect(centre.x - side / 2 - 1, centre.y - side / 2 - 1, side + 2, side + 2) &
+                cv::Rect(0, 0, level.cols, level.rows);
+            if (patch.empty()) continue;
+            const cv::Matx33d to_patch =
+                cv::Matx33d(1, 0, -patch.x, 0, 1, -patch.y, 0, 0, 1) * H_k;
+            cv::Mat dst = level(patch);
+            cv::warpPerspective(reference.levels[k], dst, cv::Mat(to_patch), patch.size(),
+                                cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar(0));
+        }
+        warped_pyramid.levels.push_back(level);
+    }
 
     std::vector<PointMatch> matched =
         matchPoints(warped_pyramid, query, centres, {}, options, simd);
