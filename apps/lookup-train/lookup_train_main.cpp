@@ -117,9 +117,7 @@ int main(int argc, char** argv) {
         options.check();
 
         if (!heat_only.getValue().empty()) {
-            const auto model = lookup::fcn::HeatMapModel::load(heat_only.getValue());
-            const auto database = lookup::database::ReferenceDatabase::load(db.getValue());
-            const auto w = lookup::fcn::writeHeatMaps(database, model);
+            const auto w = lookup::fcn::writeHeatMapsWithModel(db.getValue(), heat_only.getValue());
             std::printf("heat maps: %s/%s (%zu references, %.1f s) from %s\n",
                         db.getValue().c_str(), w.directory.c_str(), w.count, w.seconds,
                         heat_only.getValue().c_str());

@@ -1,6 +1,7 @@
 // runTraining end to end on the pipe fixture (report, model, heat maps), and the failures that
 // must leave the database untouched: no overlap between the query and the database, too few
-// references, a model of another architecture to start from.
+// references, a model of another architecture to start from; and --heatmaps-only (a saved model
+// drawing another database's heat maps).
 
 #include <gtest/gtest.h>
 
@@ -10,6 +11,7 @@
 #include "fixture.h"
 #include "lookup/database/reference_database.h"
 #include "lookup/fcn/train_app.h"
+#include "lookup/localize/localizer.h"
 
 using namespace lookup;
 using namespace lookup::fcn;
@@ -119,4 +121,34 @@ TEST(TrainApp, TooFewReferencesAndAnotherArchitectureAreRefused) {
     s.req.init_model = (s.dir / "other.pt").string();
     expectThrowNaming(s, "other.pt", "another architecture");
     EXPECT_EQ(snapshot(s.db), before);
+}
+
+TEST(TrainApp, HeatMapsOnlyDrawsAnotherDatabaseWithASavedModel) {
+    TrainSetup s = makeSetup("app_heat_only");
+    const fs::path other = s.dir / "other_db";
+    fixture::writeDatabase(other.string(), {10.0, 10.5, 11.0, 11.5});
+    const HeatMapModel model(s.options.network, 9);
+    model.save((s.dir / "model.pt").string());
+
+    const auto w = writeHeatMapsWithModel(other.string(), (s.dir / "model.pt").string());
+    EXPECT_EQ(w.count, 4u);
+    const auto db = database::ReferenceDatabase::load(other.string());
+    EXPECT_EQ(db.info().heatmaps_dir, w.directory);
+    for (std::size_t i = 0; i < db.size(); ++i) {
+        const cv::Mat stored = localize::loadHeatMap(db, i);
+        const cv::Mat predicted = model.predict(db.ceilingImage(i));
+        ASSERT_EQ(stored.size(), predicted.size());
+        EXPECT_LT(cv::norm(stored, predicted, cv::NORM_INF), 1.0 / 65535 + 1e-6);
+    }
+
+    // A corrupt model is refused by name and the heat maps just written stay.
+    const auto before = snapshot(other);
+    std::ofstream((s.dir / "corrupt.pt").string()) << "not a model";
+    try {
+        writeHeatMapsWithModel(other.string(), (s.dir / "corrupt.pt").string());
+        FAIL() << "a corrupt model was accepted";
+    } catch (const std::runtime_error& e) {
+        EXPECT_NE(std::string(e.what()).find("corrupt.pt"), std::string::npos) << e.what();
+    }
+    EXPECT_EQ(snapshot(other), before);
 }

@@ -211,4 +211,10 @@ void writeTrainReport(const TrainReport& r, const TrainRequest& req, const Train
     if (!out) throw std::runtime_error(path + ": write failed");
 }
 
+HeatMapsWritten writeHeatMapsWithModel(const std::string& db_dir, const std::string& model_file) {
+    const auto model = HeatMapModel::load(model_file);  // before anything in the database changes
+    const auto db = database::ReferenceDatabase::load(db_dir);
+    return writeHeatMaps(db, model);
+}
+
 }  // namespace lookup::fcn

@@ -45,6 +45,12 @@ struct TrainReport {
 /// changed unless the heat maps are written completely.
 TrainReport runTraining(const TrainRequest& request, const TrainOptions& options);
 
+/// lookup-train --heatmaps-only: no training, the heat maps of the database in `db_dir` drawn by
+/// the model in `model_file` (e.g. one trained on another survey of the same mine). Throws
+/// std::runtime_error naming the file for a missing, corrupt or foreign model; the database's
+/// existing heat maps stay as they were unless the new ones are written completely.
+HeatMapsWritten writeHeatMapsWithModel(const std::string& db_dir, const std::string& model_file);
+
 /// Writes `report` (and the options) as JSON to `path`.
 void writeTrainReport(const TrainReport& report, const TrainRequest& request,
                       const TrainOptions& options, const std::string& path);
