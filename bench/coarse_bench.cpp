@@ -94,6 +94,24 @@ void BM_CoarseTrackingFrame(benchmark::State& state) {
 }
 BENCHMARK(BM_CoarseTrackingFrame)->Arg(1000)->Arg(10000)->Unit(benchmark::kMicrosecond);
 
+/// One thumbnail difference (64x48 bytes), the inner loop of a global search: the hand-written
+/// psadbw loop against OpenCV's cv::norm(NORM_L1) on the same bytes.
+void BM_CoarseDescriptorDifference(benchmark::State& state) {
+    const CoarseOptions o;
+    const Route route(100);
+    const Descriptor a = route.descriptor(10.0, o), b = route.descriptor(50.0, o);
+    const bool opencv = state.range(0) == 1;
+    const cv::Mat ma(1, static_cast<int>(a.size()), CV_8U, const_cast<std::uint8_t*>(a.data()));
+    const cv::Mat mb(1, static_cast<int>(b.size()), CV_8U, const_cast<std::uint8_t*>(b.data()));
+    for (auto _ : state) {
+        benchmark::DoNotOptimize(opencv ? static_cast<float>(cv::norm(ma, mb, cv::NORM_L1) /
+                                                             static_cast<double>(a.size()))
+                                        : lookup::coarse::descriptorDifference(a, b));
+    }
+    state.SetLabel(opencv ? "cv::norm NORM_L1" : "descriptorDifference (psadbw)");
+}
+BENCHMARK(BM_CoarseDescriptorDifference)->Arg(0)->Arg(1)->Unit(benchmark::kNanosecond);
+
 /// A global search (start-up, kidnapping) over the whole database: linear in its length.
 void BM_CoarseGlobalFrame(benchmark::State& state) {
     const int n = static_cast<int>(state.range(0));

@@ -31,6 +31,39 @@ long nearestArc(const ReferenceDescriptors& refs, double arc) {
     return arc - refs.arcLength(lo) <= refs.arcLength(hi) - arc ? lo : hi;
 }
 
+/// Reference index at one query frame of the paths ending at candidates lo..hi (one speed
+/// hypothesis), -1 where a path leaves the reference: `j - offset` rounded half up, or with odometry
+/// the reference nearest in arc length to arc(j) + arc_shift (as nearestArc, found by a walk:
+/// the targets grow with j).
+void pathIndices(const ReferenceDescriptors& refs, long lo, long hi, double arc_shift,
+                 double offset, bool odometry, std::vector<long>& out) {
+    if (!odometry) {
+        for (long j = lo; j <= hi; ++j) {
+            // lround without the library call: x + 0.5 > 0 truncates to its floor.
+            const double x = static_cast<double>(j) - offset;
+            out[j - lo] = x > -0.5 ? static_cast<long>(x + 0.5) : -1;
+        }
+        return;
+    }
+    const long n = static_cast<long>(refs.size());
+    long p = 0;  // largest index with arc(p) <= target, while the target is inside the range
+    for (long j = lo; j <= hi; ++j) {
+        const double arc = refs.arcLength(j) + arc_shift;
+        long i;
+        if (arc < refs.arcLength(0) - 1e-9) {
+            i = -1;
+        } else if (arc <= refs.arcLength(0)) {
+            i = 0;
+        } else if (arc >= refs.arcLength(n - 1)) {
+            i = n - 1;
+        } else {
+            while (p + 1 < n && refs.arcLength(p + 1) <= arc) ++p;
+            i = arc - refs.arcLength(p) <= refs.arcLength(p + 1) - arc ? p : p + 1;
+        }
+        out[j - lo] = i;
+    }
+}
+
 }  // namespace
 
 const char* toString(CoarseStatus status) {
@@ -169,7 +202,7 @@ void CoarseLocalizer::ensureComputed(Column& column, long lo, long hi,
 }
 
 CoarseLocalizer::Search CoarseLocalizer::search(long cand_lo, long cand_hi, bool odometry,
-                                                std::size_t& evaluated) const {
+                                                std::size_t& evaluated) {
     const long n_refs = static_cast<long>(references_->size());
     const int n_cols = static_cast<int>(columns_.size());
     const long R = options_.contrast_window_refs;
@@ -199,7 +232,9 @@ CoarseLocalizer::Search CoarseLocalizer::search(long cand_lo, long cand_hi, bool
     };
 
     // Locally contrast-enhanced confusion entries, per column, over the span paths can reach.
-    std::vector<std::vector<float>> enhanced(n_cols);
+    auto& enhanced = scratch_.enhanced;
+    enhanced.resize(std::max<std::size_t>(enhanced.size(), n_cols));
+    for (auto& e : enhanced) e.clear();
     std::vector<long> enh_lo(n_cols, 0);
     for (int k = 0; k < n_cols; ++k) {
         long a, b;
@@ -216,7 +251,10 @@ CoarseLocalizer::Search CoarseLocalizer::search(long cand_lo, long cand_hi, bool
         ensureComputed(col, a - R, b + R, evaluated);
         const long wlo = std::max(0L, a - R), whi = std::min(n_refs - 1, b + R);
         // Prefix sums over the window span for mean / deviation of +/- R neighbours.
-        std::vector<double> s1(whi - wlo + 2, 0.0), s2(whi - wlo + 2, 0.0);
+        auto& s1 = scratch_.s1;
+        auto& s2 = scratch_.s2;
+        s1.assign(whi - wlo + 2, 0.0);
+        s2.assign(whi - wlo + 2, 0.0);
         for (long i = wlo; i <= whi; ++i) {
             const double v = col.raw[i - col.lo];
             s1[i - wlo + 1] = s1[i - wlo] + v;
@@ -234,31 +272,40 @@ CoarseLocalizer::Search CoarseLocalizer::search(long cand_lo, long cand_hi, bool
         }
     }
 
+    // Path scores, one speed hypothesis and one query frame at a time over all candidates:
+    // contiguous adds, and path indices by a walk instead of a search per path point. Sums run
+    // over k in the same order as a path-by-path loop, so scores are identical to it.
     Search s;
-    std::vector<float> score(cand_hi - cand_lo + 1, kInf);
-    std::vector<float> slope(score.size(), 0.f);
-    for (long j = cand_lo; j <= cand_hi; ++j) {
-        ++s.candidates;
-        for (int h = 0; h < H; ++h) {
-            float sum = 0;
-            long last = j;
-            for (int k = 0; k < n_cols && sum < kInf; ++k) {
-                const long i = pathIndex(j, h, k);
-                const auto& e = enhanced[k];
-                if (i < 0 || e.empty() || i < enh_lo[k] ||
-                    i - enh_lo[k] >= static_cast<long>(e.size())) {
-                    sum = kInf;
-                    break;
-                }
-                sum += e[i - enh_lo[k]];
-                last = i;
+    const std::size_t n_cand = static_cast<std::size_t>(cand_hi - cand_lo + 1);
+    auto& score = scratch_.score;
+    auto& slope = scratch_.slope;
+    auto& sum = scratch_.sum;
+    auto& index = scratch_.index;
+    score.assign(n_cand, kInf);
+    slope.assign(n_cand, 0.f);
+    sum.resize(n_cand);
+    index.resize(n_cand);
+    for (int h = 0; h < H; ++h) {
+        std::fill(sum.begin(), sum.end(), 0.f);
+        for (int k = 0; k < n_cols; ++k) {
+            pathIndices(*references_, cand_lo, cand_hi, odometry ? -hyp[h] * back_m[k] : 0.0,
+                        odometry ? 0.0 : hyp[h] * k, odometry, index);
+            const auto& e = enhanced[k];
+            const long e_lo = enh_lo[k], e_n = static_cast<long>(e.size());
+            for (std::size_t c = 0; c < n_cand; ++c) {
+                const long i = index[c] - e_lo;
+                sum[c] = (index[c] < 0 || i < 0 || i >= e_n) ? kInf : sum[c] + e[i];
             }
-            if (sum < score[j - cand_lo]) {
-                score[j - cand_lo] = sum;
-                slope[j - cand_lo] = n_cols > 1 ? static_cast<float>(j - last) / (n_cols - 1) : 0.f;
+        }
+        for (std::size_t c = 0; c < n_cand; ++c) {
+            if (sum[c] < score[c]) {
+                score[c] = sum[c];
+                const long j = cand_lo + static_cast<long>(c);
+                slope[c] = n_cols > 1 ? static_cast<float>(j - index[c]) / (n_cols - 1) : 0.f;
             }
         }
     }
+    s.candidates = n_cand;
     for (long j = cand_lo; j <= cand_hi; ++j) {
         if (score[j - cand_lo] < s.best_score) {
             s.best_score = score[j - cand_lo];

@@ -3,8 +3,13 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include <cstdint>
 #include <stdexcept>
 #include <string>
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 namespace lookup::coarse {
 
@@ -55,9 +60,24 @@ float descriptorDifference(const Descriptor& a, const Descriptor& b) {
         throw std::invalid_argument("descriptorDifference: lengths " + std::to_string(a.size()) +
                                     " and " + std::to_string(b.size()) + " differ");
     }
-    const cv::Mat ma(1, static_cast<int>(a.size()), CV_8U, const_cast<std::uint8_t*>(a.data()));
-    const cv::Mat mb(1, static_cast<int>(b.size()), CV_8U, const_cast<std::uint8_t*>(b.data()));
-    return static_cast<float>(cv::norm(ma, mb, cv::NORM_L1) / static_cast<double>(a.size()));
+    // The hot loop of a global search (one difference per reference per frame): psadbw sums
+    // 16 absolute byte differences per instruction, about 6x cv::norm(NORM_L1) on 8-bit data
+    // here (lookup-bench BM_CoarseDescriptorDifference). Same integer sum, same result.
+    const std::size_t n = a.size();
+    std::uint64_t total = 0;
+    std::size_t i = 0;
+#if defined(__SSE2__)
+    __m128i acc = _mm_setzero_si128();
+    for (; i + 16 <= n; i += 16) {
+        const __m128i va = _mm_loadu_si128(reinterpret_cast<const __m128i*>(a.data() + i));
+        const __m128i vb = _mm_loadu_si128(reinterpret_cast<const __m128i*>(b.data() + i));
+        acc = _mm_add_epi64(acc, _mm_sad_epu8(va, vb));
+    }
+    total = static_cast<std::uint64_t>(_mm_cvtsi128_si64(acc)) +
+            static_cast<std::uint64_t>(_mm_cvtsi128_si64(_mm_unpackhi_epi64(acc, acc)));
+#endif
+    for (; i < n; ++i) total += a[i] > b[i] ? a[i] - b[i] : b[i] - a[i];
+    return static_cast<float>(static_cast<double>(total) / static_cast<double>(n));
 }
 
 }  // namespace lookup::coarse

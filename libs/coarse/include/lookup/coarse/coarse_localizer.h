@@ -51,8 +51,17 @@ class CoarseLocalizer : public CoarseSource {
     struct Column;
     struct Search;
     void ensureComputed(Column& column, long lo, long hi, std::size_t& evaluated) const;
-    Search search(long candidate_lo, long candidate_hi, bool odometry,
-                  std::size_t& evaluated) const;
+    Search search(long candidate_lo, long candidate_hi, bool odometry, std::size_t& evaluated);
+
+    /// Buffers of search(), kept between frames: a global search over a long reference needs
+    /// megabytes, and fresh allocations each frame cost page faults.
+    struct Scratch {
+        std::vector<std::vector<float>> enhanced;
+        std::vector<double> s1, s2;
+        std::vector<float> score, slope, sum;
+        std::vector<long> index;
+    };
+    Scratch scratch_;
 
     std::shared_ptr<const ReferenceDescriptors> references_;
     CoarseOptions options_;
