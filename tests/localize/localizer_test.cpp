@@ -229,6 +229,37 @@ TEST(Localize, CoarseStageMatchesEachSurveyTraverseAsItsOwnSequence) {
     EXPECT_THROW(localize::makeSequenceCoarseSource(db, options, "absent"), std::runtime_error);
 }
 
+TEST(Localize, SkippedCoarseSearchesStillBuildTheSequence) {
+    // coarse_while_tracking = false: while LookUP tracks, forward frames only join the coarse
+    // sequence. The first frame searched must match at once (a full sequence), not start over.
+    Scene scene;
+    const auto dir = freshDir("skipped_search");
+    writeDatabase(scene, (dir / "db").string(),
+                  {{"long", 60, 100.0, /*forward_seed=*/1}, {"short", 45, 500.0, 2}});
+    const auto db = database::ReferenceDatabase::load((dir / "db").string());
+    coarse::CoarseOptions options;  // sequence_length 30
+    auto source = localize::makeSequenceCoarseSource(db, options, "");
+    for (int k = 0; k < 36; ++k) {
+        const auto view = forwardView(2, k, 900.0 + 0.1 * k);
+        coarse::CoarseQuery q;
+        q.time_s = 900.0 + 0.1 * k;
+        q.forward_image = &view->image;
+        q.search = k >= 32;
+        const auto r = source->locate(q);
+        if (k < 32) {
+            EXPECT_EQ(r.status, coarse::CoarseStatus::kNotSearched) << "frame " << k;
+            EXPECT_FALSE(r.usable());
+            EXPECT_EQ(r.evaluated_references, 0u);
+            continue;
+        }
+        ASSERT_TRUE(r.usable()) << "frame " << k << ": " << r.reason;
+        // The first search after skipped frames is global (the last match went stale).
+        if (k == 32) EXPECT_EQ(r.status, coarse::CoarseStatus::kGlobal);
+        EXPECT_EQ(db.reference(r.reference_index).traverse, "short");
+        EXPECT_LE(std::abs(static_cast<int>(r.reference_index) - 60 - k), 1) << "frame " << k;
+    }
+}
+
 TEST(Localize, MissingDatabaseAndRawlogWithoutCeilingImagesAreRefused) {
     const auto dir = freshDir("bad");
     localize::LocalizeRequest req;

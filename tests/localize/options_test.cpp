@@ -38,12 +38,14 @@ TEST(LocalizeIni, AcquisitionKeysRoundTripAndAreChecked) {
     localize::LocalizerOptions o;
     o.acquisition_ambiguity_margin = 0.25;
     o.acquisition_ambiguity_distance_m = 2.5;
+    o.coarse_while_tracking = false;
     mrpt::config::CConfigFileMemory mem;
     o.saveToConfigFile(mem, "localizer");
     localize::LocalizerOptions back;
     back.loadFromConfigFile(mem, "localizer");
     EXPECT_DOUBLE_EQ(back.acquisition_ambiguity_margin, 0.25);
     EXPECT_DOUBLE_EQ(back.acquisition_ambiguity_distance_m, 2.5);
+    EXPECT_FALSE(back.coarse_while_tracking);
 
     back.acquisition_ambiguity_margin = 1.5;
     try {

@@ -238,6 +238,25 @@ TEST(Refiner, HeatMapSamplingUsesTheBestRegionsAndIsDeterministic) {
     const auto b = refiner.refine(s.query(truth), s.camera, s.on_vehicle, hint, {ref});
     EXPECT_EQ(a.pose.mean, b.pose.mean);
     EXPECT_EQ(a.pose.cov, b.pose.cov);
+
+    // Points cached on the reference (the localiser's reference views) give the same result...
+    ref.prepareSamplePoints(refiner.options().sampler);
+    const auto c = refiner.refine(s.query(truth), s.camera, s.on_vehicle, hint, {ref});
+    EXPECT_EQ(a.pose.mean, c.pose.mean);
+    // ...and a cache built with other sampler options is not used.
+    SamplerOptions other = refiner.options().sampler;
+    other.heat_map_points = 5;
+    ref.prepareSamplePoints(other);
+    const auto d = refiner.refine(s.query(truth), s.camera, s.on_vehicle, hint, {ref});
+    EXPECT_EQ(d.references[0].matches.size(), 12u);
+    EXPECT_EQ(a.pose.mean, d.pose.mean);
+    // With the same options the cached points are the ones matched.
+    SamplerOptions five = other;
+    RefinerOptions five_points = optionsWithHeight(5.3);
+    five_points.sampler = five;
+    const auto e = Refiner(five_points).refine(s.query(truth), s.camera, s.on_vehicle, hint, {ref});
+    ASSERT_EQ(e.references[0].matches.size(), 5u);
+    EXPECT_EQ(e.references[0].matches[0].reference_px, ref.sample_points->points[0]);
 }
 
 TEST(Reference, FromObservationConvertsToGreyAndKeepsPoses) {

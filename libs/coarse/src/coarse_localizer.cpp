@@ -80,6 +80,8 @@ const char* toString(CoarseStatus status) {
             return "invalid_input";
         case CoarseStatus::kExternal:
             return "external";
+        case CoarseStatus::kNotSearched:
+            return "not_searched";
     }
     return "unknown";
 }
@@ -140,11 +142,11 @@ CoarseResult CoarseLocalizer::locate(const CoarseQuery& query) {
         r.query_time_s = query.time_s;
         return r;
     }
-    return process(*query.forward_image, query.time_s, query.travelled_m);
+    return process(*query.forward_image, query.time_s, query.travelled_m, query.search);
 }
 
 CoarseResult CoarseLocalizer::process(const mrpt::img::CImage& image, double time_s,
-                                      std::optional<double> travelled_m) {
+                                      std::optional<double> travelled_m, bool search) {
     const auto t0 = Clock::now();
     CoarseResult invalid;
     invalid.status = CoarseStatus::kInvalidInput;
@@ -170,7 +172,7 @@ CoarseResult CoarseLocalizer::process(const mrpt::img::CImage& image, double tim
         return invalid;
     }
     const double descriptor_ms = msSince(t0);
-    CoarseResult r = processDescriptor(d, time_s, travelled_m);
+    CoarseResult r = processDescriptor(d, time_s, travelled_m, search);
     r.descriptor_ms = descriptor_ms;
     return r;
 }
@@ -327,7 +329,8 @@ CoarseLocalizer::Search CoarseLocalizer::search(long cand_lo, long cand_hi, bool
 }
 
 CoarseResult CoarseLocalizer::processDescriptor(const Descriptor& descriptor, double time_s,
-                                                std::optional<double> travelled_m) {
+                                                std::optional<double> travelled_m,
+                                                bool search_now) {
     const auto t0 = Clock::now();
     CoarseResult r;
     r.query_index = queries_++;
@@ -349,6 +352,13 @@ CoarseResult CoarseLocalizer::processDescriptor(const Descriptor& descriptor, do
     columns_.push_front(column);
     while (columns_.size() > static_cast<std::size_t>(options_.sequence_length)) {
         columns_.pop_back();
+    }
+    if (!search_now) {
+        // The last match goes stale while frames pass unsearched: the next search is global.
+        tracking_ = false;
+        r.status = CoarseStatus::kNotSearched;
+        r.reason = "search skipped: no match needed for this frame";
+        return r;
     }
     const int n_cols = static_cast<int>(columns_.size());
     const long n_refs = static_cast<long>(references_->size());

@@ -240,6 +240,7 @@ void Localizer::processForward(const mrpt::obs::CObservationImage& image) {
     coarse::CoarseQuery q;
     q.time_s = mrpt::Clock::toDouble(image.timestamp);
     q.forward_image = &image.image;
+    q.search = options_.coarse_while_tracking || !fine_tracking_;
     if (!odometry_.empty()) {
         if (last_forward_odometry_) q.travelled_m = travelled_since_forward_;
         last_forward_odometry_ = odometry_.back().second;
@@ -331,6 +332,7 @@ const refine::Reference& Localizer::referenceView(std::size_t index) {
     view.camera_on_vehicle = ref.ceiling_camera_mount;
     view.heat_map = loadHeatMap(db_, index);
     view.prepare(refiner_.options().matcher.pyramid_levels);
+    view.prepareSamplePoints(refiner_.options().sampler);
     while (views_.size() >= options_.image_cache_capacity) {
         views_.erase(view_order_.front());
         view_order_.pop_front();
@@ -481,6 +483,7 @@ FrameResult Localizer::processCeiling(const mrpt::obs::CObservationImage& query)
                                       : "no coarse match yet";
         }
     }
+    fine_tracking_ = out.status == FrameStatus::Refined;
     out.times.total_ms = 1e3 * total.Tac() + out.times.coarse_ms;
     return out;
 }

@@ -11,7 +11,7 @@ void LocalizerOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& s
                          "references_per_query", "use_tracking", "max_tracking_gap_s",
                          "acquisition_radius_m", "acquisition_step_m",
                          "acquisition_ambiguity_margin", "acquisition_ambiguity_distance_m",
-                         "coarse_traverse", "realtime", "max_latency_s", "write_debug_images",
+                         "coarse_traverse", "coarse_while_tracking", "realtime", "max_latency_s", "write_debug_images",
                          "debug_image_every", "image_cache_capacity"});
     ceiling_camera_label = s.getString("ceiling_camera_label", ceiling_camera_label);
     forward_camera_label = s.getString("forward_camera_label", forward_camera_label);
@@ -26,6 +26,7 @@ void LocalizerOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& s
     acquisition_ambiguity_distance_m =
         s.getDouble("acquisition_ambiguity_distance_m", acquisition_ambiguity_distance_m);
     coarse_traverse = s.getString("coarse_traverse", coarse_traverse);
+    coarse_while_tracking = s.getBool("coarse_while_tracking", coarse_while_tracking);
     realtime = s.getBool("realtime", realtime);
     max_latency_s = s.getDouble("max_latency_s", max_latency_s);
     write_debug_images = s.getBool("write_debug_images", write_debug_images);
@@ -48,6 +49,7 @@ void LocalizerOptions::saveToConfigFile(mrpt::config::CConfigFileBase& target,
     target.write(section, "acquisition_ambiguity_margin", acquisition_ambiguity_margin);
     target.write(section, "acquisition_ambiguity_distance_m", acquisition_ambiguity_distance_m);
     target.write(section, "coarse_traverse", coarse_traverse);
+    target.write(section, "coarse_while_tracking", coarse_while_tracking);
     target.write(section, "realtime", realtime);
     target.write(section, "max_latency_s", max_latency_s);
     target.write(section, "write_debug_images", write_debug_images);

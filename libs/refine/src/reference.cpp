@@ -4,6 +4,7 @@
 #include <stdexcept>
 
 #include "lookup/refine/matcher.h"
+#include "lookup/refine/sampler.h"
 #include "lookup/refine/types.h"
 
 namespace lookup::refine {
@@ -11,6 +12,11 @@ namespace lookup::refine {
 void Reference::prepare(int pyramid_levels, bool normalize_brightness) {
     pyramid = std::make_shared<const ImagePyramid>(
         ImagePyramid::build(image, pyramid_levels, normalize_brightness));
+}
+
+void Reference::prepareSamplePoints(const SamplerOptions& options) {
+    sample_points = std::make_shared<const SamplePoints>(
+        SamplePoints{options, selectSamplePoints(image.size(), heat_map, options)});
 }
 
 Reference Reference::fromObservation(std::int64_t id, const mrpt::obs::CObservationImage& obs,

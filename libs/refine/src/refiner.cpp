@@ -225,8 +225,11 @@ RefineResult Refiner::refine(const cv::Mat& query_image, const mrpt::img::TCamer
         res.times.prepare_ms += msSince(t0);
 
         t0 = Clock::now();
+        const bool cached =
+            ref.sample_points && sameSelection(ref.sample_points->options, o.sampler);
         const std::vector<cv::Point2f> points =
-            selectSamplePoints(ref.image.size(), ref.heat_map, o.sampler);
+            cached ? ref.sample_points->points
+                   : selectSamplePoints(ref.image.size(), ref.heat_map, o.sampler);
         // With a coarse pose, the plane-induced prediction: either warp the reference into the
         // query frame (compensated) or centre each search window on the predicted offset.
         std::vector<cv::Point2f> predicted;

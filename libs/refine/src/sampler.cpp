@@ -72,4 +72,10 @@ std::vector<cv::Point2f> selectSamplePoints(cv::Size image_size, const cv::Mat& 
     return gridPoints(image_size, o.grid_points, o.border_margin_px);
 }
 
+bool sameSelection(const SamplerOptions& a, const SamplerOptions& b) {
+    return a.mode == b.mode && a.grid_points == b.grid_points &&
+           a.heat_map_points == b.heat_map_points && a.damping_ratio == b.damping_ratio &&
+           a.damping_side_px == b.damping_side_px && a.border_margin_px == b.border_margin_px;
+}
+
 }  // namespace lookup::refine

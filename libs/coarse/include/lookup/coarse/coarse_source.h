@@ -26,15 +26,20 @@ enum class CoarseStatus {
     kLost,             ///< best match not confident (aliasing, unknown place, kidnapping)
     kInvalidInput,     ///< the query frame could not be used (see reason)
     kExternal,         ///< supplied by an external source (file), no confidence measure
+    kNotSearched,      ///< frame added to the sequence, search skipped (CoarseQuery::search)
 };
 
-/// "tracking", "global", "not_enough_frames", "lost", "invalid_input", "external".
+/// "tracking", "global", "not_enough_frames", "lost", "invalid_input", "external",
+/// "not_searched".
 const char* toString(CoarseStatus status);
 
 struct CoarseQuery {
     double time_s = 0;                                 ///< query time stamp [s]
     const mrpt::img::CImage* forward_image = nullptr;  ///< needed by image-based sources
     std::optional<double> travelled_m;  ///< odometry distance since the previous query [m]
+    /// false: the caller needs no match for this frame (e.g. the fine stage is tracking). A
+    /// sequence matcher only adds the frame to its sequence; its next search is global.
+    bool search = true;
 };
 
 struct CoarseResult {

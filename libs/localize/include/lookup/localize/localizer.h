@@ -143,6 +143,7 @@ class Localizer {
         mrpt::poses::CPose2D pose;
     };
     std::optional<Fix> last_fix_;
+    bool fine_tracking_ = false;  ///< the last ceiling frame was refined
 
     // Reference views with prepared pyramids, most recently used last (bounded).
     std::map<std::size_t, refine::Reference> views_;

@@ -32,6 +32,11 @@ struct LocalizerOptions : public mrpt::config::CLoadableOptions {
     /// matched as its own sequence (laterally offset traverses would alias each other in one),
     /// the most confident match winning per frame.
     std::string coarse_traverse;
+    /// true (the paper): the coarse stage searches on every forward frame, so every frame has a
+    /// coarse pose to report and to judge the 10 m exclusion by. false: while LookUP tracks
+    /// (the last ceiling frame was refined) forward frames only join the coarse sequence and
+    /// the search, unused then, is skipped; the first frame not refined searches globally.
+    bool coarse_while_tracking = true;
 
     /// Replay at the recorded rate, dropping ceiling frames that the localiser cannot start
     /// within max_latency_s of their arrival (what happens on the vehicle).

@@ -19,6 +19,9 @@ std::vector<cv::Point2f> gridPoints(cv::Size image_size, int count, int margin_p
 std::vector<cv::Point2f> heatMapPoints(const cv::Mat& heat_map, int count, double damping_ratio,
                                        int damping_side_px, int margin_px);
 
+/// True when `a` and `b` select the same points from the same image and heat map.
+bool sameSelection(const SamplerOptions& a, const SamplerOptions& b);
+
 /// Applies `options.mode` (Auto: heat map when `heat_map` is not empty).
 std::vector<cv::Point2f> selectSamplePoints(cv::Size image_size, const cv::Mat& heat_map,
                                             const SamplerOptions& options);
