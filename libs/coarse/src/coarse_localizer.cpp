@@ -32,9 +32,9 @@ long nearestArc(const ReferenceDescriptors& refs, double arc) {
 }
 
 /// Reference index at one query frame of the paths ending at candidates lo..hi (one speed
-/// hypothesis), -1 where a path leaves the reference: `j - offset` rounded half up, or with odometry
-/// the reference nearest in arc length to arc(j) + arc_shift (as nearestArc, found by a walk:
-/// the targets grow with j).
+/// hypothesis), -1 where a path leaves the reference: lround(j - offset), or with odometry the
+/// reference nearest in arc length to arc(j) + arc_shift (as nearestArc, found by a walk: the
+/// targets grow with j).
 void pathIndices(const ReferenceDescriptors& refs, long lo, long hi, double arc_shift,
                  double offset, bool odometry, std::vector<long>& out) {
     if (!odometry) {
