@@ -104,14 +104,31 @@ MatcherOptions mineA() { return MatcherOptions(); }
 MatcherOptions mineB() { return RefinerOptions::mineB().matcher; }
 
 // ---------------------------------------------------------------- matcher
+// Mean distance of matched points from where the true homography puts them, and matched share.
+struct MatchErrors {
+    double error_sum = 0;
+    long matched = 0, total = 0;
+    void add(const std::vector<PointMatch>& matches, const cv::Matx33d& H) {
+        for (const auto& x : matches) {
+            ++total;
+            if (!x.matched()) continue;
+            ++matched;
+            error_sum += cv::norm(cv::Point2d(x.query_px) - apply(H, cv::Point2d(x.reference_px)));
+        }
+    }
+    void report(benchmark::State& state) const {
+        state.counters["err_px"] = matched ? error_sum / matched : -1;
+        state.counters["matched"] = total ? double(matched) / total : 0;
+    }
+};
+
 void matcherBench(benchmark::State& state, MatcherOptions o, int points, SimdLevel simd,
                   bool include_query_pyramid) {
     OneCore one_core;
     const World& w = world();
     const auto sample =
         gridPoints(cv::Size(640, 480), points, o.patch_px / 2 + o.search_range_px / 2);
-    double error_sum = 0;
-    long matched = 0, total = 0;
+    MatchErrors errors;
     std::size_t i = 0;
     for (auto _ : state) {
         const auto& p = w.pairs[i++ % w.pairs.size()];
@@ -123,17 +140,10 @@ void matcherBench(benchmark::State& state, MatcherOptions o, int points, SimdLev
             m = matchPoints(p.ref_pyramid, p.query_pyramid, sample, {}, o, simd);
         }
         benchmark::DoNotOptimize(m.data());
-        for (const auto& x : m) {
-            ++total;
-            if (!x.matched()) continue;
-            ++matched;
-            error_sum +=
-                cv::norm(cv::Point2d(x.query_px) - apply(p.H, cv::Point2d(x.reference_px)));
-        }
+        errors.add(m, p.H);
     }
     state.SetItemsProcessed(state.iterations());
-    state.counters["err_px"] = matched ? error_sum / matched : -1;
-    state.counters["matched"] = total ? double(matched) / total : 0;
+    errors.report(state);
     state.SetLabel(std::string(toString(simd)) +
                    (o.pyramid_levels ? " coarse-to-fine" : " exhaustive"));
 }
@@ -165,24 +175,16 @@ void compensatedMatcherBench(benchmark::State& state, MatcherOptions o, int poin
     const World& w = world();
     const auto sample =
         gridPoints(cv::Size(640, 480), points, o.patch_px / 2 + o.search_range_px / 2);
-    double error_sum = 0;
-    long matched = 0, total = 0;
+    MatchErrors errors;
     std::size_t i = 0;
     for (auto _ : state) {
         const auto& p = w.pairs[i++ % w.pairs.size()];
         const auto m = matchPointsCompensated(p.ref_pyramid, p.query_pyramid, sample, p.H, o);
         benchmark::DoNotOptimize(m.data());
-        for (const auto& x : m) {
-            ++total;
-            if (!x.matched()) continue;
-            ++matched;
-            error_sum +=
-                cv::norm(cv::Point2d(x.query_px) - apply(p.H, cv::Point2d(x.reference_px)));
-        }
+        errors.add(m, p.H);
     }
     state.SetItemsProcessed(state.iterations());
-    state.counters["err_px"] = matched ? error_sum / matched : -1;
-    state.counters["matched"] = total ? double(matched) / total : 0;
+    errors.report(state);
 }
 BENCHMARK_CAPTURE(compensatedMatcherBench, Compensated_MineA_12pts, mineA(), 12);
 BENCHMARK_CAPTURE(compensatedMatcherBench, Compensated_MineA_24pts, mineA(), 24);

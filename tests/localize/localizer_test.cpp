@@ -7,8 +7,8 @@
 
 #include <filesystem>
 #include <fstream>
-#include <vector>
 #include <opencv2/imgproc.hpp>
+#include <vector>
 
 #include "lookup/coarse/options.h"
 #include "lookup/common/pose_files.h"
@@ -103,6 +103,15 @@ void writeDatabase(const Scene& scene, const std::string& dir,
     writer.commit(info);
 }
 
+// Two survey traverses with unrelated forward views (seeds 1 and 2): "long", 60 references,
+// then "short", 45; reference 60 + k is frame k of "short".
+database::ReferenceDatabase twoForwardTraverses(const std::string& name) {
+    const auto dir = freshDir(name);
+    writeDatabase(Scene(), (dir / "db").string(),
+                  {{"long", 60, 100.0, /*forward_seed=*/1}, {"short", 45, 500.0, 2}});
+    return database::ReferenceDatabase::load((dir / "db").string());
+}
+
 }  // namespace
 
 TEST(Localize, RefinesCoarsePosesToCentimetresOnASyntheticCeiling) {
@@ -188,13 +197,9 @@ TEST(Localize, RefinesCoarsePosesToCentimetresOnASyntheticCeiling) {
 }
 
 TEST(Localize, CoarseStageMatchesEachSurveyTraverseAsItsOwnSequence) {
-    Scene scene;
-    const auto dir = freshDir("traverses");
-    // Two survey traverses with unrelated forward views; "long" has more references, so a
-    // coarse stage fed one traverse by size would never see the query's own ("short").
-    writeDatabase(scene, (dir / "db").string(),
-                  {{"long", 60, 100.0, /*forward_seed=*/1}, {"short", 45, 500.0, 2}});
-    const auto db = database::ReferenceDatabase::load((dir / "db").string());
+    // "long" has more references, so a coarse stage fed one traverse by size would never see
+    // the query's own ("short").
+    const auto db = twoForwardTraverses("traverses");
     coarse::CoarseOptions options;  // sequence_length 30
     auto source = localize::makeSequenceCoarseSource(db, options, "");
 
@@ -232,11 +237,7 @@ TEST(Localize, CoarseStageMatchesEachSurveyTraverseAsItsOwnSequence) {
 TEST(Localize, SkippedCoarseSearchesStillBuildTheSequence) {
     // coarse_while_tracking = false: while LookUP tracks, forward frames only join the coarse
     // sequence. The first frame searched must match at once (a full sequence), not start over.
-    Scene scene;
-    const auto dir = freshDir("skipped_search");
-    writeDatabase(scene, (dir / "db").string(),
-                  {{"long", 60, 100.0, /*forward_seed=*/1}, {"short", 45, 500.0, 2}});
-    const auto db = database::ReferenceDatabase::load((dir / "db").string());
+    const auto db = twoForwardTraverses("skipped_search");
     coarse::CoarseOptions options;  // sequence_length 30
     auto source = localize::makeSequenceCoarseSource(db, options, "");
     for (int k = 0; k < 36; ++k) {

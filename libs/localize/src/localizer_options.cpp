@@ -11,8 +11,8 @@ void LocalizerOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& s
                          "references_per_query", "use_tracking", "max_tracking_gap_s",
                          "acquisition_radius_m", "acquisition_step_m",
                          "acquisition_ambiguity_margin", "acquisition_ambiguity_distance_m",
-                         "coarse_traverse", "coarse_while_tracking", "realtime", "max_latency_s", "write_debug_images",
-                         "debug_image_every", "image_cache_capacity"});
+                         "coarse_traverse", "coarse_while_tracking", "realtime", "max_latency_s",
+                         "write_debug_images", "debug_image_every", "image_cache_capacity"});
     ceiling_camera_label = s.getString("ceiling_camera_label", ceiling_camera_label);
     forward_camera_label = s.getString("forward_camera_label", forward_camera_label);
     odometry_label = s.getString("odometry_label", odometry_label);

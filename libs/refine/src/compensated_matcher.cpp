@@ -75,8 +75,7 @@ std::vector<PointMatch> matchPointsCompensated(const ImagePyramid& reference,
                 cv::Rect(centre.x - side / 2 - 1, centre.y - side / 2 - 1, side + 2, side + 2) &
                 cv::Rect(0, 0, level.cols, level.rows);
             if (patch.empty()) continue;
-            const cv::Matx33d to_patch =
-                cv::Matx33d(1, 0, -patch.x, 0, 1, -patch.y, 0, 0, 1) * H_k;
+            const cv::Matx33d to_patch = cv::Matx33d(1, 0, -patch.x, 0, 1, -patch.y, 0, 0, 1) * H_k;
             cv::Mat dst = level(patch);
             cv::warpPerspective(reference.levels[k], dst, cv::Mat(to_patch), patch.size(),
                                 cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar(0));
