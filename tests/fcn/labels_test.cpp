@@ -112,6 +112,38 @@ TEST(Labels, GeneratedFromRawlogsWithATimeSplit) {
     EXPECT_EQ(none.stats.frames_without_reference, track.size());
 }
 
+TEST(Labels, PreciseTargetsAreTheInliersThatFitTheHomographyClosely) {
+    const auto dir = fixture::freshDir("labels-precise");
+    std::vector<double> xs;
+    for (double x = -2; x <= 2.01; x += 0.5) xs.push_back(x);
+    fixture::writeDatabase((dir / "db").string(), xs);
+    fixture::writeQuery((dir / "q.rawlog").string(), fixture::drive(-1.6, 1.6, 0.2, 0.15));
+    const auto db = database::ReferenceDatabase::load((dir / "db").string());
+    auto options = fixture::smallOptions().labels;
+
+    // 0: the paper's labels, the targets are the RANSAC inliers.
+    options.precise_inlier_px = 0;
+    const auto paper = generateLabels(db, {(dir / "q.rawlog").string()}, options);
+    ASSERT_GT(paper.stats.inlier_points, 0u);
+    EXPECT_EQ(paper.stats.target_points, paper.stats.inlier_points);
+    for (const auto& p : paper.pairs) EXPECT_EQ(p.target, p.inlier);
+
+    // A tight residual keeps a subset of the inliers (and the same inliers for the metric).
+    options.precise_inlier_px = 0.3;
+    const auto precise = generateLabels(db, {(dir / "q.rawlog").string()}, options);
+    ASSERT_EQ(precise.pairs.size(), paper.pairs.size());
+    EXPECT_EQ(precise.stats.inlier_points, paper.stats.inlier_points);
+    EXPECT_GT(precise.stats.target_points, 0u);
+    EXPECT_LT(precise.stats.target_points, precise.stats.inlier_points);
+    for (const auto& p : precise.pairs) {
+        ASSERT_EQ(p.target.size(), p.inlier.size());
+        for (std::size_t i = 0; i < p.target.size(); ++i) EXPECT_LE(p.target[i], p.inlier[i]);
+    }
+
+    options.precise_inlier_px = -1;
+    EXPECT_THROW(options.check(), std::runtime_error);
+}
+
 TEST(Labels, MissingGroundTruthAndWrongCameraLabelAreRefusedNamingTheFile) {
     const auto dir = fixture::freshDir("labels_bad");
     fixture::writeDatabase((dir / "db").string(), {0.0, 0.5});

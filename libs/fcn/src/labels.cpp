@@ -83,6 +83,18 @@ std::vector<QueryFrame> readQueryFrames(const std::string& rawlog, const std::st
     return frames;
 }
 
+// A RANSAC inlier within `precise_px` of the fitted homography (any inlier if 0): the points
+// that match precisely and lie on the plane, so that the network learns to prefer them.
+bool isTarget(const refine::PointMatch& m, const refine::HomographyResult& fit,
+              double precise_px) {
+    if (!m.inlier) return false;
+    if (precise_px <= 0) return true;
+    if (!fit.ok) return false;
+    cv::Point2d predicted;
+    if (!refine::applyHomography(fit.H, cv::Point2d(m.reference_px), predicted)) return false;
+    return cv::norm(predicted - cv::Point2d(m.query_px)) <= precise_px;
+}
+
 }  // namespace
 
 std::vector<refine::PointMatch> labelPair(const cv::Mat& reference, const cv::Mat& query,
@@ -192,7 +204,9 @@ LabelSet generateLabels(const database::ReferenceDatabase& db,
                 for (const auto& m : matches) {
                     pair.points.push_back(m.reference_px);
                     pair.inlier.push_back(m.inlier ? 1 : 0);
+                    pair.target.push_back(isTarget(m, fit, options.precise_inlier_px) ? 1 : 0);
                     pair.inliers += m.inlier ? 1 : 0;
+                    pair.targets += pair.target.back();
                 }
                 if (!fit.ok) {
                     pair.reason = "no homography: " + fit.reason;
@@ -204,6 +218,7 @@ LabelSet generateLabels(const database::ReferenceDatabase& db,
                     ++(pair.held_out ? out.stats.held_out_pairs : out.stats.training_pairs);
                     out.stats.points += pair.points.size();
                     out.stats.inlier_points += pair.inliers;
+                    out.stats.target_points += pair.targets;
                 }
                 ++out.stats.pairs;
                 out.pairs.push_back(std::move(pair));

@@ -75,7 +75,7 @@ void LabelOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& sourc
     const IniSection s(source, section, sourceName(source));
     s.rejectUnknownKeys({"grid_step_px", "references_per_query", "max_reference_distance_m",
                          "min_time_gap_s", "query_stride", "held_out_share", "min_pair_inliers",
-                         "use_pose_prior", "min_references", "min_training_pairs",
+                         "use_pose_prior", "precise_inlier_px", "min_references", "min_training_pairs",
                          "min_held_out_pairs"});
     grid_step_px = s.getInt("grid_step_px", grid_step_px);
     references_per_query = s.getInt("references_per_query", references_per_query);
@@ -85,6 +85,7 @@ void LabelOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& sourc
     held_out_share = s.getDouble("held_out_share", held_out_share);
     min_pair_inliers = s.getInt("min_pair_inliers", min_pair_inliers);
     use_pose_prior = s.getBool("use_pose_prior", use_pose_prior);
+    precise_inlier_px = s.getDouble("precise_inlier_px", precise_inlier_px);
     min_references = s.getInt("min_references", min_references);
     min_training_pairs = s.getInt("min_training_pairs", min_training_pairs);
     min_held_out_pairs = s.getInt("min_held_out_pairs", min_held_out_pairs);
@@ -105,6 +106,7 @@ void LabelOptions::saveToConfigFile(mrpt::config::CConfigFileBase& t, const std:
     put(t, s, "held_out_share", held_out_share);
     put(t, s, "min_pair_inliers", min_pair_inliers);
     put(t, s, "use_pose_prior", std::string(use_pose_prior ? "true" : "false"));
+    put(t, s, "precise_inlier_px", precise_inlier_px);
     put(t, s, "min_references", min_references);
     put(t, s, "min_training_pairs", min_training_pairs);
     put(t, s, "min_held_out_pairs", min_held_out_pairs);
@@ -121,6 +123,8 @@ void LabelOptions::check() const {
     c.require(std::isfinite(min_time_gap_s) && min_time_gap_s >= 0, "min_time_gap_s", ">= 0");
     c.require(query_stride >= 1, "query_stride", ">= 1");
     c.require(held_out_share > 0 && held_out_share < 1, "held_out_share", "in (0, 1)");
+    c.require(std::isfinite(precise_inlier_px) && precise_inlier_px >= 0, "precise_inlier_px",
+              ">= 0");
     c.require(min_pair_inliers >= 4, "min_pair_inliers", ">= 4 (a homography needs 4)");
     c.require(min_references >= 1, "min_references", ">= 1");
     c.require(min_training_pairs >= 1, "min_training_pairs", ">= 1");

@@ -186,6 +186,7 @@ void writeTrainReport(const TrainReport& r, const TrainRequest& req, const Train
           {"held_out_pairs", l.held_out_pairs},
           {"points", l.points},
           {"inlier_points", l.inlier_points},
+          {"target_points", l.target_points},
           {"inlier_share", l.inlierShare()}}},
         {"training",
          {{"samples", r.training_samples},

@@ -102,7 +102,9 @@ std::vector<TrainingSample> samplesFromPairs(const std::vector<LabelledPair>& pa
         auto& s = by_reference[p.reference];
         if (s.image.empty()) s.image = image_of(p.reference);
         s.points.insert(s.points.end(), p.points.begin(), p.points.end());
-        s.labels.insert(s.labels.end(), p.inlier.begin(), p.inlier.end());
+        // Trained on the targets (precise inliers when asked for), never on the metric's labels.
+        const auto& labels = p.target.size() == p.points.size() ? p.target : p.inlier;
+        s.labels.insert(s.labels.end(), labels.begin(), labels.end());
     }
     std::vector<TrainingSample> out;
     for (auto& [index, s] : by_reference) out.push_back(std::move(s));

@@ -1,6 +1,7 @@
 #include <algorithm>
 #include <cmath>
 #include <opencv2/imgproc.hpp>
+#include <vector>
 
 #include "lookup/refine/geometry.h"
 #include "lookup/refine/matcher.h"
@@ -59,11 +60,15 @@ std::vector<PointMatch> matchPointsCompensated(const ImagePyramid& reference,
     const int n_levels = int(std::min(reference.levels.size(), query.levels.size()));
     ImagePyramid warped_pyramid;
     warped_pyramid.normalized = reference.normalized;
+    // Level buffers are kept between calls and never cleared: the matcher reads a reference
+    // level only inside the patches written below (it copies each patch's own rectangle).
+    thread_local std::vector<cv::Mat> buffers;
+    if (int(buffers.size()) < n_levels) buffers.resize(std::size_t(n_levels));
     for (int k = 0; k < n_levels; ++k) {
         const cv::Mat& q = query.levels[k];
-        // Zero outside the patches; 32 spare columns as ImagePyramid::build leaves for SIMD.
-        cv::Mat buffer(q.rows, q.cols + 32, CV_8UC1, cv::Scalar(0));
-        cv::Mat level = buffer(cv::Rect(0, 0, q.cols, q.rows));
+        // 32 spare columns as ImagePyramid::build leaves for SIMD.
+        buffers[std::size_t(k)].create(q.rows, q.cols + 32, CV_8UC1);
+        cv::Mat level = buffers[std::size_t(k)](cv::Rect(0, 0, q.cols, q.rows));
         const double s = 1.0 / (1 << k);
         const cv::Matx33d S(s, 0, 0, 0, s, 0, 0, 0, 1), S_inv(1 / s, 0, 0, 0, 1 / s, 0, 0, 0, 1);
         const cv::Matx33d H_k = S * H * S_inv;

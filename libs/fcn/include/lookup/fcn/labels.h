@@ -30,7 +30,10 @@ struct LabelledPair {
     std::string reason;                ///< why not usable
     std::vector<cv::Point2f> points;   ///< grid points in the reference image [px]
     std::vector<std::uint8_t> inlier;  ///< label per point: 1 = RANSAC inlier
+    std::vector<std::uint8_t> target;  ///< training target per point: 1 = inlier within
+                                       ///< LabelOptions::precise_inlier_px (= inlier if 0)
     int inliers = 0;
+    int targets = 0;
 };
 
 struct LabelStats {
@@ -42,6 +45,7 @@ struct LabelStats {
     std::size_t held_out_pairs = 0;            ///< usable and held out
     std::size_t points = 0;                    ///< labelled points of usable pairs
     std::size_t inlier_points = 0;             ///< of which inliers
+    std::size_t target_points = 0;             ///< of which positive training targets
     double seconds = 0;                        ///< wall time of label generation
     double inlierShare() const { return points ? double(inlier_points) / points : 0.0; }
 };

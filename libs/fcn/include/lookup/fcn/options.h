@@ -47,6 +47,11 @@ struct LabelOptions : public mrpt::config::CLoadableOptions {
                                    ///< labels: wrong overlap, failed match)
     bool use_pose_prior = true;    ///< centre each search window on the offset predicted by the
                                    ///< known poses (ceiling-plane homography) rather than 0
+    double precise_inlier_px = 0.75;  ///< > 0: a point is a positive training target only when
+                                      ///< it is a RANSAC inlier within this residual of the
+                                      ///< fitted homography [px] (matches precisely, lies on the
+                                      ///< ceiling plane); 0: every RANSAC inlier (the paper).
+                                      ///< The held-out metric always uses RANSAC inliers.
     int min_references = 2;        ///< fewer references in the database: refused
     int min_training_pairs = 2;    ///< fewer usable training pairs: refused
     int min_held_out_pairs = 1;    ///< fewer usable held-out pairs: refused
