@@ -29,8 +29,11 @@ int main(int argc, char** argv) {
         TCLAP::ValueArg<std::string> out("", "out", "run output folder", true, "", "DIR", cmd);
         TCLAP::ValueArg<std::string> ini("", "ini", "options: [localizer] [refine.*] [coarse]",
                                          false, "", "FILE", cmd);
-        TCLAP::ValueArg<std::string> method("", "method", "method name for the report", false,
-                                            "lookup", "NAME", cmd);
+        TCLAP::ValueArg<std::string> method(
+            "", "method",
+            "method name for the report (default: lookup-grid24, lookup-fcn12, lookup-orb, ... "
+            "from the sampler and matcher used)",
+            false, "", "NAME", cmd);
         TCLAP::ValueArg<std::string> matches("", "coarse-matches",
                                              "coarse stage from `query_t reference_t` rows", false,
                                              "", "FILE", cmd);
@@ -57,9 +60,7 @@ int main(int argc, char** argv) {
         req.out_dir = out.getValue();
         req.ini_file = ini.getValue();
         req.matcher = matcher.getValue();
-        req.method = method.isSet() || req.matcher.empty() || req.matcher == "sad"
-                         ? method.getValue()
-                         : "lookup-" + req.matcher;
+        req.method = method.getValue();
         req.coarse_matches = matches.getValue();
         req.coarse_poses = poses.getValue();
         req.sampling = sampling.getValue();

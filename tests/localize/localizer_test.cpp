@@ -150,8 +150,7 @@ TEST(Localize, RefinesCoarsePosesToCentimetresOnASyntheticCeiling) {
     req.rawlog = (dir / "query.rawlog").string();
     req.out_dir = (dir / "run").string();
     req.coarse_poses = (dir / "coarse.tum").string();
-    req.method = "lookup-grid24";
-    req.sampling = "grid";
+    req.sampling = "grid";  // no --method: the run is named after its sampler
     req.progress = false;
     const auto timing = localize::runLocalization(req);
     EXPECT_EQ(timing.frames, 20u);
@@ -164,6 +163,7 @@ TEST(Localize, RefinesCoarsePosesToCentimetresOnASyntheticCeiling) {
     const auto& coarse_row = report.rows[0];
     const auto& lookup_row = report.rows[1];
     EXPECT_EQ(coarse_row.method, "coarse");
+    EXPECT_EQ(lookup_row.method, "lookup-grid24");
     EXPECT_GT(coarse_row.error.mean_m, 0.5);
     EXPECT_GE(lookup_row.acceptance_share, 0.95);
     EXPECT_LT(lookup_row.error.mean_m, 0.03);
@@ -194,6 +194,21 @@ TEST(Localize, RefinesCoarsePosesToCentimetresOnASyntheticCeiling) {
                        {eval::loadRun(live.base.out_dir)}, {});
     ASSERT_EQ(live_report.rows.size(), 2u);
     EXPECT_LT(live_report.rows[1].error.mean_m, 0.03);
+}
+
+TEST(Localize, RunsAreNamedAfterTheirSamplerAndMatcher) {
+    refine::RefinerOptions o;
+    o.sampler.mode = refine::SamplingMode::Auto;
+    EXPECT_EQ(localize::defaultMethodName(o, false), "lookup-grid24");
+    EXPECT_EQ(localize::defaultMethodName(o, true), "lookup-fcn12");
+    o.sampler.mode = refine::SamplingMode::Grid;
+    o.sampler.grid_points = 30;
+    EXPECT_EQ(localize::defaultMethodName(o, true), "lookup-grid30");
+    o.sampler.mode = refine::SamplingMode::HeatMap;
+    o.sampler.heat_map_points = 8;
+    EXPECT_EQ(localize::defaultMethodName(o, false), "lookup-fcn8");
+    o.correspondence.method = refine::CorrespondenceMethod::Ecc;
+    EXPECT_EQ(localize::defaultMethodName(o, true), "lookup-ecc");
 }
 
 TEST(Localize, CoarseStageMatchesEachSurveyTraverseAsItsOwnSequence) {
@@ -255,7 +270,9 @@ TEST(Localize, SkippedCoarseSearchesStillBuildTheSequence) {
         }
         ASSERT_TRUE(r.usable()) << "frame " << k << ": " << r.reason;
         // The first search after skipped frames is global (the last match went stale).
-        if (k == 32) EXPECT_EQ(r.status, coarse::CoarseStatus::kGlobal);
+        if (k == 32) {
+            EXPECT_EQ(r.status, coarse::CoarseStatus::kGlobal);
+        }
         EXPECT_EQ(db.reference(r.reference_index).traverse, "short");
         EXPECT_LE(std::abs(static_cast<int>(r.reference_index) - 60 - k), 1) << "frame " << k;
     }

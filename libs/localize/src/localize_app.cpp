@@ -75,7 +75,10 @@ class Session {
                                                  std::move(coarse), !coarse_from_files);
 
         mrpt::config::CConfigFileMemory used;
-        used.write("run", "method", req.method);
+        used.write("run", "method",
+                   req.method.empty()
+                       ? defaultMethodName(refiner_options_, !db_->info().heatmaps_dir.empty())
+                       : req.method);
         used.write("run", "db", req.db_dir);
         used.write("run", "source", source_name);
         options_.saveToConfigFile(used, "localizer");
@@ -280,6 +283,18 @@ RunTiming runLiveLocalization(const LiveRequest& live) {
         }
     }
     return session.finish();
+}
+
+std::string defaultMethodName(const refine::RefinerOptions& o, bool database_has_heat_maps) {
+    switch (o.correspondence.method) {
+        case refine::CorrespondenceMethod::Orb: return "lookup-orb";
+        case refine::CorrespondenceMethod::Ecc: return "lookup-ecc";
+        case refine::CorrespondenceMethod::Sad: break;
+    }
+    const bool heat = o.sampler.mode == refine::SamplingMode::HeatMap ||
+                      (o.sampler.mode == refine::SamplingMode::Auto && database_has_heat_maps);
+    return heat ? "lookup-fcn" + std::to_string(o.sampler.heat_map_points)
+                : "lookup-grid" + std::to_string(o.sampler.grid_points);
 }
 
 }  // namespace lookup::localize

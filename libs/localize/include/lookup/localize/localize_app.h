@@ -4,6 +4,7 @@
 #include <string>
 
 #include "lookup/localize/run_writer.h"
+#include "lookup/refine/options.h"
 
 namespace lookup::localize {
 
@@ -12,7 +13,8 @@ struct LocalizeRequest {
     std::string rawlog;             ///< query rawlog to replay
     std::string out_dir;            ///< run folder (docs/run-format.md)
     std::string ini_file;           ///< optional: [localizer], [refine.*], [coarse] sections
-    std::string method = "lookup";  ///< name of the method in run.ini and the eval report
+    std::string method;             ///< name of the method in run.ini and the eval report;
+                                    ///< empty: named after the options (defaultMethodName)
     std::string coarse_matches;     ///< optional: `query_time reference_time` file
     std::string coarse_poses;       ///< optional: coarse poses (TUM / MRPT)
     std::string sampling;           ///< optional override: "grid", "heatmap" or "auto"
@@ -22,6 +24,10 @@ struct LocalizeRequest {
     std::size_t max_frames = 0;     ///< stop after this many ceiling frames (0 = all)
     bool progress = true;           ///< progress bar on stderr when it is a terminal
 };
+
+/// The report's name of a LookUP run without --method: "lookup-grid24", "lookup-fcn12" (heat
+/// maps; Auto with a database that has them), "lookup-orb" or "lookup-ecc" (baselines).
+std::string defaultMethodName(const refine::RefinerOptions& options, bool database_has_heat_maps);
 
 /// Live sensors, configured as for MRPT's rawlog-grabber: every section of `sensors_ini` with
 /// a `driver` key (e.g. `driver = CCameraSensor`) is created through
