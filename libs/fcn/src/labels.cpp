@@ -85,8 +85,7 @@ std::vector<QueryFrame> readQueryFrames(const std::string& rawlog, const std::st
 
 // A RANSAC inlier within `precise_px` of the fitted homography (any inlier if 0): the points
 // that match precisely and lie on the plane, so that the network learns to prefer them.
-bool isTarget(const refine::PointMatch& m, const refine::HomographyResult& fit,
-              double precise_px) {
+bool isTarget(const refine::PointMatch& m, const refine::HomographyResult& fit, double precise_px) {
     if (!m.inlier) return false;
     if (precise_px <= 0) return true;
     if (!fit.ok) return false;

@@ -75,8 +75,8 @@ void LabelOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& sourc
     const IniSection s(source, section, sourceName(source));
     s.rejectUnknownKeys({"grid_step_px", "references_per_query", "max_reference_distance_m",
                          "min_time_gap_s", "query_stride", "held_out_share", "min_pair_inliers",
-                         "use_pose_prior", "precise_inlier_px", "min_references", "min_training_pairs",
-                         "min_held_out_pairs"});
+                         "use_pose_prior", "precise_inlier_px", "min_references",
+                         "min_training_pairs", "min_held_out_pairs"});
     grid_step_px = s.getInt("grid_step_px", grid_step_px);
     references_per_query = s.getInt("references_per_query", references_per_query);
     max_reference_distance_m = s.getDouble("max_reference_distance_m", max_reference_distance_m);

@@ -287,9 +287,12 @@ RunTiming runLiveLocalization(const LiveRequest& live) {
 
 std::string defaultMethodName(const refine::RefinerOptions& o, bool database_has_heat_maps) {
     switch (o.correspondence.method) {
-        case refine::CorrespondenceMethod::Orb: return "lookup-orb";
-        case refine::CorrespondenceMethod::Ecc: return "lookup-ecc";
-        case refine::CorrespondenceMethod::Sad: break;
+        case refine::CorrespondenceMethod::Orb:
+            return "lookup-orb";
+        case refine::CorrespondenceMethod::Ecc:
+            return "lookup-ecc";
+        case refine::CorrespondenceMethod::Sad:
+            break;
     }
     const bool heat = o.sampler.mode == refine::SamplingMode::HeatMap ||
                       (o.sampler.mode == refine::SamplingMode::Auto && database_has_heat_maps);

@@ -38,23 +38,23 @@ struct LabelOptions : public mrpt::config::CLoadableOptions {
     int grid_step_px = 10;                  ///< spacing of the dense label grid [px]
     int references_per_query = 2;           ///< nearest references labelled per query frame
     double max_reference_distance_m = 1.5;  ///< references farther from the query are skipped [m]
-    double min_time_gap_s = 20.0;  ///< references closer in time to the query are skipped [s]
-                                   ///< (a training traverse that is also in the database)
-    int query_stride = 2;          ///< every n-th ceiling frame of a training rawlog is used
-    double held_out_share = 0.2;   ///< last share of each training rawlog's time span held out
-                                   ///< for evaluation and validation (0, 1)
-    int min_pair_inliers = 8;      ///< pairs with fewer RANSAC inliers are dropped (no reliable
-                                   ///< labels: wrong overlap, failed match)
-    bool use_pose_prior = true;    ///< centre each search window on the offset predicted by the
-                                   ///< known poses (ceiling-plane homography) rather than 0
+    double min_time_gap_s = 20.0;     ///< references closer in time to the query are skipped [s]
+                                      ///< (a training traverse that is also in the database)
+    int query_stride = 2;             ///< every n-th ceiling frame of a training rawlog is used
+    double held_out_share = 0.2;      ///< last share of each training rawlog's time span held out
+                                      ///< for evaluation and validation (0, 1)
+    int min_pair_inliers = 8;         ///< pairs with fewer RANSAC inliers are dropped (no reliable
+                                      ///< labels: wrong overlap, failed match)
+    bool use_pose_prior = true;       ///< centre each search window on the offset predicted by the
+                                      ///< known poses (ceiling-plane homography) rather than 0
     double precise_inlier_px = 0.75;  ///< > 0: a point is a positive training target only when
                                       ///< it is a RANSAC inlier within this residual of the
                                       ///< fitted homography [px] (matches precisely, lies on the
                                       ///< ceiling plane); 0: every RANSAC inlier (the paper).
                                       ///< The held-out metric always uses RANSAC inliers.
-    int min_references = 2;        ///< fewer references in the database: refused
-    int min_training_pairs = 2;    ///< fewer usable training pairs: refused
-    int min_held_out_pairs = 1;    ///< fewer usable held-out pairs: refused
+    int min_references = 2;           ///< fewer references in the database: refused
+    int min_training_pairs = 2;       ///< fewer usable training pairs: refused
+    int min_held_out_pairs = 1;       ///< fewer usable held-out pairs: refused
 
     /// Matcher and RANSAC used to label (paper Table I; should match the localiser's).
     refine::MatcherOptions matcher;

@@ -9,20 +9,20 @@
 namespace lookup::localize {
 
 struct LocalizeRequest {
-    std::string db_dir;             ///< reference database (lookup-survey)
-    std::string rawlog;             ///< query rawlog to replay
-    std::string out_dir;            ///< run folder (docs/run-format.md)
-    std::string ini_file;           ///< optional: [localizer], [refine.*], [coarse] sections
-    std::string method;             ///< name of the method in run.ini and the eval report;
-                                    ///< empty: named after the options (defaultMethodName)
-    std::string coarse_matches;     ///< optional: `query_time reference_time` file
-    std::string coarse_poses;       ///< optional: coarse poses (TUM / MRPT)
-    std::string sampling;           ///< optional override: "grid", "heatmap" or "auto"
-    std::string matcher;            ///< optional override of [refine.correspondence] method:
-                                    ///< "sad", "orb" or "ecc" (ORB / ECC baselines, issue 6)
-    int realtime = -1;              ///< -1: from the ini; 0: as fast as possible; 1: recorded rate
-    std::size_t max_frames = 0;     ///< stop after this many ceiling frames (0 = all)
-    bool progress = true;           ///< progress bar on stderr when it is a terminal
+    std::string db_dir;          ///< reference database (lookup-survey)
+    std::string rawlog;          ///< query rawlog to replay
+    std::string out_dir;         ///< run folder (docs/run-format.md)
+    std::string ini_file;        ///< optional: [localizer], [refine.*], [coarse] sections
+    std::string method;          ///< name of the method in run.ini and the eval report;
+                                 ///< empty: named after the options (defaultMethodName)
+    std::string coarse_matches;  ///< optional: `query_time reference_time` file
+    std::string coarse_poses;    ///< optional: coarse poses (TUM / MRPT)
+    std::string sampling;        ///< optional override: "grid", "heatmap" or "auto"
+    std::string matcher;         ///< optional override of [refine.correspondence] method:
+                                 ///< "sad", "orb" or "ecc" (ORB / ECC baselines, issue 6)
+    int realtime = -1;           ///< -1: from the ini; 0: as fast as possible; 1: recorded rate
+    std::size_t max_frames = 0;  ///< stop after this many ceiling frames (0 = all)
+    bool progress = true;        ///< progress bar on stderr when it is a terminal
 };
 
 /// The report's name of a LookUP run without --method: "lookup-grid24", "lookup-fcn12" (heat
