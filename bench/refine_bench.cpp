@@ -122,28 +122,37 @@ struct MatchErrors {
     }
 };
 
-void matcherBench(benchmark::State& state, MatcherOptions o, int points, SimdLevel simd,
-                  bool include_query_pyramid) {
+// The timed loop of the matcher benchmarks: `match(pair, sample points)` over the world's
+// pairs in turn on one core, with the match errors against the true homography as counters.
+template <class Match>
+void timeMatching(benchmark::State& state, const MatcherOptions& o, int points, Match&& match) {
     OneCore one_core;
     const World& w = world();
+    // Window margin so every point's full window lies in the image (the border is not what
+    // these measure).
     const auto sample =
         gridPoints(cv::Size(640, 480), points, o.patch_px / 2 + o.search_range_px / 2);
     MatchErrors errors;
     std::size_t i = 0;
     for (auto _ : state) {
         const auto& p = w.pairs[i++ % w.pairs.size()];
-        std::vector<PointMatch> m;
-        if (include_query_pyramid) {
-            const ImagePyramid q = ImagePyramid::build(p.query, effectivePyramidLevels(o));
-            m = matchPoints(p.ref_pyramid, q, sample, {}, o, simd);
-        } else {
-            m = matchPoints(p.ref_pyramid, p.query_pyramid, sample, {}, o, simd);
-        }
+        const std::vector<PointMatch> m = match(p, sample);
         benchmark::DoNotOptimize(m.data());
         errors.add(m, p.H);
     }
     state.SetItemsProcessed(state.iterations());
     errors.report(state);
+}
+
+void matcherBench(benchmark::State& state, MatcherOptions o, int points, SimdLevel simd,
+                  bool include_query_pyramid) {
+    timeMatching(state, o, points, [&](const World::Pair& p, const auto& sample) {
+        if (!include_query_pyramid) {
+            return matchPoints(p.ref_pyramid, p.query_pyramid, sample, {}, o, simd);
+        }
+        const ImagePyramid q = ImagePyramid::build(p.query, effectivePyramidLevels(o));
+        return matchPoints(p.ref_pyramid, q, sample, {}, o, simd);
+    });
     state.SetLabel(std::string(toString(simd)) +
                    (o.pyramid_levels ? " coarse-to-fine" : " exhaustive"));
 }
@@ -153,8 +162,6 @@ MatcherOptions exhaustive(MatcherOptions o) {
     return o;
 }
 
-// Window margin so every point's full window lies in the image (the border is not what
-// these measure).
 BENCHMARK_CAPTURE(matcherBench, MineA_12pts, mineA(), 12, bestSimdLevel(), false);
 BENCHMARK_CAPTURE(matcherBench, MineA_24pts, mineA(), 24, bestSimdLevel(), false);
 BENCHMARK_CAPTURE(matcherBench, MineB_12pts, mineB(), 12, bestSimdLevel(), false);
@@ -171,20 +178,9 @@ BENCHMARK_CAPTURE(matcherBench, MineB_12pts_exhaustive_scalar, exhaustive(mineB(
 // frame by the predicted ceiling homography (here the true one), then the SAD search. The
 // warp is done per sample point and pyramid level, so the cost follows the number of points.
 void compensatedMatcherBench(benchmark::State& state, MatcherOptions o, int points) {
-    OneCore one_core;
-    const World& w = world();
-    const auto sample =
-        gridPoints(cv::Size(640, 480), points, o.patch_px / 2 + o.search_range_px / 2);
-    MatchErrors errors;
-    std::size_t i = 0;
-    for (auto _ : state) {
-        const auto& p = w.pairs[i++ % w.pairs.size()];
-        const auto m = matchPointsCompensated(p.ref_pyramid, p.query_pyramid, sample, p.H, o);
-        benchmark::DoNotOptimize(m.data());
-        errors.add(m, p.H);
-    }
-    state.SetItemsProcessed(state.iterations());
-    errors.report(state);
+    timeMatching(state, o, points, [&](const World::Pair& p, const auto& sample) {
+        return matchPointsCompensated(p.ref_pyramid, p.query_pyramid, sample, p.H, o);
+    });
 }
 BENCHMARK_CAPTURE(compensatedMatcherBench, Compensated_MineA_12pts, mineA(), 12);
 BENCHMARK_CAPTURE(compensatedMatcherBench, Compensated_MineA_24pts, mineA(), 24);

@@ -18,6 +18,7 @@
 #include "lookup/coarse/camera_stream.h"
 #include "lookup/coarse/coarse_localizer.h"
 #include "lookup/coarse/confusion_image.h"
+#include "lookup/common/cli.h"
 #include "lookup/common/config.h"
 
 namespace lookup::coarse {
@@ -120,11 +121,7 @@ bool CoarseTool::initialize(int argc, const char* const* argv) {
     TCLAP::SwitchArg quiet("", "quiet", "No progress bar", cmd, false);
 
     if (!cmd.parse(argc, const_cast<const char**>(argv))) {
-        exit_code_ =
-            (argc > 1 && (std::string(argv[1]) == "--help" || std::string(argv[1]) == "-h" ||
-                          std::string(argv[1]) == "--version"))
-                ? 0
-                : 1;
+        exit_code_ = common::parseFailureExitCode(argc, argv);
         return false;
     }
     ref_rawlog_ = ref.getValue();

@@ -8,6 +8,7 @@
 #include <iostream>
 #include <sstream>
 
+#include "lookup/common/cli.h"
 #include "lookup/common/config.h"
 
 namespace lookup::survey {
@@ -102,12 +103,7 @@ bool SurveyApp::initialize(int argc, const char* const* argv) {
     std::vector<const char*> args(argv, argv + argc);
     if (!cmd.parse(argc, args.data())) {
         // TCLAP printed the help, the version or the error.
-        bool asked = false;
-        for (int i = 1; i < argc; ++i) {
-            const std::string a = argv[i];
-            asked = asked || a == "-h" || a == "--help" || a == "--version";
-        }
-        exit_code_ = asked ? 0 : 2;
+        exit_code_ = common::parseFailureExitCode(argc, argv, 2);
         return false;
     }
     try {
