@@ -52,7 +52,7 @@ void drawFigure(const std::string& db_dir, int index, const std::string& png) {
     if (heat.empty()) throw std::runtime_error(db_dir + "/db.ini: no heat maps (train first)");
     const lookup::refine::SamplerOptions s;
     const auto points = lookup::refine::heatMapPoints(heat, s.heat_map_points, s.damping_ratio,
-                                                      s.damping_side_px, s.border_margin_px);
+                                                      s.damping_side_px, s.heatMapMargin());
     if (!cv::imwrite(png, lookup::fcn::heatMapFigure(db.ceilingImage(i), heat, points))) {
         throw std::runtime_error(png + ": cannot write");
     }

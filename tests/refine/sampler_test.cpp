@@ -48,6 +48,31 @@ TEST(Sampler, HeatMapRespectsMarginAndRefusesNaN) {
     EXPECT_TRUE(heatMapPoints(heat, 5, 0.5, 10, 20).empty());
 }
 
+TEST(Sampler, HeatMapMarginMovesOnlyHeatMapPoints) {
+    SamplerOptions o;
+    o.border_margin_px = 20;
+    o.heat_map_margin_px = 40;
+    cv::Mat heat(120, 160, CV_32F, cv::Scalar(0.0f));
+    heat.at<float>(25, 80) = 1.0f;  // best value, but 25 px from the top: outside 40 px
+    const auto pts = selectSamplePoints(heat.size(), heat, o);
+    ASSERT_EQ(pts.size(), size_t(o.heat_map_points));
+    for (const auto& p : pts) {
+        EXPECT_GE(p.x, 40);
+        EXPECT_GE(p.y, 40);
+        EXPECT_LT(p.x, 120);
+        EXPECT_LT(p.y, 80);
+    }
+    // The grid keeps border_margin_px; a heat-map margin below it changes nothing.
+    EXPECT_EQ(selectSamplePoints(heat.size(), cv::Mat(), o),
+              gridPoints(heat.size(), o.grid_points, 20));
+    SamplerOptions below = o;
+    below.heat_map_margin_px = 10;
+    EXPECT_EQ(below.heatMapMargin(), 20);
+    EXPECT_EQ(selectSamplePoints(heat.size(), heat, below)[0], cv::Point2f(80, 25));
+    // Cached points are reused only for the same margins.
+    EXPECT_FALSE(sameSelection(o, below));
+}
+
 TEST(Sampler, AutoModeUsesHeatMapWhenPresent) {
     SamplerOptions o;
     cv::Mat heat(120, 160, CV_32F, cv::Scalar(0.0f));

@@ -19,16 +19,23 @@ constexpr float kInf = std::numeric_limits<float>::infinity();
 // stretch of identical references from turning noise into huge z-scores.
 constexpr double kMinLocalStd = 0.05;
 
-/// Reference whose arc length is nearest to `arc` [m].
-long nearestArc(const ReferenceDescriptors& refs, double arc) {
-    long lo = 0, hi = static_cast<long>(refs.size()) - 1;
-    if (arc <= refs.arcLength(0)) return 0;
-    if (arc >= refs.arcLength(hi)) return hi;
+/// Largest index with arcLength <= `arc`, 0 when none (binary search; arc lengths grow).
+long lastAtOrBelow(const ReferenceDescriptors& refs, double arc) {
+    long lo = 0, hi = static_cast<long>(refs.size());  // answer in [lo, hi)
     while (hi - lo > 1) {
         const long mid = (lo + hi) / 2;
         (refs.arcLength(mid) <= arc ? lo : hi) = mid;
     }
-    return arc - refs.arcLength(lo) <= refs.arcLength(hi) - arc ? lo : hi;
+    return lo;
+}
+
+/// Reference whose arc length is nearest to `arc` [m].
+long nearestArc(const ReferenceDescriptors& refs, double arc) {
+    const long last = static_cast<long>(refs.size()) - 1;
+    if (arc <= refs.arcLength(0)) return 0;
+    if (arc >= refs.arcLength(last)) return last;
+    const long lo = lastAtOrBelow(refs, arc);
+    return arc - refs.arcLength(lo) <= refs.arcLength(lo + 1) - arc ? lo : lo + 1;
 }
 
 /// Reference index at one query frame of the paths ending at candidates lo..hi (one speed
@@ -45,20 +52,23 @@ void pathIndices(const ReferenceDescriptors& refs, long lo, long hi, double arc_
         }
         return;
     }
-    const long n = static_cast<long>(refs.size());
-    long p = 0;  // largest index with arc(p) <= target, while the target is inside the range
+    const std::vector<double>& arc_of = refs.arcLengths();  // unchecked access: the hot loop
+    const long n = static_cast<long>(arc_of.size());
+    // Largest index with arc(p) <= target, while the target is inside the range. The walk
+    // starts where the first target lies: from 0 it cost O(n) per call.
+    long p = lastAtOrBelow(refs, arc_of[lo] + arc_shift);
     for (long j = lo; j <= hi; ++j) {
-        const double arc = refs.arcLength(j) + arc_shift;
+        const double arc = arc_of[j] + arc_shift;
         long i;
-        if (arc < refs.arcLength(0) - 1e-9) {
+        if (arc < arc_of[0] - 1e-9) {
             i = -1;
-        } else if (arc <= refs.arcLength(0)) {
+        } else if (arc <= arc_of[0]) {
             i = 0;
-        } else if (arc >= refs.arcLength(n - 1)) {
+        } else if (arc >= arc_of[n - 1]) {
             i = n - 1;
         } else {
-            while (p + 1 < n && refs.arcLength(p + 1) <= arc) ++p;
-            i = arc - refs.arcLength(p) <= refs.arcLength(p + 1) - arc ? p : p + 1;
+            while (p + 1 < n && arc_of[p + 1] <= arc) ++p;
+            i = arc - arc_of[p] <= arc_of[p + 1] - arc ? p : p + 1;
         }
         out[j - lo] = i;
     }

@@ -71,6 +71,11 @@ double ReferenceDescriptors::arcLength(std::size_t i) const {
     return arc_.at(i);
 }
 
+const std::vector<double>& ReferenceDescriptors::arcLengths() const {
+    if (!hasPoses()) throw std::logic_error("ReferenceDescriptors: the references have no poses");
+    return arc_;
+}
+
 std::size_t ReferenceDescriptors::nearestInTime(double time_s) const {
     if (times_.empty()) throw std::logic_error("ReferenceDescriptors: empty");
     const auto it = std::lower_bound(times_.begin(), times_.end(), time_s);

@@ -23,7 +23,6 @@ std::vector<PointMatch> matchPointsCompensated(const ImagePyramid& reference,
     }
     const cv::Matx33d H_inv = H.inv();
     const cv::Mat& ref0 = reference.levels[0];
-    const cv::Mat& qry0 = query.levels[0];
 
     // Which points keep their whole warped patch on reference pixels: the patch square maps
     // through H^-1 to a convex quadrilateral, inside the reference iff its corners are (one

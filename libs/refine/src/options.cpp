@@ -77,13 +77,14 @@ void SamplerOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& sou
                                         const std::string& section) {
     const IniSection s(source, section, sourceName(source));
     s.rejectUnknownKeys({"mode", "grid_points", "heat_map_points", "damping_ratio",
-                         "damping_side_px", "border_margin_px"});
+                         "damping_side_px", "border_margin_px", "heat_map_margin_px"});
     mode = parseSamplingMode(s, "mode", mode);
     grid_points = s.getInt("grid_points", grid_points);
     heat_map_points = s.getInt("heat_map_points", heat_map_points);
     damping_ratio = s.getDouble("damping_ratio", damping_ratio);
     damping_side_px = s.getInt("damping_side_px", damping_side_px);
     border_margin_px = s.getInt("border_margin_px", border_margin_px);
+    heat_map_margin_px = s.getInt("heat_map_margin_px", heat_map_margin_px);
 }
 
 void SamplerOptions::saveToConfigFile(mrpt::config::CConfigFileBase& t,
@@ -94,6 +95,7 @@ void SamplerOptions::saveToConfigFile(mrpt::config::CConfigFileBase& t,
     write(t, s, "damping_ratio", damping_ratio);
     write(t, s, "damping_side_px", damping_side_px);
     write(t, s, "border_margin_px", border_margin_px);
+    write(t, s, "heat_map_margin_px", heat_map_margin_px);
 }
 
 void SamplerOptions::check() const {
@@ -103,6 +105,7 @@ void SamplerOptions::check() const {
     c.require(damping_ratio > 0.0 && damping_ratio < 1.0, "damping_ratio", "in (0, 1)");
     c.require(damping_side_px >= 1, "damping_side_px", ">= 1");
     c.require(border_margin_px >= 0, "border_margin_px", ">= 0");
+    c.require(heat_map_margin_px >= 0, "heat_map_margin_px", ">= 0");
     c.throwIfFailed();
 }
 

@@ -67,7 +67,7 @@ std::vector<cv::Point2f> selectSamplePoints(cv::Size image_size, const cv::Mat& 
     if (use_heat) {
         if (heat_map.size() != image_size) return {};
         return heatMapPoints(heat_map, o.heat_map_points, o.damping_ratio, o.damping_side_px,
-                             o.border_margin_px);
+                             o.heatMapMargin());
     }
     return gridPoints(image_size, o.grid_points, o.border_margin_px);
 }
@@ -75,7 +75,8 @@ std::vector<cv::Point2f> selectSamplePoints(cv::Size image_size, const cv::Mat& 
 bool sameSelection(const SamplerOptions& a, const SamplerOptions& b) {
     return a.mode == b.mode && a.grid_points == b.grid_points &&
            a.heat_map_points == b.heat_map_points && a.damping_ratio == b.damping_ratio &&
-           a.damping_side_px == b.damping_side_px && a.border_margin_px == b.border_margin_px;
+           a.damping_side_px == b.damping_side_px && a.border_margin_px == b.border_margin_px &&
+           a.heatMapMargin() == b.heatMapMargin();
 }
 
 }  // namespace lookup::refine

@@ -44,6 +44,8 @@ class ReferenceDescriptors {
     const mrpt::poses::CPose3D& pose(std::size_t i) const;
     /// Distance travelled along the reference from frame 0 to frame i [m] (needs poses).
     double arcLength(std::size_t i) const;
+    /// All arc lengths, index as arcLength() (for hot loops; throws as arcLength()).
+    const std::vector<double>& arcLengths() const;
     /// Index of the frame nearest in time to `time_s` (references must not be empty).
     std::size_t nearestInTime(double time_s) const;
     /// Index of the frame whose position is nearest to `p` (needs poses).

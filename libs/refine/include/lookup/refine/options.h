@@ -6,6 +6,7 @@
 
 #include <mrpt/config/CLoadableOptions.h>
 
+#include <algorithm>
 #include <string>
 
 namespace lookup::refine {
@@ -26,6 +27,13 @@ struct SamplerOptions : public mrpt::config::CLoadableOptions {
     int damping_side_px = 10;    ///< l_n: side of the damped neighbourhood [px] (Mine B: 20)
     int border_margin_px = 20;   ///< points stay this far from the image border [px];
                                  ///< at least l_patch / 2 (checked by RefinerOptions)
+    /// Heat-map points keep the larger of this and border_margin_px from the border [px].
+    /// Grid points sit half a cell inside border_margin_px; a heat-map point can sit on it,
+    /// and there the motion-compensated patch leaves the reference at the least offset.
+    int heat_map_margin_px = 0;
+
+    /// The border margin heat-map points keep.
+    int heatMapMargin() const { return std::max(border_margin_px, heat_map_margin_px); }
 
     void loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
                             const std::string& section) override;

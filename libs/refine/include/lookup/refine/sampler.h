@@ -1,7 +1,8 @@
 #pragma once
 // Sample Point Selector (paper Sec. III-B): a regular grid, or greedy selection on a sample
 // quality heat map: take the best pixel, multiply its l_n x l_n neighbourhood by rho, repeat
-// until N distinct points. Points keep border_margin_px from the image border. Deterministic.
+// until N distinct points. Points keep border_margin_px (heat map: SamplerOptions::heatMapMargin)
+// from the image border. Deterministic.
 
 #include <opencv2/core.hpp>
 #include <vector>
