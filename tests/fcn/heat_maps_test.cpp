@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <opencv2/imgcodecs.hpp>
 
 #include "fixture.h"
 #include "lookup/database/reference_database.h"
@@ -40,11 +41,32 @@ TEST(HeatMaps, WrittenInTheLocalisersFormatAndListedInDbIni) {
     ASSERT_FALSE(db.info().heatmaps_dir.empty());
     const std::string first_dir = db.info().heatmaps_dir;
     for (std::size_t i = 0; i < db.size(); ++i) {
-        EXPECT_TRUE(fs::exists(fs::path(db_dir) / first_dir / localize::heatMapFileName(i)));
+        const fs::path file = fs::path(db_dir) / first_dir / localize::heatMapFileName(i);
+        // Stored at the network's resolution (input_scale 0.5), read back at the image's.
+        const cv::Mat raw = cv::imread(file.string(), cv::IMREAD_UNCHANGED);
+        const cv::Mat image = db.ceilingImage(i);
+        ASSERT_EQ(raw.type(), CV_16UC1) << file;
+        EXPECT_EQ(raw.size(), model.predictAtNetworkScale(image).size());
+        EXPECT_EQ(raw.size(), cv::Size(image.cols / 2, image.rows / 2));
         const cv::Mat stored = localize::loadHeatMap(db, i);
-        const cv::Mat predicted = model.predict(db.ceilingImage(i));
+        const cv::Mat predicted = model.predict(image);
         ASSERT_EQ(stored.size(), predicted.size());
         EXPECT_LT(cv::norm(stored, predicted, cv::NORM_INF), 1.0 / 65535 + 1e-6);
+    }
+    // A heat map larger than the image is refused by name, not cropped or shrunk.
+    {
+        const auto db = database::ReferenceDatabase::load(db_dir);
+        const fs::path file = fs::path(db_dir) / first_dir / localize::heatMapFileName(1);
+        const cv::Mat image = db.ceilingImage(1);
+        ASSERT_TRUE(cv::imwrite(file.string(), cv::Mat(image.rows + 2, image.cols, CV_16UC1,
+                                                       cv::Scalar(100))));
+        try {
+            localize::loadHeatMap(db, 1);
+            ADD_FAILURE() << "an oversized heat map was accepted";
+        } catch (const std::runtime_error& e) {
+            EXPECT_NE(std::string(e.what()).find(file.string()), std::string::npos) << e.what();
+            EXPECT_NE(std::string(e.what()).find("larger than"), std::string::npos) << e.what();
+        }
     }
     // Every line of the survey's db.ini but the [heatmaps] directory is kept.
     const std::string after = slurp(fs::path(db_dir) / "db.ini");

@@ -110,7 +110,9 @@ HeatMapsWritten writeHeatMaps(const database::ReferenceDatabase& db, const HeatM
     try {
         fs::create_directories(staging);
         for (std::size_t i = 0; i < db.size(); ++i) {
-            const cv::Mat heat = model.predict(db.ceilingImage(i));
+            // At the network's resolution: a quarter of the pixels to decode in the localiser,
+            // which resizes on load exactly as predict() does.
+            const cv::Mat heat = model.predictAtNetworkScale(db.ceilingImage(i));
             const fs::path file = staging / localize::heatMapFileName(i);
             if (!cv::imwrite(file.string(), encodeHeatMap(heat))) {
                 throw std::runtime_error(file.string() + ": cannot write");

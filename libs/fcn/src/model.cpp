@@ -114,12 +114,17 @@ std::size_t HeatMapModel::parameterCount() const {
     return n;
 }
 
-cv::Mat HeatMapModel::predict(const cv::Mat& image) const {
+cv::Mat HeatMapModel::predictAtNetworkScale(const cv::Mat& image) const {
     torch::NoGradGuard no_grad;
     impl_->net->eval();
     const auto logits = impl_->net->forward(impl_->toInput(image));
     const auto prob = torch::sigmoid(logits).contiguous();
-    cv::Mat small(int(prob.size(2)), int(prob.size(3)), CV_32FC1, prob.data_ptr<float>());
+    return cv::Mat(int(prob.size(2)), int(prob.size(3)), CV_32FC1, prob.data_ptr<float>()).clone();
+}
+
+cv::Mat HeatMapModel::predict(const cv::Mat& image) const {
+    const cv::Mat small = predictAtNetworkScale(image);
+    if (small.size() == image.size()) return small;
     cv::Mat heat;
     cv::resize(small, heat, image.size(), 0, 0, cv::INTER_LINEAR);
     return heat;

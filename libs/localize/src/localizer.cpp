@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <map>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "lookup/coarse/coarse_localizer.h"
 #include "lookup/coarse/descriptor.h"
@@ -94,11 +95,24 @@ cv::Mat loadHeatMap(const database::ReferenceDatabase& db, std::size_t index) {
     const std::string& dir = db.info().heatmaps_dir;
     if (dir.empty()) return {};
     const std::string path = db.directory() + "/" + dir + "/" + heatMapFileName(index);
-    cv::Mat stored = cv::imread(path, cv::IMREAD_UNCHANGED);
-    if (stored.empty()) throw std::runtime_error(path + ": heat map listed in db.ini is missing");
+    cv::Mat stored = cv::imread(path, cv::IMREAD_GRAYSCALE | cv::IMREAD_ANYDEPTH);
+    if (stored.empty()) {
+        throw std::runtime_error(path + ": heat map listed in db.ini is missing or unreadable");
+    }
     cv::Mat heat;
     stored.convertTo(heat, CV_32F, stored.depth() == CV_16U ? 1.0 / 65535 : 1.0 / 255);
-    return heat;
+    const auto& camera = db.info().ceiling_camera;
+    const cv::Size image_size(int(camera.ncols), int(camera.nrows));
+    if (image_size.area() == 0 || heat.size() == image_size) return heat;
+    if (heat.cols > image_size.width || heat.rows > image_size.height) {
+        throw std::runtime_error(path + ": heat map " + std::to_string(heat.cols) + "x" +
+                                 std::to_string(heat.rows) + " is larger than the " +
+                                 std::to_string(image_size.width) + "x" +
+                                 std::to_string(image_size.height) + " ceiling image");
+    }
+    cv::Mat resized;
+    cv::resize(heat, resized, image_size, 0, 0, cv::INTER_LINEAR);
+    return resized;
 }
 
 std::string heatMapFileName(std::size_t index) {

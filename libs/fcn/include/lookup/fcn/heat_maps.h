@@ -2,7 +2,8 @@
 // Heat maps stored with the database (paper Sec. III-B: "all the reference images are processed
 // with it and corresponding sample quality heat maps are generated alongside the reference image
 // database"), in the localiser's format: DB/<dir>/heat_<index:06>.png, 16-bit grey scaled to
-// [0, 1] (localize::heatMapFileName / loadHeatMap), <dir> listed in db.ini [heatmaps] directory.
+// [0, 1] at the network's resolution (localize::heatMapFileName / loadHeatMap, which resizes to
+// the image), <dir> listed in db.ini [heatmaps] directory.
 //
 // Atomic: the maps are written into `<dir>.tmp`, renamed to a new folder `<dir>`, and only then
 // is db.ini rewritten (temp file + rename) to point at it; the previous folder is removed last.

@@ -44,6 +44,9 @@ class HeatMapModel {
     /// Heat map of a grey image (CV_8UC1, or CV_8UC3 converted): CV_32FC1 of the image's size,
     /// values sigmoid(logit) in [0, 1], larger = better sample point.
     cv::Mat predict(const cv::Mat& image) const;
+    /// The same map at the network's resolution (the image scaled by input_scale): what the
+    /// database stores; predict() is it resized (bilinear) to the image.
+    cv::Mat predictAtNetworkScale(const cv::Mat& image) const;
 
     struct Impl;  ///< LibTorch module and helpers (src/model_impl.h)
     Impl& impl() { return *impl_; }
