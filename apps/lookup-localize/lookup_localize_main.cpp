@@ -81,9 +81,9 @@ int main(int argc, char** argv) {
             t = lookup::localize::runLocalization(req);
         }
         std::printf(
-            "lookup-localize: %zu frames (%zu dropped) in %.1f s: %.1f frames/s; "
-            "%.2f ms/frame (coarse %.2f, select %.2f, refine %.2f) -> %s\n",
-            t.frames, t.frames_dropped, t.wall_s,
+            "lookup-localize: %zu frames (%zu dropped) in %.1f s after %.1f s start-up: "
+            "%.1f frames/s; %.2f ms/frame (coarse %.2f, select %.2f, refine %.2f) -> %s\n",
+            t.frames, t.frames_dropped, t.wall_s, t.startup_s,
             t.wall_s > 0 ? (t.frames - t.frames_dropped) / t.wall_s : 0.0,
             t.total_ms / std::max<std::size_t>(1, t.frames),
             t.coarse_ms / std::max<std::size_t>(1, t.frames),

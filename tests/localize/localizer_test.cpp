@@ -7,6 +7,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <opencv2/imgproc.hpp>
 #include <vector>
 
@@ -155,6 +156,14 @@ TEST(Localize, RefinesCoarsePosesToCentimetresOnASyntheticCeiling) {
     const auto timing = localize::runLocalization(req);
     EXPECT_EQ(timing.frames, 20u);
     EXPECT_EQ(timing.frames_dropped, 0u);
+    EXPECT_GT(timing.startup_s, 0.0);  // the database load, apart from the frames' time
+    EXPECT_GT(timing.wall_s, 0.0);
+    {
+        std::ifstream in(fs::path(req.out_dir) / "timing.json");
+        const auto j = nlohmann::json::parse(in);
+        EXPECT_DOUBLE_EQ(j.at("startup_s").get<double>(), timing.startup_s);
+        EXPECT_DOUBLE_EQ(j.at("frames_per_s").get<double>(), 20.0 / timing.wall_s);
+    }
 
     const auto report =
         eval::evaluate({eval::loadGroundTruth((dir / "query.rawlog.GT.txt").string())},

@@ -88,6 +88,10 @@ class Session {
         used.getContent(used_text);
         writer_ = std::make_unique<RunWriter>(req.out_dir, used_text, options_.write_debug_images,
                                               options_.debug_image_every);
+        // The replay clock starts now: start-up must not make the first frames late (realtime
+        // drops them) nor count in frames_per_s.
+        timing_.startup_s = wall_.Tac();
+        wall_.Tic();
     }
 
     const LocalizerOptions& options() const { return options_; }

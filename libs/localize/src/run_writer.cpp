@@ -159,6 +159,7 @@ void RunWriter::finish(const RunTiming& t) {
     nlohmann::json j;
     j["frames"] = t.frames;
     j["frames_dropped"] = t.frames_dropped;
+    j["startup_s"] = t.startup_s;
     j["wall_s"] = t.wall_s;
     j["frames_per_s"] = t.wall_s > 0 ? (t.frames - t.frames_dropped) / t.wall_s : 0.0;
     j["ms_per_frame"] = {{"coarse", t.coarse_ms / n},

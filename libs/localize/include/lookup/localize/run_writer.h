@@ -16,6 +16,9 @@ namespace lookup::localize {
 struct RunTiming {
     std::size_t frames = 0;
     std::size_t frames_dropped = 0;
+    /// Loading the database and the coarse stage's references, before the first observation.
+    double startup_s = 0;
+    /// From the first observation to the last (start-up excluded): frames_per_s divides by it.
     double wall_s = 0;
     double coarse_ms = 0, select_ms = 0, refine_ms = 0, total_ms = 0;
     /// Refiner stage totals by name (e.g. "match" -> ms), summed over frames.
