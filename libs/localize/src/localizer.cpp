@@ -344,7 +344,10 @@ const refine::Reference& Localizer::referenceView(std::size_t index) {
     view.camera = db_.info().ceiling_camera;
     view.vehicle_in_map = ref.vehicle_pose;
     view.camera_on_vehicle = ref.ceiling_camera_mount;
-    view.heat_map = loadHeatMap(db_, index);
+    // A grid run on a database with heat maps does not pay for decoding them.
+    if (refiner_.options().sampler.mode != refine::SamplingMode::Grid) {
+        view.heat_map = loadHeatMap(db_, index);
+    }
     view.prepare(refiner_.options().matcher.pyramid_levels);
     view.prepareSamplePoints(refiner_.options().sampler);
     while (views_.size() >= options_.image_cache_capacity) {
