@@ -6,6 +6,8 @@
 #include <opencv2/imgproc.hpp>
 
 #include <memory>
+#include <mrpt/poses/CPose3D.h>
+#include <optional>
 #include <random>
 #include <vector>
 
@@ -59,12 +61,21 @@ BENCHMARK(BM_CoarseDescriptor640x480)->Unit(benchmark::kMicrosecond);
 
 /// One tracking frame (sequence search only; descriptor precomputed) against a database of
 /// state.range(0) references. Counters: references evaluated and candidates scored per frame.
-void BM_CoarseTrackingFrame(benchmark::State& state) {
+/// With odometry (as the localiser runs it), references 1 m apart and 1 m travelled per frame:
+/// paths follow the travelled distance instead of a range of speeds.
+void coarseTrackingFrame(benchmark::State& state, bool odometry) {
     const int n = static_cast<int>(state.range(0));
     const CoarseOptions o;
     const Route route(n);
     auto refs = std::make_shared<ReferenceDescriptors>(o);
-    for (int i = 0; i < n; ++i) refs->add(i, route.descriptor(i, o));
+    for (int i = 0; i < n; ++i) {
+        if (odometry) {
+            refs->add(i, route.descriptor(i, o), mrpt::poses::CPose3D(i, 0, 0, 0, 0, 0));
+        } else {
+            refs->add(i, route.descriptor(i, o));
+        }
+    }
+    const std::optional<double> travelled = odometry ? std::optional<double>(1.0) : std::nullopt;
     std::vector<Descriptor> queries;
     for (int t = 0; t < 600; ++t) queries.push_back(route.descriptor(100.3 + t, o));
 
@@ -72,7 +83,7 @@ void BM_CoarseTrackingFrame(benchmark::State& state) {
     std::size_t next = 0, evaluated = 0, candidates = 0, frames = 0, tracking = 0;
     auto warmUp = [&] {  // fill the buffer and lock on (global searches, not timed)
         loc = std::make_unique<CoarseLocalizer>(refs, o);
-        for (next = 0; next < 40; ++next) loc->processDescriptor(queries[next], next);
+        for (next = 0; next < 40; ++next) loc->processDescriptor(queries[next], next, travelled);
     };
     warmUp();
     for (auto _ : state) {
@@ -81,7 +92,8 @@ void BM_CoarseTrackingFrame(benchmark::State& state) {
             warmUp();
             state.ResumeTiming();
         }
-        const auto r = loc->processDescriptor(queries[next], static_cast<double>(next));
+        const auto r =
+            loc->processDescriptor(queries[next], static_cast<double>(next), travelled);
         ++next;
         ++frames;
         evaluated += r.evaluated_references;
@@ -92,7 +104,14 @@ void BM_CoarseTrackingFrame(benchmark::State& state) {
     state.counters["candidates_per_frame"] = static_cast<double>(candidates) / frames;
     state.counters["tracking_share"] = static_cast<double>(tracking) / frames;
 }
-BENCHMARK(BM_CoarseTrackingFrame)->Arg(1000)->Arg(10000)->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(coarseTrackingFrame, CoarseTrackingFrame, false)
+    ->Arg(1000)
+    ->Arg(10000)
+    ->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(coarseTrackingFrame, CoarseTrackingFrame_odometry, true)
+    ->Arg(1000)
+    ->Arg(10000)
+    ->Unit(benchmark::kMicrosecond);
 
 /// One thumbnail difference (64x48 bytes), the inner loop of a global search: the hand-written
 /// psadbw loop against OpenCV's cv::norm(NORM_L1) on the same bytes.
