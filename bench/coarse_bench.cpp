@@ -1,12 +1,12 @@
 // Coarse stage benchmarks: descriptor extraction and one online frame while tracking, for a
 // reference database 10x longer, to show that the work per frame does not grow with it.
 #include <benchmark/benchmark.h>
+#include <mrpt/poses/CPose3D.h>
 
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include <memory>
-#include <mrpt/poses/CPose3D.h>
 #include <optional>
 #include <random>
 #include <vector>
@@ -92,8 +92,7 @@ void coarseTrackingFrame(benchmark::State& state, bool odometry) {
             warmUp();
             state.ResumeTiming();
         }
-        const auto r =
-            loc->processDescriptor(queries[next], static_cast<double>(next), travelled);
+        const auto r = loc->processDescriptor(queries[next], static_cast<double>(next), travelled);
         ++next;
         ++frames;
         evaluated += r.evaluated_references;

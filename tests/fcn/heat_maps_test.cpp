@@ -58,8 +58,8 @@ TEST(HeatMaps, WrittenInTheLocalisersFormatAndListedInDbIni) {
         const auto db = database::ReferenceDatabase::load(db_dir);
         const fs::path file = fs::path(db_dir) / first_dir / localize::heatMapFileName(1);
         const cv::Mat image = db.ceilingImage(1);
-        ASSERT_TRUE(cv::imwrite(file.string(), cv::Mat(image.rows + 2, image.cols, CV_16UC1,
-                                                       cv::Scalar(100))));
+        ASSERT_TRUE(cv::imwrite(file.string(),
+                                cv::Mat(image.rows + 2, image.cols, CV_16UC1, cv::Scalar(100))));
         try {
             localize::loadHeatMap(db, 1);
             ADD_FAILURE() << "an oversized heat map was accepted";
