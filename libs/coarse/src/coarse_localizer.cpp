@@ -232,15 +232,13 @@ CoarseLocalizer::Search CoarseLocalizer::search(long cand_lo, long cand_hi, bool
     for (int k = 1; k < n_cols; ++k)
         back_m[k] = back_m[k - 1] + columns_[k - 1]->travelled_m.value_or(0);
 
-    // Reference at query frame k on path (j, h); -1 when the path leaves the reference.
-    auto pathIndex = [&](long j, int h, int k) -> long {
-        if (odometry) {
-            const double arc = references_->arcLength(j) - hyp[h] * back_m[k];
-            if (arc < references_->arcLength(0) - 1e-9) return -1;
-            return nearestArc(*references_, arc);
-        }
-        const long i = std::lround(static_cast<double>(j) - hyp[h] * k);
-        return i < 0 ? -1 : i;
+    // With odometry, the reference at query frame k on the path ending at j with scale
+    // hypothesis h; -1 when the path leaves the reference. (Without odometry the span below is
+    // a closed form, and the path scores use pathIndices.)
+    auto odometryPathIndex = [&](long j, int h, int k) -> long {
+        const double arc = references_->arcLength(j) - hyp[h] * back_m[k];
+        if (arc < references_->arcLength(0) - 1e-9) return -1;
+        return nearestArc(*references_, arc);
     };
 
     // Locally contrast-enhanced confusion entries, per column, over the span paths can reach.
@@ -251,8 +249,8 @@ CoarseLocalizer::Search CoarseLocalizer::search(long cand_lo, long cand_hi, bool
     for (int k = 0; k < n_cols; ++k) {
         long a, b;
         if (odometry) {
-            a = std::max(0L, pathIndex(cand_lo, H - 1, k));
-            b = pathIndex(cand_hi, 0, k);
+            a = std::max(0L, odometryPathIndex(cand_lo, H - 1, k));
+            b = odometryPathIndex(cand_hi, 0, k);
         } else {
             a = std::max(0L, cand_lo - static_cast<long>(std::ceil(hyp[H - 1] * k)) - 1);
             b = cand_hi - static_cast<long>(std::floor(hyp[0] * k)) + 1;
