@@ -36,7 +36,7 @@ struct MethodsWorld {
                 ref_vehicle + CPose3D(rng.uniform(-0.12, 0.12), rng.uniform(-0.12, 0.12), 0,
                                       rng.uniform(-0.035, 0.035), 0, 0);
             references.push_back(ceiling.reference(i, camera, on_vehicle, ref_vehicle));
-            references.back().prepare(2);
+            references.back().prepare(lookup::refine::MatcherOptions{});
             queries.push_back(ceiling.render(camera, query_vehicle + on_vehicle));
             query_vehicles.push_back(query_vehicle);
         }

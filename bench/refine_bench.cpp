@@ -61,7 +61,7 @@ struct World {
                    {}};
             p.ref_pyramid = ImagePyramid::build(p.reference.image, 2);
             p.query_pyramid = ImagePyramid::build(p.query, 2);
-            p.reference.prepare(2);
+            p.reference.prepare(MatcherOptions{});
             pairs.push_back(std::move(p));
         }
     }

@@ -227,3 +227,62 @@ TEST(Matcher, MotionCompensationRefusesADegenerateHomography) {
         }
     }
 }
+
+TEST(Matcher, IlluminationHighPassMatchesUnderTheVehiclesOwnLight) {
+    // The lamp moves with the camera: both images carry the same bright centre and dark rim,
+    // while the ceiling (low-contrast, as shotcrete) moves 14 px x 7 px under it.
+    const Pair pair = makePair(0.2, 0.1);
+    const auto light = [](const cv::Mat& image) {
+        cv::Mat out(image.size(), CV_8UC1);
+        const double cx = image.cols / 2.0, cy = image.rows / 2.0;
+        for (int y = 0; y < image.rows; ++y) {
+            for (int x = 0; x < image.cols; ++x) {
+                const double r2 = (x - cx) * (x - cx) + (y - cy) * (y - cy);
+                const double lamp = 0.35 + 0.9 * std::exp(-r2 / (2 * 110.0 * 110.0));
+                const double ceiling = 128 + 0.15 * (image.at<uchar>(y, x) - 128);
+                out.at<uchar>(y, x) = cv::saturate_cast<uchar>(lamp * ceiling);
+            }
+        }
+        return out;
+    };
+    const cv::Mat ref = light(pair.ref), qry = light(pair.qry);
+    const auto points = gridPoints(ref.size(), 24, 20);
+    const auto correct = [&](const MatcherOptions& o) {
+        const int levels = effectivePyramidLevels(o);
+        const auto matches = matchPoints(ImagePyramid::build(ref, levels, o),
+                                         ImagePyramid::build(qry, levels, o), points, {}, o);
+        int n = 0;
+        for (const auto& m : matches) {
+            const cv::Point2d truth = apply(pair.H, m.reference_px);
+            if (m.matched() && cv::norm(cv::Point2d(m.query_px) - truth) < 0.5) ++n;
+        }
+        return n;
+    };
+    MatcherOptions high_pass;
+    ASSERT_GT(high_pass.illumination_sigma_px, 0.0);  // on by default
+    MatcherOptions raw = high_pass;
+    raw.illumination_sigma_px = 0.0;
+    const int with = correct(high_pass), without = correct(raw);
+    std::printf("correct matches: %d with the high-pass, %d without, of %zu\n", with, without,
+                points.size());
+    EXPECT_GE(with, int(points.size()) * 3 / 4);
+    EXPECT_LE(2 * without, with);
+}
+
+TEST(Matcher, IlluminationPreprocessingIsRecordedOnThePyramid) {
+    const Pair pair = makePair(0.0, 0.0);
+    MatcherOptions o;
+    o.illumination_sigma_px = 6.0;
+    const auto p = ImagePyramid::build(pair.ref, 2, o);
+    EXPECT_TRUE(p.preprocessedFor(o));
+    EXPECT_EQ(p.levels.size(), 3u);
+    EXPECT_EQ(p.levels[0].type(), CV_8UC1);
+    MatcherOptions other = o;
+    other.illumination_sigma_px = 0.0;
+    EXPECT_FALSE(p.preprocessedFor(other));
+    // High-passed and normalised: mean 128, the texture kept (standard deviation near 48).
+    cv::Scalar mean, stddev;
+    cv::meanStdDev(p.levels[0], mean, stddev);
+    EXPECT_NEAR(mean[0], 128.0, 3.0);
+    EXPECT_NEAR(stddev[0], 48.0, 6.0);
+}

@@ -227,7 +227,7 @@ TEST(Refiner, HeatMapSamplingUsesTheBestRegionsAndIsDeterministic) {
     }
     ref.heat_map.at<float>(120, 60) = 0.05f;
     cv::GaussianBlur(ref.heat_map, ref.heat_map, cv::Size(0, 0), 3);
-    ref.prepare(2);
+    ref.prepare(MatcherOptions{});
     const Refiner refiner(optionsWithHeight(5.3));
     const CoarseHint hint{{}, CPose3D(), {}};
     const auto a = refiner.refine(s.query(truth), s.camera, s.on_vehicle, hint, {ref});

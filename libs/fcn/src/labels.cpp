@@ -102,10 +102,8 @@ std::vector<refine::PointMatch> labelPair(const cv::Mat& reference, const cv::Ma
                                           refine::HomographyResult* result) {
     CV_Assert(reference.type() == CV_8UC1 && query.type() == CV_8UC1);
     const int levels = refine::effectivePyramidLevels(options.matcher);
-    const auto ref =
-        refine::ImagePyramid::build(reference, levels, options.matcher.normalize_brightness);
-    const auto qry =
-        refine::ImagePyramid::build(query, levels, options.matcher.normalize_brightness);
+    const auto ref = refine::ImagePyramid::build(reference, levels, options.matcher);
+    const auto qry = refine::ImagePyramid::build(query, levels, options.matcher);
     std::vector<cv::Point2f> points;
     const int margin = options.matcher.patch_px / 2;
     for (int y = margin; y + margin < reference.rows; y += options.grid_step_px) {

@@ -348,7 +348,7 @@ const refine::Reference& Localizer::referenceView(std::size_t index) {
     if (refiner_.options().sampler.mode != refine::SamplingMode::Grid) {
         view.heat_map = loadHeatMap(db_, index);
     }
-    view.prepare(refiner_.options().matcher.pyramid_levels);
+    view.prepare(refiner_.options().matcher);
     view.prepareSamplePoints(refiner_.options().sampler);
     while (views_.size() >= options_.image_cache_capacity) {
         views_.erase(view_order_.front());

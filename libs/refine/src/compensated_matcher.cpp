@@ -59,6 +59,7 @@ std::vector<PointMatch> matchPointsCompensated(const ImagePyramid& reference,
     const int n_levels = int(std::min(reference.levels.size(), query.levels.size()));
     ImagePyramid warped_pyramid;
     warped_pyramid.normalized = reference.normalized;
+    warped_pyramid.illumination_sigma_px = reference.illumination_sigma_px;
     // Level buffers are kept between calls and never cleared: the matcher reads a reference
     // level only inside the patches written below (it copies each patch's own rectangle).
     thread_local std::vector<cv::Mat> buffers;

@@ -10,8 +10,8 @@ std::vector<PointMatch> labelGridPoints(const cv::Mat& reference, const cv::Mat&
                                         HomographyResult* result) {
     CV_Assert(grid_step_px >= 1);
     const int levels = effectivePyramidLevels(matcher);
-    const ImagePyramid ref = ImagePyramid::build(reference, levels, matcher.normalize_brightness);
-    const ImagePyramid qry = ImagePyramid::build(query, levels, matcher.normalize_brightness);
+    const ImagePyramid ref = ImagePyramid::build(reference, levels, matcher);
+    const ImagePyramid qry = ImagePyramid::build(query, levels, matcher);
     std::vector<cv::Point2f> points;
     const int margin = matcher.patch_px / 2;
     for (int y = margin; y + margin < reference.rows; y += grid_step_px) {

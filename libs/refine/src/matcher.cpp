@@ -22,7 +22,36 @@ const char* toString(MatchStatus s) {
     }
 }
 
-ImagePyramid ImagePyramid::build(const cv::Mat& image, int extra_levels, bool normalize) {
+namespace {
+
+/// `grey` - Gaussian(grey, sigma), as CV_16S. The blur runs on a pyrDown'ed copy (the
+/// illumination is smooth) and is upsampled bilinearly: 0.2 ms instead of 0.7 ms for a full
+/// resolution float blur of a 320 x 240 image at sigma 8.
+cv::Mat subtractIllumination(const cv::Mat& grey, double sigma) {
+    cv::Mat small = grey;
+    double small_sigma = sigma;
+    while (small_sigma >= 4.0 && small.cols >= 16 && small.rows >= 16) {
+        cv::Mat down;
+        cv::pyrDown(small, down);
+        small = down;
+        small_sigma /= 2.0;
+    }
+    cv::Mat blurred, illumination, out;
+    cv::GaussianBlur(small, blurred, cv::Size(0, 0), small_sigma);
+    cv::resize(blurred, illumination, grey.size(), 0, 0, cv::INTER_LINEAR);
+    cv::subtract(grey, illumination, out, cv::noArray(), CV_16S);
+    return out;
+}
+
+}  // namespace
+
+ImagePyramid ImagePyramid::build(const cv::Mat& image, int extra_levels,
+                                 const MatcherOptions& matcher) {
+    return build(image, extra_levels, matcher.normalize_brightness, matcher.illumination_sigma_px);
+}
+
+ImagePyramid ImagePyramid::build(const cv::Mat& image, int extra_levels, bool normalize,
+                                 double illumination_sigma_px) {
     ImagePyramid p;
     if (image.empty()) return p;
     cv::Mat grey;
@@ -33,15 +62,24 @@ ImagePyramid ImagePyramid::build(const cv::Mat& image, int extra_levels, bool no
     } else {
         CV_Error(cv::Error::StsUnsupportedFormat, "ImagePyramid: image must be CV_8UC1 or CV_8UC3");
     }
+    cv::Mat source = grey;  // CV_8U, or CV_16S with the illumination removed
+    double offset = 0.0;
+    if (illumination_sigma_px > 0.0) {
+        source = subtractIllumination(grey, illumination_sigma_px);
+        offset = 128.0;
+        p.illumination_sigma_px = illumination_sigma_px;
+    }
     if (normalize) {
         cv::Scalar mean, stddev;
-        cv::meanStdDev(grey, mean, stddev);
+        cv::meanStdDev(source, mean, stddev);
         // Capped gain: a flat, noisy image must not be stretched into fake texture.
         const double gain = stddev[0] > 0.0 ? std::min(48.0 / stddev[0], 4.0) : 1.0;
         cv::Mat stretched;
-        grey.convertTo(stretched, CV_8U, gain, 128.0 - gain * mean[0]);
+        source.convertTo(stretched, CV_8U, gain, 128.0 - gain * mean[0]);
         grey = stretched;
         p.normalized = true;
+    } else if (source.type() != CV_8U) {
+        source.convertTo(grey, CV_8U, 1.0, offset);
     }
     // Each level lives in a buffer 32 columns wider than the view, so SIMD rows may overrun.
     auto padded = [](const cv::Mat& src) {

@@ -116,7 +116,7 @@ void MatcherOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& sou
     s.rejectUnknownKeys({"search_range_px", "patch_px", "pyramid_levels", "min_top_patch_px",
                          "refine_radius_px", "min_texture", "min_distinctiveness",
                          "exclusion_radius_px", "subpixel", "use_simd", "normalize_brightness",
-                         "compensate_motion"});
+                         "illumination_sigma_px", "compensate_motion"});
     search_range_px = s.getInt("search_range_px", search_range_px);
     patch_px = s.getInt("patch_px", patch_px);
     pyramid_levels = s.getInt("pyramid_levels", pyramid_levels);
@@ -128,6 +128,7 @@ void MatcherOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& sou
     subpixel = parseSubpixel(s, "subpixel", subpixel);
     use_simd = s.getBool("use_simd", use_simd);
     normalize_brightness = s.getBool("normalize_brightness", normalize_brightness);
+    illumination_sigma_px = s.getDouble("illumination_sigma_px", illumination_sigma_px);
     compensate_motion = s.getBool("compensate_motion", compensate_motion);
 }
 
@@ -144,6 +145,7 @@ void MatcherOptions::saveToConfigFile(mrpt::config::CConfigFileBase& t,
     write(t, s, "subpixel", std::string(toString(subpixel)));
     write(t, s, "use_simd", std::string(use_simd ? "true" : "false"));
     write(t, s, "normalize_brightness", std::string(normalize_brightness ? "true" : "false"));
+    write(t, s, "illumination_sigma_px", illumination_sigma_px);
     write(t, s, "compensate_motion", std::string(compensate_motion ? "true" : "false"));
 }
 
@@ -158,6 +160,9 @@ void MatcherOptions::check() const {
     c.require(min_distinctiveness >= 0.0 && min_distinctiveness < 1.0, "min_distinctiveness",
               "in [0, 1)");
     c.require(exclusion_radius_px >= 1, "exclusion_radius_px", ">= 1");
+    c.require(illumination_sigma_px == 0.0 || (illumination_sigma_px >= 1.0 &&
+                                               illumination_sigma_px <= 256.0),
+              "illumination_sigma_px", "0 (off) or in [1, 256]");
     c.throwIfFailed();
 }
 

@@ -9,9 +9,9 @@
 
 namespace lookup::refine {
 
-void Reference::prepare(int pyramid_levels, bool normalize_brightness) {
+void Reference::prepare(const MatcherOptions& matcher) {
     pyramid = std::make_shared<const ImagePyramid>(
-        ImagePyramid::build(image, pyramid_levels, normalize_brightness));
+        ImagePyramid::build(image, matcher.pyramid_levels, matcher));
 }
 
 void Reference::prepareSamplePoints(const SamplerOptions& options) {

@@ -194,8 +194,13 @@ RefineResult Refiner::refine(const cv::Mat& query_image, const mrpt::img::TCamer
         return fallback(RefineStatus::InvalidQuery, "ceiling height prior is not finite");
     const int levels = effectivePyramidLevels(o.matcher);
     auto t0 = Clock::now();
-    const bool normalize = o.matcher.normalize_brightness;
-    const ImagePyramid query_pyramid = ImagePyramid::build(query_image, levels, normalize);
+    // The illumination high-pass belongs to the SAD matcher; the OpenCV baselines see the
+    // images as before (ECC's dense fit lost accuracy on the high-passed images).
+    MatcherOptions preprocessing = o.matcher;
+    if (o.correspondence.method != CorrespondenceMethod::Sad) {
+        preprocessing.illumination_sigma_px = 0.0;
+    }
+    const ImagePyramid query_pyramid = ImagePyramid::build(query_image, levels, preprocessing);
     res.times.prepare_ms += msSince(t0);
 
     EstimatorInput input;
@@ -218,8 +223,8 @@ RefineResult Refiner::refine(const cv::Mat& query_image, const mrpt::img::TCamer
         ImagePyramid local;
         const ImagePyramid* ref_pyramid = ref.pyramid.get();
         if (!ref_pyramid || int(ref_pyramid->levels.size()) <= levels ||
-            ref_pyramid->normalized != normalize) {
-            local = ImagePyramid::build(ref.image, levels, normalize);
+            !ref_pyramid->preprocessedFor(preprocessing)) {
+            local = ImagePyramid::build(ref.image, levels, preprocessing);
             ref_pyramid = &local;
         }
         res.times.prepare_ms += msSince(t0);

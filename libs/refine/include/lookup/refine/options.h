@@ -67,6 +67,11 @@ struct MatcherOptions : public mrpt::config::CLoadableOptions {
     SubpixelMethod subpixel = SubpixelMethod::Equiangular;
     bool use_simd = true;              ///< false forces the scalar SAD (verification)
     bool normalize_brightness = true;  ///< per-image gain/offset normalisation before SAD
+    /// Gaussian sigma [px] of the illumination subtracted from both images before SAD (a
+    /// high-pass; 0 = off, the paper's raw SAD). The vehicle carries its lights, so a query and
+    /// a reference taken a metre apart see the same ceiling lit differently; on smooth
+    /// shotcrete that gradient outweighs the texture and drags the SAD minimum to the border.
+    double illumination_sigma_px = 8.0;
     /// With a coarse pose: warp the reference by the predicted plane-induced homography into
     /// the query frame before SAD, so rotated or tilted views compare aligned patches (an
     /// extension of the paper, whose SAD assumes pure image translation); false = the paper's

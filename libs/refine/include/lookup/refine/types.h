@@ -27,12 +27,23 @@ namespace lookup::refine {
 /// 32 readable bytes after the end of each row (SIMD loads may overrun a patch row).
 struct ImagePyramid {
     std::vector<cv::Mat> levels;
-    bool normalized = false;  ///< brightness normalised (see build)
+    bool normalized = false;            ///< brightness normalised (see build)
+    double illumination_sigma_px = 0;  ///< illumination removed at this scale (see build)
 
     /// `grey` must be CV_8UC1 (CV_8UC3 is converted); `extra_levels` coarser levels are added.
-    /// `normalize`: linear stretch of the whole image to mean 128, standard deviation 48 (gain
-    /// capped at 4) so SAD ignores global gain and offset changes (exposure, vehicle lights).
-    static ImagePyramid build(const cv::Mat& grey, int extra_levels, bool normalize = false);
+    /// `illumination_sigma_px` > 0: a Gaussian blur of that sigma (the illumination) is
+    /// subtracted first, keeping the texture. `normalize`: linear stretch of the whole image to
+    /// mean 128, standard deviation 48 (gain capped at 4) so SAD ignores global gain and offset
+    /// changes (exposure).
+    static ImagePyramid build(const cv::Mat& grey, int extra_levels, bool normalize = false,
+                              double illumination_sigma_px = 0);
+    /// With the preprocessing `matcher` asks for (normalize_brightness, illumination_sigma_px).
+    static ImagePyramid build(const cv::Mat& grey, int extra_levels, const MatcherOptions& matcher);
+    /// Whether this pyramid was preprocessed as `matcher` asks.
+    bool preprocessedFor(const MatcherOptions& matcher) const {
+        return normalized == matcher.normalize_brightness &&
+               illumination_sigma_px == matcher.illumination_sigma_px;
+    }
     bool empty() const { return levels.empty() || levels[0].empty(); }
 };
 
@@ -51,8 +62,8 @@ struct Reference {
     std::shared_ptr<const ImagePyramid> pyramid;
 
     /// Builds the matcher's pyramid once so queries do not rebuild it (the Refiner rebuilds it
-    /// per query if levels or normalisation differ from its MatcherOptions).
-    void prepare(int pyramid_levels, bool normalize_brightness = true);
+    /// per query if levels or preprocessing differ from its MatcherOptions).
+    void prepare(const MatcherOptions& matcher);
 
     /// Optional cache of the sample points, built by prepareSamplePoints(): heat-map selection
     /// (damped maxima) costs about 0.4 ms per reference and gives the same points for every
