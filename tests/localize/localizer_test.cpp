@@ -317,3 +317,110 @@ TEST(Localize, MissingDatabaseAndRawlogWithoutCeilingImagesAreRefused) {
         EXPECT_NE(std::string(e.what()).find("CEILING_CAM"), std::string::npos) << e.what();
     }
 }
+
+namespace {
+
+struct FrameRow {
+    std::string status;
+    double x = 0, y = 0;
+};
+
+std::vector<FrameRow> readFrames(const fs::path& run) {
+    std::ifstream in(run / "frames.csv");
+    std::string line;
+    std::getline(in, line);  // header: time_s,status,reason,x,y,...
+    std::vector<FrameRow> rows;
+    while (std::getline(in, line)) {
+        // The reason may hold commas only inside quotes; split the first fields by hand.
+        std::vector<std::string> fields;
+        std::string field;
+        bool quoted = false;
+        for (char ch : line) {
+            if (ch == '"') quoted = !quoted;
+            if (ch == ',' && !quoted) {
+                fields.push_back(field);
+                field.clear();
+            } else {
+                field += ch;
+            }
+        }
+        fields.push_back(field);
+        FrameRow r;
+        r.status = fields.at(1);
+        if (r.status == "refined") {
+            r.x = std::stod(fields.at(3));
+            r.y = std::stod(fields.at(4));
+        }
+        rows.push_back(r);
+    }
+    return rows;
+}
+
+// A query re-driving the survey line 0.1 m to its left from reference 10 on, one ceiling and
+// one forward frame per reference; the ceiling from `ceiling` (the survey's, or another).
+void writeStartUpQuery(const Scene& ceiling, const fs::path& path, int frames) {
+    common::RawlogWriter rawlog(path.string());
+    for (int k = 0; k < frames; ++k) {
+        const double t = kT0 + 0.1 * k;
+        auto forward = forwardView(1, k + 10, t);
+        rawlog.writeWithExternalImage(*forward, "forward_" + std::to_string(k) + ".png");
+        const mrpt::poses::CPose3D vehicle(-8 + 0.25 * (k + 10), 0.1, 0, 0, 0, 0);
+        auto img = ceiling.image(vehicle, t);
+        rawlog.writeWithExternalImage(*img, "ceiling_" + std::to_string(k) + ".png");
+    }
+    rawlog.close();
+}
+
+}  // namespace
+
+TEST(Localize, StartUpAcquisitionFixesBeforeTheCoarseSequenceIsFullAndOnlyOnTheRightCeiling) {
+    const Scene scene;
+    const auto dir = freshDir("startup");
+    writeDatabase(scene, (dir / "db").string(), {{"survey", 65, 100.0, /*forward_seed=*/1}});
+    writeStartUpQuery(scene, dir / "query.rawlog", 32);
+
+    localize::LocalizeRequest req;
+    req.db_dir = (dir / "db").string();
+    req.rawlog = (dir / "query.rawlog").string();
+    req.sampling = "grid";
+    req.progress = false;
+    const auto firstRefined = [](const std::vector<FrameRow>& rows) {
+        for (std::size_t k = 0; k < rows.size(); ++k) {
+            if (rows[k].status == "refined") return int(k);
+        }
+        return -1;
+    };
+
+    // Default (startup_acquisition_frames = 5): refined from the 5th frame, on the truth.
+    req.out_dir = (dir / "run").string();
+    localize::runLocalization(req);
+    const auto rows = readFrames(req.out_dir);
+    ASSERT_EQ(rows.size(), 32u);
+    EXPECT_EQ(firstRefined(rows), 4);
+    for (std::size_t k = 4; k < rows.size(); ++k) {
+        ASSERT_EQ(rows[k].status, "refined") << "frame " << k;
+        EXPECT_NEAR(rows[k].x, -8 + 0.25 * (k + 10), 0.03) << "frame " << k;
+        EXPECT_NEAR(rows[k].y, 0.1, 0.03) << "frame " << k;
+    }
+
+    // Off: nothing before the coarse sequence is full (sequence_length = 30 frames).
+    std::ofstream(dir / "off.ini") << "[localizer]\nstartup_acquisition_frames = 0\n";
+    req.ini_file = (dir / "off.ini").string();
+    req.out_dir = (dir / "run_off").string();
+    localize::runLocalization(req);
+    EXPECT_EQ(firstRefined(readFrames(req.out_dir)), 29);
+
+    // The same forward views over another ceiling: the seeds point at the right place, but the
+    // ceiling there does not match, so no start-up frame may become a fix.
+    Scene other;
+    other.ceiling = refine::synthetic::SyntheticCeiling::make(kCeilingHeight, 40.0, 0.01, 99);
+    writeStartUpQuery(other, dir / "other.rawlog", 12);
+    req.ini_file.clear();
+    req.rawlog = (dir / "other.rawlog").string();
+    req.out_dir = (dir / "run_other").string();
+    localize::runLocalization(req);
+    const auto other_rows = readFrames(req.out_dir);
+    ASSERT_EQ(other_rows.size(), 12u);
+    EXPECT_EQ(firstRefined(other_rows), -1);
+    EXPECT_EQ(other_rows.back().status, "lost");
+}

@@ -266,12 +266,26 @@ void Localizer::processForward(const mrpt::obs::CObservationImage& image) {
 
 std::optional<Localizer::CoarseFix> Localizer::coarseFix() const {
     if (!last_coarse_) return std::nullopt;
-    const auto& c = *last_coarse_;
     using coarse::CoarseStatus;
-    if (c.status != CoarseStatus::kTracking && c.status != CoarseStatus::kGlobal &&
-        c.status != CoarseStatus::kExternal) {
+    const auto status = last_coarse_->status;
+    if (status != CoarseStatus::kTracking && status != CoarseStatus::kGlobal &&
+        status != CoarseStatus::kExternal) {
         return std::nullopt;
     }
+    return fixFromMatch(*last_coarse_);
+}
+
+std::optional<Localizer::CoarseFix> Localizer::startupSeed() const {
+    if (options_.startup_acquisition_frames <= 0 || !last_coarse_) return std::nullopt;
+    const auto& c = *last_coarse_;
+    if (c.status != coarse::CoarseStatus::kNotEnoughFrames ||
+        c.query_index + 1 < static_cast<std::size_t>(options_.startup_acquisition_frames)) {
+        return std::nullopt;
+    }
+    return fixFromMatch(c);
+}
+
+std::optional<Localizer::CoarseFix> Localizer::fixFromMatch(const coarse::CoarseResult& c) const {
     // The paper's interface is the matched reference time stamp: the ceiling references taken
     // nearest in time to it. A coarse source without references may give only a pose.
     std::optional<double> reference_time;
@@ -406,7 +420,7 @@ std::shared_ptr<const refine::RefineResult> Localizer::acquire(
         auto single = refineAgainst(query, {candidate}, cand_pose, out);
         if (single->accepted()) accepted.push_back({single, single->pose.mean, candidate});
     }
-    if (accepted.empty()) return report(failed, failed_refs);
+    if (accepted.empty()) return failed ? report(failed, failed_refs) : nullptr;
     const auto best = std::max_element(accepted.begin(), accepted.end(), [](auto& a, auto& b) {
         return a.result->inlier_share < b.result->inlier_share;
     });
@@ -461,6 +475,21 @@ FrameResult Localizer::processCeiling(const mrpt::obs::CObservationImage& query)
             result = acquire(query, *out.coarse_pose, result, out);
         }
     }
+    // Start-up, before the coarse sequence is full: a verified ceiling match around the
+    // shorter sequence's match, or nothing (that match is not reported as a coarse pose).
+    std::string startup_note;
+    if (!result && !coarse_fix && options_.acquisition_radius_m > 0) {
+        if (const auto seed = startupSeed()) {
+            result = acquire(query, seed->pose, nullptr, out);
+            if (!result) {
+                startup_note = "; no ceiling match around its match from " +
+                               std::to_string(last_coarse_->query_index + 1) + " frames";
+                out.refinement.reset();
+                out.reference_indices.clear();
+                out.inlier_share = 0;
+            }
+        }
+    }
 
     if (result && result->accepted()) {
         out.status = FrameStatus::Refined;
@@ -496,8 +525,9 @@ FrameResult Localizer::processCeiling(const mrpt::obs::CObservationImage& query)
                                 mrpt::DEG2RAD(acc.fallback_sigma_yaw_deg));
         } else {
             out.status = FrameStatus::Lost;
-            out.reason = last_coarse_ ? "coarse stage not confident: " + last_coarse_->reason
-                                      : "no coarse match yet";
+            out.reason = last_coarse_
+                             ? "coarse stage not confident: " + last_coarse_->reason + startup_note
+                             : "no coarse match yet";
         }
     }
     fine_tracking_ = out.status == FrameStatus::Refined;

@@ -113,6 +113,10 @@ class Localizer {
         std::vector<std::size_t> references;  ///< ceiling references for that match
     };
     std::optional<CoarseFix> coarseFix() const;
+    /// The coarse stage's match from a not yet full sequence, once it has
+    /// startup_acquisition_frames frames: an acquisition seed, never a reported pose.
+    std::optional<CoarseFix> startupSeed() const;
+    std::optional<CoarseFix> fixFromMatch(const coarse::CoarseResult& match) const;
     std::optional<Prediction> predict(double time_s) const;
     std::optional<mrpt::poses::CPose2D> odometryAt(double time_s) const;
     std::vector<std::size_t> referencesNearTime(double time_s) const;

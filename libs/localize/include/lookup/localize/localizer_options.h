@@ -28,6 +28,12 @@ struct LocalizerOptions : public mrpt::config::CLoadableOptions {
     /// from the best fix scores within this margin of it (aliasing: rock-bolt grids, mesh).
     double acquisition_ambiguity_margin = 0.1;
     double acquisition_ambiguity_distance_m = 1.0;  ///< [m]
+    /// Start-up: until the coarse sequence is full (coarse.sequence_length forward frames,
+    /// 3 s at 10 Hz) its match from the frames seen so far is not trusted as a coarse pose.
+    /// From this many forward frames on it seeds an acquisition instead, which must find the
+    /// ceiling (best candidate, ambiguity check, confirmation) before the frame counts as
+    /// refined; the frame stays lost otherwise. 0 = wait for a full sequence.
+    int startup_acquisition_frames = 5;
     /// Survey traverse whose forward images feed the coarse matcher. "" = every traverse, each
     /// matched as its own sequence (laterally offset traverses would alias each other in one),
     /// the most confident match winning per frame.

@@ -27,7 +27,7 @@ namespace lookup::refine {
 /// 32 readable bytes after the end of each row (SIMD loads may overrun a patch row).
 struct ImagePyramid {
     std::vector<cv::Mat> levels;
-    bool normalized = false;            ///< brightness normalised (see build)
+    bool normalized = false;           ///< brightness normalised (see build)
     double illumination_sigma_px = 0;  ///< illumination removed at this scale (see build)
 
     /// `grey` must be CV_8UC1 (CV_8UC3 is converted); `extra_levels` coarser levels are added.
