@@ -479,7 +479,11 @@ FrameResult Localizer::processCeiling(const mrpt::obs::CObservationImage& query)
     // shorter sequence's match, or nothing (that match is not reported as a coarse pose).
     std::string startup_note;
     if (!result && !coarse_fix && options_.acquisition_radius_m > 0) {
-        if (const auto seed = startupSeed()) {
+        // A seed already tried waits for the coarse stage's next forward frame (ceiling frames
+        // come twice as often): it halves the cost of start-up, which wrong seeds dominate.
+        const auto seed = startupSeed();
+        if (seed && last_coarse_->query_index != last_startup_seed_) {
+            last_startup_seed_ = last_coarse_->query_index;
             result = acquire(query, seed->pose, nullptr, out);
             if (!result) {
                 startup_note = "; no ceiling match around its match from " +

@@ -14,6 +14,7 @@
 #include <mrpt/poses/CPosePDFGaussian.h>
 
 #include <deque>
+#include <limits>
 #include <map>
 #include <memory>
 #include <optional>
@@ -149,6 +150,8 @@ class Localizer {
     };
     std::optional<Fix> last_fix_;
     bool fine_tracking_ = false;  ///< the last ceiling frame was refined
+    /// Coarse query index of the last start-up seed tried against the ceiling.
+    std::size_t last_startup_seed_ = std::numeric_limits<std::size_t>::max();
 
     // Reference views with prepared pyramids, most recently used last (bounded).
     std::map<std::size_t, refine::Reference> views_;
