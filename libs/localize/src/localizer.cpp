@@ -478,7 +478,11 @@ FrameResult Localizer::processCeiling(const mrpt::obs::CObservationImage& query)
     // Start-up, before the coarse sequence is full: a verified ceiling match around the
     // shorter sequence's match, or nothing (that match is not reported as a coarse pose).
     std::string startup_note;
-    if (!result && !coarse_fix && options_.acquisition_radius_m > 0) {
+    // ECC is left out: its "inliers" all sample one dense warp, so an inlier share cannot tell
+    // a wrong seed's place from the right one (demo: fixes 45 m off).
+    const bool verifiable =
+        refiner_.options().correspondence.method != refine::CorrespondenceMethod::Ecc;
+    if (!result && !coarse_fix && verifiable && options_.acquisition_radius_m > 0) {
         // A seed already tried waits for the coarse stage's next forward frame (ceiling frames
         // come twice as often): it halves the cost of start-up, which wrong seeds dominate.
         const auto seed = startupSeed();

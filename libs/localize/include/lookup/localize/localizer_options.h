@@ -32,7 +32,8 @@ struct LocalizerOptions : public mrpt::config::CLoadableOptions {
     /// 3 s at 10 Hz) its match from the frames seen so far is not trusted as a coarse pose.
     /// From this many forward frames on it seeds an acquisition instead, which must find the
     /// ceiling (best candidate, ambiguity check, confirmation) before the frame counts as
-    /// refined; the frame stays lost otherwise. 0 = wait for a full sequence.
+    /// refined; the frame stays lost otherwise. 0 = wait for a full sequence. Not with the ECC
+    /// baseline, whose inlier share cannot refuse a wrong place.
     int startup_acquisition_frames = 5;
     /// Survey traverse whose forward images feed the coarse matcher. "" = every traverse, each
     /// matched as its own sequence (laterally offset traverses would alias each other in one),
