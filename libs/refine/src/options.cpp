@@ -160,8 +160,8 @@ void MatcherOptions::check() const {
     c.require(min_distinctiveness >= 0.0 && min_distinctiveness < 1.0, "min_distinctiveness",
               "in [0, 1)");
     c.require(exclusion_radius_px >= 1, "exclusion_radius_px", ">= 1");
-    c.require(illumination_sigma_px == 0.0 || (illumination_sigma_px >= 1.0 &&
-                                               illumination_sigma_px <= 256.0),
+    c.require(illumination_sigma_px == 0.0 ||
+                  (illumination_sigma_px >= 1.0 && illumination_sigma_px <= 256.0),
               "illumination_sigma_px", "0 (off) or in [1, 256]");
     c.throwIfFailed();
 }
