@@ -158,11 +158,82 @@ TEST(CoarseLocalizer, OdometryWidensTheSpeedRangeWhenReferencesArePosed) {
     const auto o = testOptions();
     auto refs = makeReferences(route, 600, o, /*with_poses=*/true);
     CoarseLocalizer with(refs, o);
-    const auto a = runQuery(route, with, 20.0, 3.5, 60, /*odometry=*/true);
-    EXPECT_GE(a.seq_correct, 0.95 * a.full);
+    const auto a = runQuery(route, with, 20.0, 3.5, 90, /*odometry=*/true);
+    // With odometry the first global match waits one sequence for its confirmation.
+    EXPECT_GE(a.seq_correct, 0.95 * (a.full - o.sequence_length));
     CoarseLocalizer without(refs, o);
     const auto b = runQuery(route, without, 20.0, 3.5, 60, /*odometry=*/false);
     EXPECT_LT(b.seq_correct, 0.5 * b.full);
+}
+
+TEST(CoarseLocalizer, OdometryHoldsTheTrackThroughAUniformStretch) {
+    // 300 places, 100..179 all alike: no sequence can place a frame in there.
+    SyntheticRoute route(300, 3, 17);
+    route.makeUniform(100, 179, 0);
+    const auto o = testOptions();
+    auto refs = makeReferences(route, 300, o, /*with_poses=*/true);
+    struct Inside {
+        int frames = 0, usable = 0, right = 0, held = 0, confident_wrong = 0;
+    };
+    auto drive = [&](const CoarseOptions& opt) {
+        CoarseLocalizer loc(refs, opt);
+        Inside in;
+        for (int t = 0; t < 180; ++t) {
+            const double x = 20.0 + t;  // 1 place (1 m) per frame
+            const auto r = loc.process(route.image(x, 8.0, 0.7, 25.0), 1000.0 + t,
+                                       t > 0 ? std::optional<double>(1.0) : std::nullopt);
+            const bool right = r.hasMatch() &&
+                               std::abs(static_cast<long>(r.reference_index) - std::lround(x)) <= 2;
+            if (r.usable() && !right && r.status != CoarseStatus::kOdometry) ++in.confident_wrong;
+            if (x < 110 || x > 179) continue;  // inside, a few places past its start
+            ++in.frames;
+            in.usable += r.usable();
+            in.right += r.usable() && right;
+            in.held += r.status == CoarseStatus::kOdometry;
+        }
+        return in;
+    };
+    const Inside held = drive(o);
+    EXPECT_GE(held.right, 0.95 * held.frames);
+    EXPECT_GE(held.held, held.frames / 2) << "the window cannot decide inside: odometry does";
+    EXPECT_EQ(held.confident_wrong, 0);
+
+    CoarseOptions no_coast = o;
+    no_coast.max_coast_m = 0;  // the track ends where the window match turns unconfident
+    const Inside dropped = drive(no_coast);
+    EXPECT_LT(dropped.right, 0.5 * dropped.frames);
+    EXPECT_EQ(dropped.held, 0);
+}
+
+TEST(CoarseLocalizer, HeldTrackIsDroppedAndTheRightPlaceFoundAfterKidnappingWithOdometry) {
+    SyntheticRoute route(400, 3, 3);
+    const auto o = testOptions();
+    CoarseLocalizer loc(makeReferences(route, 400, o, /*with_poses=*/true), o);
+    for (int t = 0; t < 70; ++t) {
+        loc.process(route.image(30.0 + t, 8.0), t,
+                    t > 0 ? std::optional<double>(1.0) : std::nullopt);
+    }
+    // Carried to 250 while odometry says one more metre: the held track is now wrong.
+    int recovered_after = -1;
+    for (int t = 0; t < 120; ++t) {
+        const double x = 250.0 + t;
+        const auto r = loc.process(route.image(x, 8.0), 70.0 + t, 1.0);
+        const bool right =
+            r.usable() && std::abs(static_cast<long>(r.reference_index) - std::lround(x)) <= 1;
+        if (right && recovered_after < 0) recovered_after = t;
+        if (recovered_after >= 0) {
+            EXPECT_TRUE(right) << "lost again at frame " << t << " after the jump";
+        } else if (r.usable() && t >= o.sequence_length) {
+            // Until the buffer holds mostly post-jump frames the old trajectory may still win
+            // (as without odometry); after that the old place is only held, never claimed.
+            EXPECT_EQ(r.status, CoarseStatus::kOdometry) << "frame " << t << ": " << r.reason;
+        }
+    }
+    // The held track is dropped once a sequence of unconfident windows says many places fit
+    // better; the global search over the long odometry sequence then needs mostly post-jump
+    // frames, and its match one more sequence to be confirmed.
+    ASSERT_GE(recovered_after, 0);
+    EXPECT_LE(recovered_after, 4 * o.sequence_length);
 }
 
 TEST(CoarseLocalizer, BadInputGivesReasonsNotCrashes) {

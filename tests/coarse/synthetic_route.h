@@ -37,6 +37,10 @@ class SyntheticRoute {
     }
 
     int places() const { return static_cast<int>(type_.size()) - 2; }
+    /// Places [from, to] all look alike (one tile type): a long uniform drive.
+    void makeUniform(int from, int to, int type) {
+        for (int i = from; i <= to; ++i) type_.at(i) = type;
+    }
     int typeAt(int place) const { return type_.at(place); }
 
     /// Image at route position x in [0, places()] (tiles), grey, with additive Gaussian noise

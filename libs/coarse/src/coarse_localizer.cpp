@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <sstream>
 #include <stdexcept>
 
 namespace lookup::coarse {
@@ -18,6 +19,11 @@ constexpr float kInf = std::numeric_limits<float>::infinity();
 // Floor of the local standard deviation in contrast enhancement [descriptor units]: keeps a
 // stretch of identical references from turning noise into huge z-scores.
 constexpr double kMinLocalStd = 0.05;
+// While tracking with odometry, every this many frames global searches check the track (in an
+// aliased tunnel a wrong track is held as well as a right one): a tenth of their cost per frame.
+constexpr int kAuditEveryFrames = 10;
+// A track whose own path scores worse than this share of all places is dropped.
+constexpr double kMaxTrackRank = 0.1;
 
 /// Largest index with arcLength <= `arc`, 0 when none (binary search; arc lengths grow).
 long lastAtOrBelow(const ReferenceDescriptors& refs, double arc) {
@@ -92,6 +98,10 @@ const char* toString(CoarseStatus status) {
             return "external";
         case CoarseStatus::kNotSearched:
             return "not_searched";
+        case CoarseStatus::kOdometry:
+            return "odometry";
+        case CoarseStatus::kUnconfirmed:
+            return "unconfirmed";
     }
     return "unknown";
 }
@@ -112,6 +122,8 @@ struct CoarseLocalizer::Search {
     double second_score = kInf;  ///< best outside the exclusion window
     double velocity = 0;
     std::size_t candidates = 0;
+    double probe_score = kInf;  ///< best score among the probed candidates (see search())
+    double probe_rank = 0;      ///< share of candidates scoring better than probe_score
 };
 
 CoarseLocalizer::CoarseLocalizer(std::shared_ptr<const ReferenceDescriptors> references,
@@ -141,6 +153,8 @@ CoarseLocalizer::CoarseLocalizer(std::shared_ptr<const ReferenceDescriptors> ref
 void CoarseLocalizer::reset() {
     columns_.clear();
     tracking_ = false;
+    coasted_m_ = 0;
+    pending_.clear();
 }
 
 CoarseResult CoarseLocalizer::locate(const CoarseQuery& query) {
@@ -214,9 +228,9 @@ void CoarseLocalizer::ensureComputed(Column& column, long lo, long hi,
 }
 
 CoarseLocalizer::Search CoarseLocalizer::search(long cand_lo, long cand_hi, bool odometry,
-                                                std::size_t& evaluated) {
+                                                int n_cols, int stride, std::size_t& evaluated,
+                                                long probe_lo, long probe_hi) {
     const long n_refs = static_cast<long>(references_->size());
-    const int n_cols = static_cast<int>(columns_.size());
     const long R = options_.contrast_window_refs;
     const int H = odometry ? options_.odometry_scale_steps : options_.velocity_steps;
 
@@ -246,7 +260,7 @@ CoarseLocalizer::Search CoarseLocalizer::search(long cand_lo, long cand_hi, bool
     enhanced.resize(std::max<std::size_t>(enhanced.size(), n_cols));
     for (auto& e : enhanced) e.clear();
     std::vector<long> enh_lo(n_cols, 0);
-    for (int k = 0; k < n_cols; ++k) {
+    for (int k = 0; k < n_cols; k += stride) {
         long a, b;
         if (odometry) {
             a = std::max(0L, odometryPathIndex(cand_lo, H - 1, k));
@@ -286,6 +300,8 @@ CoarseLocalizer::Search CoarseLocalizer::search(long cand_lo, long cand_hi, bool
     // contiguous adds, and path indices by a walk instead of a search per path point. Sums run
     // over k in the same order as a path-by-path loop, so scores are identical to it.
     Search s;
+    const int k_last = (n_cols - 1) / stride * stride;  // oldest frame scored
+    const int used = (n_cols - 1) / stride + 1;         // frames scored
     const std::size_t n_cand = static_cast<std::size_t>(cand_hi - cand_lo + 1);
     auto& score = scratch_.score;
     auto& slope = scratch_.slope;
@@ -297,7 +313,7 @@ CoarseLocalizer::Search CoarseLocalizer::search(long cand_lo, long cand_hi, bool
     index.resize(n_cand);
     for (int h = 0; h < H; ++h) {
         std::fill(sum.begin(), sum.end(), 0.f);
-        for (int k = 0; k < n_cols; ++k) {
+        for (int k = 0; k < n_cols; k += stride) {
             pathIndices(*references_, cand_lo, cand_hi, odometry ? -hyp[h] * back_m[k] : 0.0,
                         odometry ? 0.0 : hyp[h] * k, odometry, index);
             const auto& e = enhanced[k];
@@ -311,11 +327,23 @@ CoarseLocalizer::Search CoarseLocalizer::search(long cand_lo, long cand_hi, bool
             if (sum[c] < score[c]) {
                 score[c] = sum[c];
                 const long j = cand_lo + static_cast<long>(c);
-                slope[c] = n_cols > 1 ? static_cast<float>(j - index[c]) / (n_cols - 1) : 0.f;
+                slope[c] = k_last > 0 ? static_cast<float>(j - index[c]) / k_last : 0.f;
             }
         }
     }
     s.candidates = n_cand;
+    for (long j = std::max(cand_lo, probe_lo); j <= std::min(cand_hi, probe_hi); ++j) {
+        s.probe_score = std::min<double>(s.probe_score, score[j - cand_lo] / used);
+    }
+    if (probe_lo <= probe_hi) {
+        std::size_t finite = 0, better = 0;
+        for (float v : score) {
+            if (!std::isfinite(v)) continue;
+            ++finite;
+            better += v / used < s.probe_score;
+        }
+        s.probe_rank = finite > 0 ? static_cast<double>(better) / finite : 1.0;
+    }
     for (long j = cand_lo; j <= cand_hi; ++j) {
         if (score[j - cand_lo] < s.best_score) {
             s.best_score = score[j - cand_lo];
@@ -331,9 +359,97 @@ CoarseLocalizer::Search CoarseLocalizer::search(long cand_lo, long cand_hi, bool
             s.second_score = std::min<double>(s.second_score, score[j - cand_lo]);
         }
     }
-    s.best_score /= n_cols;
-    s.second_score /= n_cols;
+    s.best_score /= used;
+    s.second_score /= used;
     return s;
+}
+
+std::size_t CoarseLocalizer::bufferLength() const {
+    const bool odometry = options_.use_odometry && references_->hasPoses();
+    return static_cast<std::size_t>(
+        odometry ? std::max(options_.sequence_length, options_.odometry_sequence_length)
+                 : options_.sequence_length);
+}
+
+int CoarseLocalizer::strideFor(int frames) const {
+    // Long sequences score every few frames only: the span decides, and a search over the
+    // whole reference then costs what one of sequence_length frames does.
+    return (frames + options_.sequence_length - 1) / options_.sequence_length;
+}
+
+double CoarseLocalizer::minConfidence(int frames) const {
+    // The margin is a mean over the path's frames; its noise falls as 1/sqrt(frames).
+    return options_.min_confidence *
+           std::sqrt(static_cast<double>(options_.sequence_length) / std::max(frames, 1));
+}
+
+bool CoarseLocalizer::confirmGlobal(std::size_t best, std::size_t query_index, std::string& why) {
+    const double arc = references_->arcLength(best);
+    for (const auto& p : pending_) {
+        const double tolerance =
+            options_.odometry_tolerance_m + options_.odometry_tolerance_per_m * p.travelled_m;
+        if (std::abs(p.arc_m + p.travelled_m - arc) > tolerance) continue;
+        if (query_index >= p.query_index + options_.sequence_length) return true;
+        // Agrees, but their sequences overlap: the older match waits for a later frame.
+        why = "global match awaits confirmation: agrees with the match of query frame " +
+              std::to_string(p.query_index) + ", whose sequence overlaps this one";
+        return false;
+    }
+    pending_.push_back({query_index, arc, 0.0});
+    why =
+        "global match awaits confirmation by a later, non-overlapping sequence at the place "
+        "odometry carries it to";
+    return false;
+}
+
+void CoarseLocalizer::auditTrack(CoarseResult& r, long n_refs) {
+    const double tolerance =
+        options_.odometry_tolerance_m + options_.odometry_tolerance_per_m * coasted_m_;
+    const long probe_lo = lastAtOrBelow(*references_, track_arc_m_ - tolerance);
+    const long probe_hi = lastAtOrBelow(*references_, track_arc_m_ + tolerance) + 1;
+    // Frames with odometry whose path back from the track stays on the reference (a longer
+    // path would leave it before its start and lose to any place by default).
+    int odometry_cols = 1;
+    double back_m = 0;
+    const double room_m = (1.0 - options_.odometry_scale_tolerance) *
+                          (track_arc_m_ - tolerance - references_->arcLength(0));
+    while (odometry_cols < static_cast<int>(columns_.size()) &&
+           columns_[odometry_cols - 1]->travelled_m) {
+        back_m += *columns_[odometry_cols - 1]->travelled_m;
+        if (back_m > room_m) break;
+        ++odometry_cols;
+    }
+    // Two spans: the longest (a wrong track that chance window matches keep alive loses over
+    // a hundred metres), and the frames since the window match turned unconfident with one
+    // sequence before (after a kidnapping the longest span still favours the old place).
+    const int spans[2] = {
+        std::min(odometry_cols, options_.odometry_sequence_length),
+        std::min(odometry_cols, static_cast<int>(coast_frames_) + options_.sequence_length)};
+    for (int i = 0; i < 2; ++i) {
+        const int cols = spans[i];
+        if (cols < options_.sequence_length || (i == 1 && cols == spans[0])) continue;
+        // The short span only once the window has been unconfident for a whole sequence: a
+        // few unconfident frames are the aliased stretch the track is held through.
+        if (i == 1 && static_cast<int>(coast_frames_) < options_.sequence_length) continue;
+        const Search g = search(0, n_refs - 1, true, cols, strideFor(cols), r.evaluated_references,
+                                probe_lo, probe_hi);
+        r.searched_candidates += g.candidates;
+        // The best of thousands of places beats the track's own path now and then even when
+        // the track is right (on the full presets every right track ranked in the best 4 %):
+        // only a track that many places beat, one of them by a confident margin, is dropped. Moving
+        // it to the best place instead moved right tracks to wrong places.
+        if (!g.valid || g.probe_rank <= kMaxTrackRank ||
+            g.probe_score - g.best_score < minConfidence(cols)) {
+            continue;  // (in a uniform stretch many places tie with the track: no margin)
+        }
+        std::ostringstream msg;
+        msg << "track dropped: over " << cols << " frames " << 100 * g.probe_rank
+            << " % of the places score better than the track";
+        r.status = CoarseStatus::kLost;
+        r.reason = msg.str();
+        tracking_ = false;
+        return;
+    }
 }
 
 CoarseResult CoarseLocalizer::processDescriptor(const Descriptor& descriptor, double time_s,
@@ -354,16 +470,36 @@ CoarseResult CoarseLocalizer::processDescriptor(const Descriptor& descriptor, do
         travelled_m.reset();  // a broken odometry reading only disables odometry here
     }
 
+    // Pending global matches move with the vehicle; without odometry they cannot.
+    if (travelled_m) {
+        for (auto& p : pending_) p.travelled_m += *travelled_m;
+        // A match older than a few sequences no longer helps: the tolerance has grown loose.
+        const std::size_t max_age = 4 * static_cast<std::size_t>(options_.sequence_length);
+        pending_.erase(std::remove_if(pending_.begin(), pending_.end(),
+                                      [&](const PendingMatch& p) {
+                                          return r.query_index > p.query_index + max_age;
+                                      }),
+                       pending_.end());
+    } else {
+        pending_.clear();
+    }
+
     auto column = std::make_shared<Column>();
     column->descriptor = descriptor;
     column->travelled_m = travelled_m;
     columns_.push_front(column);
-    while (columns_.size() > static_cast<std::size_t>(options_.sequence_length)) {
-        columns_.pop_back();
-    }
+    while (columns_.size() > bufferLength()) columns_.pop_back();
+    const double step_m = travelled_m.value_or(0);
     if (!search_now) {
-        // The last match goes stale while frames pass unsearched: the next search is global.
-        tracking_ = false;
+        // With odometry the track moves on unsearched; otherwise the next search is global.
+        const bool coast = tracking_ && travelled_m && options_.use_odometry &&
+                           references_->hasPoses() && coasted_m_ + step_m <= options_.max_coast_m;
+        if (coast) {
+            coasted_m_ += step_m;
+            track_arc_m_ += step_m;
+            last_match_ = static_cast<std::size_t>(nearestArc(*references_, track_arc_m_));
+        }
+        tracking_ = coast;
         r.status = CoarseStatus::kNotSearched;
         r.reason = "search skipped: no match needed for this frame";
         return r;
@@ -371,10 +507,12 @@ CoarseResult CoarseLocalizer::processDescriptor(const Descriptor& descriptor, do
     const int n_cols = static_cast<int>(columns_.size());
     const long n_refs = static_cast<long>(references_->size());
 
-    // Odometry applies when references are surveyed and every step in the buffer has it.
-    bool odometry = options_.use_odometry && references_->hasPoses();
-    for (int k = 0; k + 1 < n_cols && odometry; ++k)
-        odometry = columns_[k]->travelled_m.has_value();
+    // Odometry applies when references are surveyed and every step of the sequence has it.
+    int odometry_cols = 1;  // newest frames whose steps all have odometry
+    while (odometry_cols < n_cols && columns_[odometry_cols - 1]->travelled_m) ++odometry_cols;
+    const int track_cols = std::min(n_cols, options_.sequence_length);
+    const bool odometry =
+        options_.use_odometry && references_->hasPoses() && odometry_cols >= track_cols;
     r.used_odometry = odometry;
 
     const bool full = n_cols >= options_.sequence_length;
@@ -383,8 +521,9 @@ CoarseResult CoarseLocalizer::processDescriptor(const Descriptor& descriptor, do
     if (tracking_ && full) {
         long predicted;
         if (odometry) {
-            predicted = nearestArc(*references_,
-                                   references_->arcLength(last_match_) + travelled_m.value_or(0));
+            // From the continuous arc length: snapping to a reference every frame while
+            // coasting would add up rounding errors of half a reference spacing.
+            predicted = nearestArc(*references_, track_arc_m_ + step_m);
         } else {
             predicted = static_cast<long>(last_match_) + std::lround(last_velocity_);
         }
@@ -392,12 +531,57 @@ CoarseResult CoarseLocalizer::processDescriptor(const Descriptor& descriptor, do
         long lo = predicted - w, hi = predicted + w;
         if (lo < 0) hi = std::min(n_refs - 1, hi - lo), lo = 0;
         if (hi > n_refs - 1) lo = std::max(0L, lo - (hi - (n_refs - 1))), hi = n_refs - 1;
-        s = search(lo, hi, odometry, r.evaluated_references);
+        s = search(lo, hi, odometry, track_cols, 1, r.evaluated_references);
         r.searched_candidates += s.candidates;
-        global = !(s.valid && s.second_score - s.best_score >= options_.min_confidence);
+        bool confident = s.valid && s.second_score - s.best_score >= options_.min_confidence;
+        const double off_m =
+            odometry && s.valid ? std::abs(references_->arcLength(s.best) - (track_arc_m_ + step_m))
+                                : 0.0;
+        const bool far = odometry && s.valid &&
+                         off_m > options_.odometry_tolerance_m +
+                                     options_.odometry_tolerance_per_m * (coasted_m_ + step_m);
+        if (far && options_.max_coast_m > 0) confident = false;  // aliasing within the window
+        global = !confident;
+        if (!confident && odometry && coasted_m_ + step_m <= options_.max_coast_m) {
+            // Aliased stretch: the window cannot tell its places apart, odometry still can.
+            coasted_m_ += step_m;
+            track_arc_m_ += step_m;
+            r.search_ms = msSince(t0);
+            r.status = CoarseStatus::kOdometry;
+            r.reference_index = static_cast<std::size_t>(predicted);
+            r.reference_time_s = references_->time(r.reference_index);
+            r.coarse_pose = references_->pose(r.reference_index);
+            r.velocity = s.velocity;
+            r.confidence = s.valid && std::isfinite(s.second_score)
+                               ? std::max(0.0, s.second_score - s.best_score)
+                               : 0.0;
+            std::ostringstream why;
+            if (far) {
+                why << "window match " << off_m << " m from the odometry prediction";
+            } else {
+                why << "window match not confident (" << r.confidence << ")";
+            }
+            why << ": held by odometry, " << coasted_m_ << " m since the last confident match";
+            r.reason = why.str();
+            last_match_ = r.reference_index;
+            ++coast_frames_;
+            if (++frames_since_audit_ >= kAuditEveryFrames) {
+                frames_since_audit_ = 0;
+                auditTrack(r, n_refs);
+            }
+            return r;
+        }
+    }
+    // A global search with odometry scores longer sequences: over a long uniform drive a few
+    // seconds of forward views alias, a hundred metres of them rarely do.
+    int global_cols = track_cols;
+    if (odometry) {
+        global_cols =
+            std::max(track_cols, std::min(odometry_cols, options_.odometry_sequence_length));
     }
     if (global) {
-        s = search(0, n_refs - 1, odometry, r.evaluated_references);
+        s = search(0, n_refs - 1, odometry, global_cols, strideFor(global_cols),
+                   r.evaluated_references);
         r.searched_candidates += s.candidates;
     }
     r.search_ms = msSince(t0);
@@ -426,14 +610,30 @@ CoarseResult CoarseLocalizer::processDescriptor(const Descriptor& descriptor, do
         r.status = CoarseStatus::kLost;
         r.reason = "no competing candidate outside the exclusion window: confidence unknown";
         tracking_ = false;
-    } else if (r.confidence < options_.min_confidence) {
+    } else if (r.confidence < minConfidence(global ? global_cols : track_cols)) {
         r.status = CoarseStatus::kLost;
-        r.reason = "confidence " + std::to_string(r.confidence) + " below min_confidence " +
-                   std::to_string(options_.min_confidence) + " (aliased or unknown place)";
+        r.reason = "confidence " + std::to_string(r.confidence) + " below " +
+                   std::to_string(minConfidence(global ? global_cols : track_cols)) +
+                   " (min_confidence for " + std::to_string(global ? global_cols : track_cols) +
+                   " frames: aliased or unknown place)";
+        tracking_ = false;
+    } else if (global && odometry && options_.confirm_global &&
+               !confirmGlobal(s.best, r.query_index, r.reason)) {
+        r.status = CoarseStatus::kUnconfirmed;
         tracking_ = false;
     } else {
         r.status = global ? CoarseStatus::kGlobal : CoarseStatus::kTracking;
         tracking_ = true;
+        coasted_m_ = 0;
+        coast_frames_ = 0;
+        if (references_->hasPoses()) track_arc_m_ = references_->arcLength(s.best);
+        if (global) {
+            pending_.clear();
+            frames_since_audit_ = 0;
+        } else if (odometry && ++frames_since_audit_ >= kAuditEveryFrames) {
+            frames_since_audit_ = 0;
+            auditTrack(r, n_refs);
+        }
     }
     return r;
 }

@@ -265,6 +265,8 @@ int CoarseTool::runOrThrow(std::ostream& out, std::ostream& err) {
         ++summary_.frames;
         if (r.usable()) ++summary_.usable;
         if (r.status == CoarseStatus::kGlobal) ++summary_.global_searches;
+        if (r.status == CoarseStatus::kOdometry) ++summary_.odometry;
+        if (r.status == CoarseStatus::kUnconfirmed) ++summary_.unconfirmed;
         if (r.status == CoarseStatus::kLost || r.status == CoarseStatus::kInvalidInput) {
             ++summary_.lost;
         }
@@ -304,9 +306,10 @@ int CoarseTool::runOrThrow(std::ostream& out, std::ostream& err) {
     }
 
     out << std::fixed << std::setprecision(3) << "references: " << summary_.references
-        << "\nquery frames: " << summary_.frames << " (usable " << summary_.usable << ", global "
-        << summary_.global_searches << ", lost " << summary_.lost << ", not enough frames "
-        << summary_.not_enough << ")"
+        << "\nquery frames: " << summary_.frames << " (usable " << summary_.usable
+        << ", held by odometry " << summary_.odometry << ", global " << summary_.global_searches
+        << ", unconfirmed " << summary_.unconfirmed << ", lost " << summary_.lost
+        << ", not enough frames " << summary_.not_enough << ")"
         << "\ntime per frame [ms]: mean " << summary_.mean_frame_ms << ", median "
         << summary_.median_frame_ms << " (search only: mean " << summary_.mean_search_ms
         << ", median " << summary_.median_search_ms << ")\n";

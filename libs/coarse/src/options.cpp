@@ -17,11 +17,26 @@ std::string sourceName(const mrpt::config::CConfigFileBase& source) {
 void CoarseOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
                                        const std::string& section) {
     const common::IniSection s(source, section, sourceName(source));
-    s.rejectUnknownKeys({"camera_label", "thumb_width_px", "thumb_height_px", "patch_size_px",
-                         "sequence_length", "velocity_min", "velocity_max", "velocity_steps",
-                         "contrast_window_refs", "exclusion_half_window_refs",
-                         "tracking_half_window_refs", "min_confidence", "use_odometry",
-                         "odometry_scale_tolerance", "odometry_scale_steps"});
+    s.rejectUnknownKeys({"camera_label",
+                         "thumb_width_px",
+                         "thumb_height_px",
+                         "patch_size_px",
+                         "sequence_length",
+                         "velocity_min",
+                         "velocity_max",
+                         "velocity_steps",
+                         "contrast_window_refs",
+                         "exclusion_half_window_refs",
+                         "tracking_half_window_refs",
+                         "min_confidence",
+                         "use_odometry",
+                         "odometry_scale_tolerance",
+                         "odometry_scale_steps",
+                         "odometry_sequence_length",
+                         "max_coast_m",
+                         "confirm_global",
+                         "odometry_tolerance_m",
+                         "odometry_tolerance_per_m"});
     camera_label = s.getString("camera_label", camera_label);
     thumb_width_px = s.getInt("thumb_width_px", thumb_width_px);
     thumb_height_px = s.getInt("thumb_height_px", thumb_height_px);
@@ -37,6 +52,11 @@ void CoarseOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& sour
     use_odometry = s.getBool("use_odometry", use_odometry);
     odometry_scale_tolerance = s.getDouble("odometry_scale_tolerance", odometry_scale_tolerance);
     odometry_scale_steps = s.getInt("odometry_scale_steps", odometry_scale_steps);
+    odometry_sequence_length = s.getInt("odometry_sequence_length", odometry_sequence_length);
+    max_coast_m = s.getDouble("max_coast_m", max_coast_m);
+    confirm_global = s.getBool("confirm_global", confirm_global);
+    odometry_tolerance_m = s.getDouble("odometry_tolerance_m", odometry_tolerance_m);
+    odometry_tolerance_per_m = s.getDouble("odometry_tolerance_per_m", odometry_tolerance_per_m);
     try {
         check();
     } catch (const common::ConfigError& e) {
@@ -61,6 +81,11 @@ void CoarseOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
     c.write(section, "use_odometry", use_odometry ? "true" : "false");
     c.write(section, "odometry_scale_tolerance", odometry_scale_tolerance);
     c.write(section, "odometry_scale_steps", odometry_scale_steps);
+    c.write(section, "odometry_sequence_length", odometry_sequence_length);
+    c.write(section, "max_coast_m", max_coast_m);
+    c.write(section, "confirm_global", confirm_global ? "true" : "false");
+    c.write(section, "odometry_tolerance_m", odometry_tolerance_m);
+    c.write(section, "odometry_tolerance_per_m", odometry_tolerance_per_m);
 }
 
 void CoarseOptions::check() const {
@@ -85,6 +110,12 @@ void CoarseOptions::check() const {
     c.require(odometry_scale_tolerance >= 0 && odometry_scale_tolerance < 1,
               "odometry_scale_tolerance", "in [0, 1)");
     c.require(odometry_scale_steps >= 1, "odometry_scale_steps", ">= 1");
+    c.require(odometry_sequence_length >= sequence_length, "odometry_sequence_length",
+              ">= sequence_length");
+    c.require(max_coast_m >= 0, "max_coast_m", ">= 0");
+    c.require(odometry_tolerance_m > 0, "odometry_tolerance_m", "> 0");
+    c.require(odometry_tolerance_per_m >= 0 && odometry_tolerance_per_m < 1,
+              "odometry_tolerance_per_m", "in [0, 1)");
     c.throwIfFailed();
 }
 

@@ -268,8 +268,8 @@ std::optional<Localizer::CoarseFix> Localizer::coarseFix() const {
     if (!last_coarse_) return std::nullopt;
     using coarse::CoarseStatus;
     const auto status = last_coarse_->status;
-    if (status != CoarseStatus::kTracking && status != CoarseStatus::kGlobal &&
-        status != CoarseStatus::kExternal) {
+    if (status != CoarseStatus::kTracking && status != CoarseStatus::kOdometry &&
+        status != CoarseStatus::kGlobal && status != CoarseStatus::kExternal) {
         return std::nullopt;
     }
     return fixFromMatch(*last_coarse_);
@@ -278,10 +278,10 @@ std::optional<Localizer::CoarseFix> Localizer::coarseFix() const {
 std::optional<Localizer::CoarseFix> Localizer::startupSeed() const {
     if (options_.startup_acquisition_frames <= 0 || !last_coarse_) return std::nullopt;
     const auto& c = *last_coarse_;
-    if (c.status != coarse::CoarseStatus::kNotEnoughFrames ||
-        c.query_index + 1 < static_cast<std::size_t>(options_.startup_acquisition_frames)) {
-        return std::nullopt;
-    }
+    const bool short_sequence =
+        c.status == coarse::CoarseStatus::kNotEnoughFrames &&
+        c.query_index + 1 >= static_cast<std::size_t>(options_.startup_acquisition_frames);
+    if (!short_sequence && c.status != coarse::CoarseStatus::kUnconfirmed) return std::nullopt;
     return fixFromMatch(c);
 }
 
@@ -475,8 +475,9 @@ FrameResult Localizer::processCeiling(const mrpt::obs::CObservationImage& query)
             result = acquire(query, *out.coarse_pose, result, out);
         }
     }
-    // Start-up, before the coarse sequence is full: a verified ceiling match around the
-    // shorter sequence's match, or nothing (that match is not reported as a coarse pose).
+    // Start-up, before the coarse sequence is full, or a coarse global match not confirmed yet:
+    // a verified ceiling match around that match, or nothing (it is not reported as a coarse
+    // pose).
     std::string startup_note;
     // ECC is left out: its "inliers" all sample one dense warp, so an inlier share cannot tell
     // a wrong seed's place from the right one (demo: fixes 45 m off).

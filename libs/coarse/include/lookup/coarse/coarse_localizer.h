@@ -14,6 +14,11 @@
 // column, so the work per frame does not depend on the reference length. A search over the
 // whole reference runs at start-up and whenever the windowed match is not confident
 // (kidnapping, leaving the surveyed route and coming back).
+//
+// With odometry (surveyed references and travelled distance per frame), sequences are not
+// the only evidence: a track whose window match turns unconfident is held by the distance
+// travelled for up to max_coast_m, and a global match is trusted only when a second one, from
+// a later, non-overlapping sequence, lands where odometry carried the first.
 
 #include <deque>
 #include <memory>
@@ -53,7 +58,21 @@ class CoarseLocalizer : public CoarseSource {
     struct Column;
     struct Search;
     void ensureComputed(Column& column, long lo, long hi, std::size_t& evaluated) const;
-    Search search(long candidate_lo, long candidate_hi, bool odometry, std::size_t& evaluated);
+    /// Scores paths through the newest `n_cols` buffered frames (every `stride`-th of them)
+    /// ending at the candidates.
+    /// Search::probe_score: the best path score ending in [probe_lo, probe_hi].
+    Search search(long candidate_lo, long candidate_hi, bool odometry, int n_cols, int stride,
+                  std::size_t& evaluated, long probe_lo = -1, long probe_hi = -2);
+    int strideFor(int frames) const;   ///< stride for a global search over `frames` frames
+    std::size_t bufferLength() const;  ///< frames kept: the longest sequence searched
+    /// min_confidence, given for sequence_length frames, for a path of `frames` frames.
+    double minConfidence(int frames) const;
+    /// True when a pending global match confirms the confident global match `best`;
+    /// otherwise keeps `best` pending and says why in `why`.
+    bool confirmGlobal(std::size_t best, std::size_t query_index, std::string& why);
+    /// Global searches with odometry against the track: when many places beat the track's own
+    /// path, the track is dropped (`r` becomes lost) and a global search follows.
+    void auditTrack(CoarseResult& r, long n_refs);
 
     /// Buffers of search(), kept between frames: a global search over a long reference needs
     /// megabytes, and fresh allocations each frame cost page faults.
@@ -72,6 +91,18 @@ class CoarseLocalizer : public CoarseSource {
     bool tracking_ = false;
     std::size_t last_match_ = 0;
     double last_velocity_ = 1.0;
+    double coasted_m_ = 0;          ///< travelled since the last confident match while tracking [m]
+    double track_arc_m_ = 0;        ///< arc length of the tracked place (odometry) [m]
+    std::size_t coast_frames_ = 0;  ///< frames held by odometry since the last confident match
+    int frames_since_audit_ = 0;    ///< tracking frames since auditTrack() last ran
+
+    /// A confident global match waiting for its confirmation (CoarseOptions::confirm_global).
+    struct PendingMatch {
+        std::size_t query_index = 0;
+        double arc_m = 0;        ///< arc length of the matched reference [m]
+        double travelled_m = 0;  ///< odometry since that query frame [m]
+    };
+    std::vector<PendingMatch> pending_;
 };
 
 }  // namespace lookup::coarse

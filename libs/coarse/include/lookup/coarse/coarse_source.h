@@ -27,10 +27,14 @@ enum class CoarseStatus {
     kInvalidInput,     ///< the query frame could not be used (see reason)
     kExternal,         ///< supplied by an external source (file), no confidence measure
     kNotSearched,      ///< frame added to the sequence, search skipped (CoarseQuery::search)
+    kOdometry,         ///< tracking, window match not confident: reference predicted by the
+                       ///< distance travelled since the last confident match
+    kUnconfirmed,      ///< confident global match waiting for a later one to agree with it
+                       ///< (CoarseOptions::confirm_global): not trusted yet
 };
 
 /// "tracking", "global", "not_enough_frames", "lost", "invalid_input", "external",
-/// "not_searched".
+/// "not_searched", "odometry", "unconfirmed".
 const char* toString(CoarseStatus status);
 
 struct CoarseQuery {
@@ -65,10 +69,11 @@ struct CoarseResult {
     double search_ms = 0;                  ///< wall time of the sequence search [ms]
 
     bool hasMatch() const { return reference_index != kNone; }
-    /// A match that LookUP may refine: tracking, global or external.
+    /// A match that LookUP may refine: tracking, odometry, global or external.
     bool usable() const {
-        return hasMatch() && (status == CoarseStatus::kTracking ||
-                              status == CoarseStatus::kGlobal || status == CoarseStatus::kExternal);
+        return hasMatch() &&
+               (status == CoarseStatus::kTracking || status == CoarseStatus::kOdometry ||
+                status == CoarseStatus::kGlobal || status == CoarseStatus::kExternal);
     }
 };
 

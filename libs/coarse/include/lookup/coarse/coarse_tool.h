@@ -13,8 +13,10 @@ namespace lookup::coarse {
 /// Figures of one run (what the program prints at the end).
 struct CoarseRunSummary {
     std::size_t frames = 0;
-    std::size_t usable = 0;           ///< tracking or global
+    std::size_t usable = 0;           ///< tracking, odometry or global
+    std::size_t odometry = 0;         ///< held by odometry (window match not confident)
     std::size_t lost = 0;             ///< lost or invalid
+    std::size_t unconfirmed = 0;      ///< global match waiting for its confirmation
     std::size_t not_enough = 0;       ///< not_enough_frames
     std::size_t global_searches = 0;  ///< frames with status global
     std::size_t references = 0;

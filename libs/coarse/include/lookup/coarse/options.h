@@ -44,6 +44,25 @@ struct CoarseOptions : public mrpt::config::CLoadableOptions {
     double odometry_scale_tolerance = 0.15;  ///< odometry scale error hypotheses span
                                              ///< 1 +/- this [fraction]
     int odometry_scale_steps = 7;            ///< number of scale hypotheses
+    /// With odometry, global searches score paths over up to this many frames (tracking keeps
+    /// sequence_length); min_confidence, given for sequence_length frames, is scaled by
+    /// sqrt(sequence_length / frames) for them (the margin is a mean over the frames).
+    int odometry_sequence_length = 150;
+    /// While tracking with odometry, a window match below min_confidence does not end the
+    /// track: it is held at the reference the travelled distance predicts (status "odometry")
+    /// for up to this distance since the last confident match [m]; 0 ends it at once (a global
+    /// search follows). Long uniform drives alias every forward view, odometry does not.
+    double max_coast_m = 100;
+    /// With odometry, a confident global match starts tracking only when a later global
+    /// match, from a sequence that does not overlap it, lies where the travelled distance
+    /// carries the first one (aliased places rarely agree twice); until then it is "lost".
+    bool confirm_global = true;
+    /// How far a match may lie from where odometry puts it [m] ... : the confirming global
+    /// match, and window matches while tracking (a farther one is taken for aliasing and the
+    /// track is held by odometry instead).
+    double odometry_tolerance_m = 4;
+    double odometry_tolerance_per_m = 0.05;  ///< ... plus this share of the distance travelled
+                                             ///< since the match odometry starts from
 
     void loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
                             const std::string& section) override;

@@ -114,8 +114,9 @@ class Localizer {
         std::vector<std::size_t> references;  ///< ceiling references for that match
     };
     std::optional<CoarseFix> coarseFix() const;
-    /// The coarse stage's match from a not yet full sequence, once it has
-    /// startup_acquisition_frames frames: an acquisition seed, never a reported pose.
+    /// A coarse match not trusted yet: from a not yet full sequence (once it has
+    /// startup_acquisition_frames frames), or a global match awaiting its confirmation. An
+    /// acquisition seed, never a reported pose.
     std::optional<CoarseFix> startupSeed() const;
     std::optional<CoarseFix> fixFromMatch(const coarse::CoarseResult& match) const;
     std::optional<Prediction> predict(double time_s) const;
