@@ -157,6 +157,13 @@ void CoarseLocalizer::reset() {
     pending_.clear();
 }
 
+void CoarseLocalizer::rejectLastMatch() {
+    tracking_ = false;
+    coasted_m_ = 0;
+    coast_frames_ = 0;
+    pending_.clear();
+}
+
 CoarseResult CoarseLocalizer::locate(const CoarseQuery& query) {
     if (!query.forward_image) {
         CoarseResult r;

@@ -31,6 +31,12 @@ const char* toString(FrameStatus s) {
 
 namespace {
 
+// Ceiling frames in a row without a refined fix around the coarse match before the coarse stage
+// is told the match is wrong (at 20 Hz: half a second; a few bad views are not enough).
+constexpr int kRejectCoarseAfterFrames = 10;
+// A refined fix this far from the coarse match contradicts it (the paper's exclusion radius).
+constexpr double kCoarseContradictedM = 10;
+
 mrpt::poses::CPose2D toPose2D(const mrpt::poses::CPose3D& p) {
     return mrpt::poses::CPose2D(p.x(), p.y(), p.yaw());
 }
@@ -56,6 +62,7 @@ class DatabaseSequenceSource : public coarse::CoarseSource {
         return r;
     }
     std::string name() const override { return inner_->name(); }
+    void rejectLastMatch() override { inner_->rejectLastMatch(); }
 
   private:
     std::unique_ptr<coarse::CoarseLocalizer> inner_;
@@ -71,14 +78,17 @@ class MultiTraverseSource : public coarse::CoarseSource {
         : sources_(std::move(sources)) {}
     coarse::CoarseResult locate(const coarse::CoarseQuery& query) override {
         std::optional<coarse::CoarseResult> best;
-        for (auto& source : sources_) {
-            auto r = source->locate(query);
-            const bool better = !best || (r.usable() && !best->usable()) ||
-                                (r.usable() == best->usable() && r.confidence > best->confidence);
-            if (better) best = std::move(r);
+        for (std::size_t k = 0; k < sources_.size(); ++k) {
+            auto r = sources_[k]->locate(query);
+            const int rank = trust(r), best_rank = best ? trust(*best) : -1;
+            if (rank > best_rank || (rank == best_rank && r.confidence > best->confidence)) {
+                best = std::move(r);
+                last_source_ = k;
+            }
         }
         return *best;
     }
+    void rejectLastMatch() override { sources_.at(last_source_)->rejectLastMatch(); }
     std::string name() const override {
         std::string out;
         for (const auto& s : sources_) out += (out.empty() ? "" : "+") + s->name();
@@ -86,7 +96,25 @@ class MultiTraverseSource : public coarse::CoarseSource {
     }
 
   private:
+    /// Confident match > held by odometry > unconfirmed (an acquisition seed) > the rest.
+    static int trust(const coarse::CoarseResult& r) {
+        using coarse::CoarseStatus;
+        if (!r.hasMatch()) return 0;
+        switch (r.status) {
+            case CoarseStatus::kTracking:
+            case CoarseStatus::kGlobal:
+            case CoarseStatus::kExternal:
+                return 4;
+            case CoarseStatus::kOdometry:
+                return 3;
+            case CoarseStatus::kUnconfirmed:
+                return 2;
+            default:
+                return 1;
+        }
+    }
     std::vector<std::unique_ptr<coarse::CoarseSource>> sources_;
+    std::size_t last_source_ = 0;
 };
 
 }  // namespace
@@ -127,13 +155,19 @@ std::unique_ptr<coarse::CoarseSource> makeSequenceCoarseSource(
     struct Sequence {
         std::shared_ptr<coarse::ReferenceDescriptors> descriptors;
         std::vector<std::size_t> db_index;
+        double last_forward_time_s = -1;
     };
     std::map<std::string, Sequence> sequences;  // by traverse name
     for (std::size_t i : db.forwardSequence()) {
         const auto& ref = db.reference(i);
         if (!traverse.empty() && ref.traverse != traverse) continue;
-        const cv::Mat image = db.forwardImage(i);
         auto& seq = sequences[ref.traverse];
+        // Ceiling keyframes come closer than forward frames: references sharing one forward
+        // frame enter once, so the sequence's windows (contrast, exclusion, tracking) span the
+        // metres the coarse options were tuned for.
+        if (ref.forward_time_s == seq.last_forward_time_s) continue;
+        seq.last_forward_time_s = ref.forward_time_s;
+        const cv::Mat image = db.forwardImage(i);
         if (!seq.descriptors) {
             seq.descriptors = std::make_shared<coarse::ReferenceDescriptors>(coarse_options);
             seq.descriptors->setImageSize(image.cols, image.rows);
@@ -278,10 +312,15 @@ std::optional<Localizer::CoarseFix> Localizer::coarseFix() const {
 std::optional<Localizer::CoarseFix> Localizer::startupSeed() const {
     if (options_.startup_acquisition_frames <= 0 || !last_coarse_) return std::nullopt;
     const auto& c = *last_coarse_;
-    const bool short_sequence =
-        c.status == coarse::CoarseStatus::kNotEnoughFrames &&
-        c.query_index + 1 >= static_cast<std::size_t>(options_.startup_acquisition_frames);
-    if (!short_sequence && c.status != coarse::CoarseStatus::kUnconfirmed) return std::nullopt;
+    // Any best guess once enough frames are seen: the ceiling check, not the coarse
+    // confidence, decides (on the full presets it refused every aliased seed).
+    const bool seed = c.hasMatch() && (c.status == coarse::CoarseStatus::kNotEnoughFrames ||
+                                       c.status == coarse::CoarseStatus::kUnconfirmed ||
+                                       c.status == coarse::CoarseStatus::kLost);
+    if (!seed ||
+        c.query_index + 1 < static_cast<std::size_t>(options_.startup_acquisition_frames)) {
+        return std::nullopt;
+    }
     return fixFromMatch(c);
 }
 
@@ -498,6 +537,23 @@ FrameResult Localizer::processCeiling(const mrpt::obs::CObservationImage& query)
                 out.inlier_share = 0;
             }
         }
+    }
+
+    // A coarse match that no ceiling view confirms for several frames, or that a refined fix
+    // puts far away, is wrong (an aliased place the coarse stage holds on to): tell the coarse
+    // stage so it searches again.
+    const bool refined = result && result->accepted();
+    const bool contradicted =
+        refined && coarse_fix &&
+        std::hypot(result->pose.mean.x() - coarse_fix->pose.x(),
+                   result->pose.mean.y() - coarse_fix->pose.y()) > kCoarseContradictedM;
+    if (coarse_fix && ((!prediction && !refined) || contradicted)) {
+        if (++unverified_coarse_frames_ >= kRejectCoarseAfterFrames && coarse_) {
+            coarse_->rejectLastMatch();
+            unverified_coarse_frames_ = 0;
+        }
+    } else {
+        unverified_coarse_frames_ = 0;
     }
 
     if (result && result->accepted()) {

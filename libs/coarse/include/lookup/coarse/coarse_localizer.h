@@ -50,6 +50,8 @@ class CoarseLocalizer : public CoarseSource {
 
     /// Forgets the query history (next frame starts a global search).
     void reset();
+    /// CoarseSource: drops the track (the next search is global), keeps the history.
+    void rejectLastMatch() override;
 
     const CoarseOptions& options() const { return options_; }
     const ReferenceDescriptors& references() const { return *references_; }

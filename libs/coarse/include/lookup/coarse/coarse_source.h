@@ -83,6 +83,11 @@ class CoarseSource {
     /// One query frame, in time order. Never throws for bad frames: the result says why.
     virtual CoarseResult locate(const CoarseQuery& query) = 0;
     virtual std::string name() const = 0;
+    /// The consumer could not verify the last usable match (no ceiling match around it for
+    /// several frames): a source that tracks drops its track and searches again, keeping its
+    /// sequence. It learns only that the place is wrong, never the consumer's pose, so its
+    /// matches stay independent of the fine stage.
+    virtual void rejectLastMatch() {}
 };
 
 /// Reference time stamps from a text file of `query_time reference_time` rows (seconds;

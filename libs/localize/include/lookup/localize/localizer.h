@@ -153,6 +153,7 @@ class Localizer {
     bool fine_tracking_ = false;  ///< the last ceiling frame was refined
     /// Coarse query index of the last start-up seed tried against the ceiling.
     std::size_t last_startup_seed_ = std::numeric_limits<std::size_t>::max();
+    int unverified_coarse_frames_ = 0;  ///< frames in a row the coarse match gave no fix
 
     // Reference views with prepared pyramids, most recently used last (bounded).
     std::map<std::size_t, refine::Reference> views_;
