@@ -3,7 +3,7 @@
 //                   [--ini FILE] [--method NAME]
 //                   [--coarse-matches F | --coarse-poses F] [--sampling grid|heatmap|auto]
 //                   [--matcher sad|orb|ecc]
-//                   [--realtime] [--max-frames N]
+//                   [--realtime] [--max-frames N] [--repeat N]
 
 #include <mrpt/3rdparty/tclap/CmdLine.h>
 #include <mrpt/core/exceptions.h>
@@ -52,6 +52,10 @@ int main(int argc, char** argv) {
                                   cmd);
         TCLAP::ValueArg<int> max_frames("", "max-frames", "stop after N ceiling frames", false, 0,
                                         "N", cmd);
+        TCLAP::ValueArg<int> repeat(
+            "", "repeat",
+            "replay the rawlog N times, each pass timed after the previous one (long runs)", false,
+            1, "N", cmd);
         if (!cmd.parse(argc, argv)) return lookup::common::parseFailureExitCode(argc, argv);
 
         lookup::localize::LocalizeRequest req;
@@ -66,6 +70,7 @@ int main(int argc, char** argv) {
         req.sampling = sampling.getValue();
         if (realtime.getValue()) req.realtime = 1;
         req.max_frames = static_cast<std::size_t>(std::max(0, max_frames.getValue()));
+        req.repeat = repeat.getValue();
 
         if (rawlog.getValue().empty() == live.getValue().empty()) {
             throw std::invalid_argument("give exactly one of --rawlog FILE or --live FILE.ini");

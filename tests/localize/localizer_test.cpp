@@ -183,6 +183,27 @@ TEST(Localize, RefinesCoarsePosesToCentimetresOnASyntheticCeiling) {
         EXPECT_TRUE(fs::exists(fs::path(req.out_dir) / f)) << f;
     }
 
+    // --repeat: three passes, each timed one second after the previous one ended.
+    {
+        localize::LocalizeRequest again = req;
+        again.out_dir = (dir / "repeat").string();
+        again.repeat = 3;
+        EXPECT_EQ(localize::runLocalization(again).frames, 60u);
+        std::ifstream in(fs::path(again.out_dir) / "frames.csv");
+        std::string line;
+        std::getline(in, line);  // header
+        std::vector<double> stamps;
+        while (std::getline(in, line)) stamps.push_back(std::stod(line.substr(0, line.find(','))));
+        ASSERT_EQ(stamps.size(), 60u);
+        for (std::size_t k = 1; k < stamps.size(); ++k) {
+            EXPECT_GT(stamps[k], stamps[k - 1]) << "frame " << k;
+        }
+        EXPECT_NEAR(stamps[20] - stamps[19], 1.0, 1e-3);  // one second between passes
+        EXPECT_NEAR(stamps[40] - stamps[20], stamps[20] - stamps[0], 1e-3);
+        again.repeat = 0;
+        EXPECT_THROW(localize::runLocalization(again), std::invalid_argument);
+    }
+
     // The same frames from a "live" camera: MRPT's CCameraSensor replaying the rawlog, as
     // rawlog-grabber would drive it on the vehicle.
     std::ofstream(dir / "sensors.ini")

@@ -162,6 +162,7 @@ class Session {
 }  // namespace
 
 RunTiming runLocalization(const LocalizeRequest& req) {
+    if (req.repeat < 1) throw std::invalid_argument("--repeat must be >= 1");
     Session session(req, req.rawlog);
     const auto& options = session.options();
     const std::size_t expected = countFrames(req.rawlog, options.ceiling_camera_label);
@@ -169,36 +170,45 @@ RunTiming runLocalization(const LocalizeRequest& req) {
         throw common::RawlogError(
             req.rawlog, "no '" + options.ceiling_camera_label + "' images: nothing to localise");
     }
-    common::RawlogReader reader(req.rawlog);
-    mrpt::obs::CObservation::Ptr obs;
-    double first_stamp = -1, last_ceiling_stamp = -1;
-    while (reader.next(obs)) {
-        const double stamp = mrpt::Clock::toDouble(obs->timestamp);
-        if (first_stamp < 0) first_stamp = stamp;
-        if (obs->sensorLabel == options.ceiling_camera_label) {
-            if (stamp <= last_ceiling_stamp) {
-                throw common::RawlogError(req.rawlog, reader.recordIndex(),
-                                          "ceiling image time stamps go backwards");
+    double first_stamp = -1, last_ceiling_stamp = -1, pass_shift_s = 0, last_stamp = -1;
+    for (int pass = 0; pass < req.repeat && !session.done(); ++pass) {
+        // Each pass starts one second after the previous one ended.
+        if (pass > 0) pass_shift_s += last_stamp - pass_shift_s - first_stamp + 1.0;
+        common::RawlogReader reader(req.rawlog);
+        mrpt::obs::CObservation::Ptr obs;
+        while (reader.next(obs)) {
+            if (pass_shift_s > 0) {
+                obs->timestamp =
+                    mrpt::Clock::fromDouble(mrpt::Clock::toDouble(obs->timestamp) + pass_shift_s);
             }
-            last_ceiling_stamp = stamp;
-        }
-        double late_s = 0;
-        if (options.realtime) {
-            // The observation arrives at its recorded time (relative to the first one).
-            const double arrival = stamp - first_stamp;
-            const double now = session.elapsed();
-            if (now < arrival) {
-                std::this_thread::sleep_for(std::chrono::duration<double>(arrival - now));
+            const double stamp = mrpt::Clock::toDouble(obs->timestamp);
+            if (first_stamp < 0) first_stamp = stamp;
+            last_stamp = std::max(last_stamp, stamp);
+            if (obs->sensorLabel == options.ceiling_camera_label) {
+                if (stamp <= last_ceiling_stamp) {
+                    throw common::RawlogError(req.rawlog, reader.recordIndex(),
+                                              "ceiling image time stamps go backwards");
+                }
+                last_ceiling_stamp = stamp;
             }
-            late_s = std::max(0.0, now - arrival);
+            double late_s = 0;
+            if (options.realtime) {
+                // The observation arrives at its recorded time (relative to the first one).
+                const double arrival = stamp - first_stamp;
+                const double now = session.elapsed();
+                if (now < arrival) {
+                    std::this_thread::sleep_for(std::chrono::duration<double>(arrival - now));
+                }
+                late_s = std::max(0.0, now - arrival);
+            }
+            try {
+                if (!session.feed(obs, late_s)) continue;
+            } catch (const std::exception& e) {
+                throw common::RawlogError(req.rawlog, reader.recordIndex(), e.what());
+            }
+            session.progress(expected * static_cast<std::size_t>(req.repeat));
+            if (session.done()) break;
         }
-        try {
-            if (!session.feed(obs, late_s)) continue;
-        } catch (const std::exception& e) {
-            throw common::RawlogError(req.rawlog, reader.recordIndex(), e.what());
-        }
-        session.progress(expected);
-        if (session.done()) break;
     }
     return session.finish();
 }

@@ -22,7 +22,10 @@ struct LocalizeRequest {
                                  ///< "sad", "orb" or "ecc" (ORB / ECC baselines, issue 6)
     int realtime = -1;           ///< -1: from the ini; 0: as fast as possible; 1: recorded rate
     std::size_t max_frames = 0;  ///< stop after this many ceiling frames (0 = all)
-    bool progress = true;        ///< progress bar on stderr when it is a terminal
+    /// Replays the rawlog this many times, each pass's time stamps after the previous one's
+    /// (long-run memory and throughput checks: the vehicle jumps back to the start).
+    int repeat = 1;
+    bool progress = true;  ///< progress bar on stderr when it is a terminal
 };
 
 /// The report's name of a LookUP run without --method: "lookup-grid24", "lookup-fcn12" (heat
