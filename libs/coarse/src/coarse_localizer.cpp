@@ -154,6 +154,7 @@ void CoarseLocalizer::reset() {
     columns_.clear();
     tracking_ = false;
     coasted_m_ = 0;
+    coast_frames_ = 0;
     pending_.clear();
 }
 
@@ -443,8 +444,8 @@ void CoarseLocalizer::auditTrack(CoarseResult& r, long n_refs) {
         r.searched_candidates += g.candidates;
         // The best of thousands of places beats the track's own path now and then even when
         // the track is right (on the full presets every right track ranked in the best 4 %):
-        // only a track that many places beat, one of them by a confident margin, is dropped. Moving
-        // it to the best place instead moved right tracks to wrong places.
+        // only a track that many places beat, one of them by a confident margin, is dropped.
+        // Moving it to the best place instead moved right tracks to wrong places.
         if (!g.valid || g.probe_rank <= kMaxTrackRank ||
             g.probe_score - g.best_score < minConfidence(cols)) {
             continue;  // (in a uniform stretch many places tie with the track: no margin)

@@ -55,7 +55,8 @@ struct CoarseOptions : public mrpt::config::CLoadableOptions {
     double max_coast_m = 100;
     /// With odometry, a confident global match starts tracking only when a later global
     /// match, from a sequence that does not overlap it, lies where the travelled distance
-    /// carries the first one (aliased places rarely agree twice); until then it is "lost".
+    /// carries the first one (aliased places rarely agree twice); until then it is
+    /// "unconfirmed" (not usable).
     bool confirm_global = true;
     /// How far a match may lie from where odometry puts it [m] ... : the confirming global
     /// match, and window matches while tracking (a farther one is taken for aliasing and the
