@@ -547,8 +547,11 @@ FrameResult Localizer::processCeiling(const mrpt::obs::CObservationImage& query)
         refined && coarse_fix &&
         std::hypot(result->pose.mean.x() - coarse_fix->pose.x(),
                    result->pose.mean.y() - coarse_fix->pose.y()) > kCoarseContradictedM;
+    // Refined fixes are strong evidence (they passed the acceptance filters): two in a row
+    // suffice; frames that merely fail around the coarse match need more.
     if (coarse_fix && ((!prediction && !refined) || contradicted)) {
-        if (++unverified_coarse_frames_ >= kRejectCoarseAfterFrames && coarse_) {
+        unverified_coarse_frames_ += contradicted ? kRejectCoarseAfterFrames / 2 : 1;
+        if (unverified_coarse_frames_ >= kRejectCoarseAfterFrames && coarse_) {
             coarse_->rejectLastMatch();
             unverified_coarse_frames_ = 0;
         }
