@@ -236,6 +236,34 @@ TEST(CoarseLocalizer, HeldTrackIsDroppedAndTheRightPlaceFoundAfterKidnappingWith
     EXPECT_LE(recovered_after, 4 * o.sequence_length);
 }
 
+TEST(CoarseLocalizer, RejectedMatchStartsAFreshConfirmedAcquisition) {
+    SyntheticRoute route(300, 3, 21);
+    const auto o = testOptions();
+    CoarseLocalizer loc(makeReferences(route, 300, o, /*with_poses=*/true), o);
+    auto frame = [&](int t) {
+        return loc.process(route.image(20.0 + t, 8.0), t,
+                           t > 0 ? std::optional<double>(1.0) : std::nullopt);
+    };
+    int t = 0;
+    for (; t < 80; ++t) frame(t);
+    ASSERT_EQ(frame(t++).status, CoarseStatus::kTracking);
+    // The consumer found no ceiling match around it: the stage searches the whole reference
+    // again, and trusts the result only once a later sequence agrees.
+    loc.rejectLastMatch();
+    const auto first = frame(t++);
+    EXPECT_EQ(first.status, CoarseStatus::kUnconfirmed) << first.reason;
+    EXPECT_FALSE(first.usable());
+    int confirmed_after = -1;
+    for (int k = 1; k <= o.sequence_length + 1 && confirmed_after < 0; ++k, ++t) {
+        const auto r = frame(t);
+        if (r.status == CoarseStatus::kGlobal) {
+            confirmed_after = k;
+            EXPECT_NEAR(static_cast<double>(r.reference_index), 20.0 + t, 1.0);
+        }
+    }
+    EXPECT_EQ(confirmed_after, o.sequence_length);
+}
+
 TEST(CoarseLocalizer, BadInputGivesReasonsNotCrashes) {
     SyntheticRoute route(50, 3, 1);
     const auto o = testOptions();
