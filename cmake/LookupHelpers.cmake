@@ -50,6 +50,10 @@ function(lookup_add_test)
         LOOKUP_SOURCE_SHARE_DIR="${LOOKUP_SOURCE_SHARE_DIR}"
         LOOKUP_BINARY_DIR="${CMAKE_BINARY_DIR}")
     include(GoogleTest)
+    # Test folders go under this build tree, not the shared /tmp: two build trees running
+    # their tests at once (a CI clone beside a working copy) would remove each other's files.
+    file(MAKE_DIRECTORY ${CMAKE_BINARY_DIR}/test-tmp)
     gtest_discover_tests(${ARG_NAME} DISCOVERY_TIMEOUT 60
-                         PROPERTIES LABELS "${ARG_LABELS}")
+                         PROPERTIES LABELS "${ARG_LABELS}"
+                                    ENVIRONMENT "TMPDIR=${CMAKE_BINARY_DIR}/test-tmp")
 endfunction()

@@ -63,6 +63,9 @@ class DatabaseSequenceSource : public coarse::CoarseSource {
     }
     std::string name() const override { return inner_->name(); }
     void rejectLastMatch() override { inner_->rejectLastMatch(); }
+    std::vector<coarse::CoarseResult> otherMatches() const override {
+        return inner_->otherMatches();
+    }
 
   private:
     std::unique_ptr<coarse::CoarseLocalizer> inner_;
@@ -77,17 +80,22 @@ class MultiTraverseSource : public coarse::CoarseSource {
     explicit MultiTraverseSource(std::vector<std::unique_ptr<coarse::CoarseSource>> sources)
         : sources_(std::move(sources)) {}
     coarse::CoarseResult locate(const coarse::CoarseQuery& query) override {
-        std::optional<coarse::CoarseResult> best;
-        for (std::size_t k = 0; k < sources_.size(); ++k) {
-            auto r = sources_[k]->locate(query);
-            const int rank = trust(r), best_rank = best ? trust(*best) : -1;
-            if (rank > best_rank || (rank == best_rank && r.confidence > best->confidence)) {
-                best = std::move(r);
+        std::vector<coarse::CoarseResult> all;
+        for (auto& source : sources_) all.push_back(source->locate(query));
+        last_source_ = 0;
+        for (std::size_t k = 1; k < all.size(); ++k) {
+            const int rank = trust(all[k]), best_rank = trust(all[last_source_]);
+            if (rank > best_rank ||
+                (rank == best_rank && all[k].confidence > all[last_source_].confidence)) {
                 last_source_ = k;
             }
         }
-        return *best;
+        coarse::CoarseResult best = std::move(all[last_source_]);
+        all.erase(all.begin() + static_cast<long>(last_source_));
+        others_ = std::move(all);
+        return best;
     }
+    std::vector<coarse::CoarseResult> otherMatches() const override { return others_; }
     void rejectLastMatch() override { sources_.at(last_source_)->rejectLastMatch(); }
     std::string name() const override {
         std::string out;
@@ -115,6 +123,7 @@ class MultiTraverseSource : public coarse::CoarseSource {
     }
     std::vector<std::unique_ptr<coarse::CoarseSource>> sources_;
     std::size_t last_source_ = 0;
+    std::vector<coarse::CoarseResult> others_;
 };
 
 }  // namespace
@@ -309,19 +318,33 @@ std::optional<Localizer::CoarseFix> Localizer::coarseFix() const {
     return fixFromMatch(*last_coarse_);
 }
 
-std::optional<Localizer::CoarseFix> Localizer::startupSeed() const {
-    if (options_.startup_acquisition_frames <= 0 || !last_coarse_) return std::nullopt;
-    const auto& c = *last_coarse_;
-    // Any best guess once enough frames are seen: the ceiling check, not the coarse
-    // confidence, decides (on the full presets it refused every aliased seed).
-    const bool seed = c.hasMatch() && (c.status == coarse::CoarseStatus::kNotEnoughFrames ||
-                                       c.status == coarse::CoarseStatus::kUnconfirmed ||
-                                       c.status == coarse::CoarseStatus::kLost);
-    if (!seed ||
-        c.query_index + 1 < static_cast<std::size_t>(options_.startup_acquisition_frames)) {
-        return std::nullopt;
+std::vector<Localizer::CoarseFix> Localizer::startupSeeds() const {
+    std::vector<CoarseFix> seeds;
+    if (options_.startup_acquisition_frames <= 0 || !last_coarse_ || !coarse_) return seeds;
+    // Any best guess once enough frames are seen, from every traverse's sequence: the ceiling
+    // check, not the coarse confidence, decides (on the full presets it refused every aliased
+    // seed; on mine-a query2 the right traverse had the place 9 frames before it was the most
+    // confident one).
+    std::vector<coarse::CoarseResult> guesses{*last_coarse_};
+    for (auto& other : coarse_->otherMatches()) guesses.push_back(std::move(other));
+    for (const auto& c : guesses) {
+        const bool seed = c.hasMatch() && (c.status == coarse::CoarseStatus::kNotEnoughFrames ||
+                                           c.status == coarse::CoarseStatus::kUnconfirmed ||
+                                           c.status == coarse::CoarseStatus::kLost);
+        if (!seed ||
+            c.query_index + 1 < static_cast<std::size_t>(options_.startup_acquisition_frames)) {
+            continue;
+        }
+        const auto fix = fixFromMatch(c);
+        if (!fix) continue;
+        // Seeds closer than the acquisition radius search the same candidates.
+        const bool known = std::any_of(seeds.begin(), seeds.end(), [&](const CoarseFix& s) {
+            return std::hypot(s.pose.x() - fix->pose.x(), s.pose.y() - fix->pose.y()) <
+                   options_.acquisition_radius_m;
+        });
+        if (!known) seeds.push_back(*fix);
     }
-    return fixFromMatch(c);
+    return seeds;
 }
 
 std::optional<Localizer::CoarseFix> Localizer::fixFromMatch(const coarse::CoarseResult& c) const {
@@ -525,10 +548,13 @@ FrameResult Localizer::processCeiling(const mrpt::obs::CObservationImage& query)
     if (!result && !coarse_fix && verifiable && options_.acquisition_radius_m > 0) {
         // A seed already tried waits for the coarse stage's next forward frame (ceiling frames
         // come twice as often): it halves the cost of start-up, which wrong seeds dominate.
-        const auto seed = startupSeed();
-        if (seed && last_coarse_->query_index != last_startup_seed_) {
+        if (last_coarse_ && last_coarse_->query_index != last_startup_seed_) {
             last_startup_seed_ = last_coarse_->query_index;
-            result = acquire(query, seed->pose, nullptr, out);
+            for (const auto& seed : startupSeeds()) {
+                auto tried = acquire(query, seed.pose, nullptr, out);
+                if (tried) result = tried;
+                if (result && result->accepted()) break;
+            }
             if (!result) {
                 startup_note = "; no ceiling match around its match from " +
                                std::to_string(last_coarse_->query_index + 1) + " frames";

@@ -88,6 +88,9 @@ class CoarseSource {
     /// sequence. It learns only that the place is wrong, never the consumer's pose, so its
     /// matches stay independent of the fine stage.
     virtual void rejectLastMatch() {}
+    /// A source combining several sequences: their results for the last query other than the
+    /// one locate() returned (more seeds for a verified acquisition). Empty otherwise.
+    virtual std::vector<CoarseResult> otherMatches() const { return {}; }
 };
 
 /// Reference time stamps from a text file of `query_time reference_time` rows (seconds;

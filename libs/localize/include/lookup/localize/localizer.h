@@ -114,10 +114,11 @@ class Localizer {
         std::vector<std::size_t> references;  ///< ceiling references for that match
     };
     std::optional<CoarseFix> coarseFix() const;
-    /// A coarse match not trusted yet: from a not yet full sequence (once it has
-    /// startup_acquisition_frames frames), or a global match awaiting its confirmation. An
-    /// acquisition seed, never a reported pose.
-    std::optional<CoarseFix> startupSeed() const;
+    /// Coarse matches not trusted (yet), one per place, from every traverse's sequence: from a
+    /// not yet full sequence (once it has startup_acquisition_frames frames), a global match
+    /// awaiting its confirmation, or a lost sequence's best guess. Acquisition seeds, never
+    /// reported poses.
+    std::vector<CoarseFix> startupSeeds() const;
     std::optional<CoarseFix> fixFromMatch(const coarse::CoarseResult& match) const;
     std::optional<Prediction> predict(double time_s) const;
     std::optional<mrpt::poses::CPose2D> odometryAt(double time_s) const;
