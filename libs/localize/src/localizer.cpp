@@ -92,7 +92,10 @@ class MultiTraverseSource : public coarse::CoarseSource {
         }
         coarse::CoarseResult best = std::move(all[last_source_]);
         all.erase(all.begin() + static_cast<long>(last_source_));
-        others_ = std::move(all);
+        std::stable_sort(all.begin(), all.end(), [](const auto& a, const auto& b) {
+            return trust(a) != trust(b) ? trust(a) > trust(b) : a.confidence > b.confidence;
+        });
+        others_ = std::move(all);  // most trusted first
         return best;
     }
     std::vector<coarse::CoarseResult> otherMatches() const override { return others_; }
@@ -326,7 +329,12 @@ std::vector<Localizer::CoarseFix> Localizer::startupSeeds() const {
     // seed; on mine-a query2 the right traverse had the place 9 frames before it was the most
     // confident one).
     std::vector<coarse::CoarseResult> guesses{*last_coarse_};
-    for (auto& other : coarse_->otherMatches()) guesses.push_back(std::move(other));
+    // Every sequence's guess only until the first fix: later, while LookUP re-acquires, they
+    // cost up to one acquisition per traverse on every forward frame (mine-a query4 137 -> 103
+    // frames/s) for little gain.
+    if (!last_fix_) {
+        for (auto& other : coarse_->otherMatches()) guesses.push_back(std::move(other));
+    }
     for (const auto& c : guesses) {
         const bool seed = c.hasMatch() && (c.status == coarse::CoarseStatus::kNotEnoughFrames ||
                                            c.status == coarse::CoarseStatus::kUnconfirmed ||
@@ -546,15 +554,18 @@ FrameResult Localizer::processCeiling(const mrpt::obs::CObservationImage& query)
     const bool verifiable =
         refiner_.options().correspondence.method != refine::CorrespondenceMethod::Ecc;
     if (!result && !coarse_fix && verifiable && options_.acquisition_radius_m > 0) {
-        // A seed already tried waits for the coarse stage's next forward frame (ceiling frames
-        // come twice as often): it halves the cost of start-up, which wrong seeds dominate.
-        if (last_coarse_ && last_coarse_->query_index != last_startup_seed_) {
+        // Seeds are refreshed once per forward frame (ceiling frames come twice as often): a
+        // seed already tried waits for the coarse stage's next frame.
+        // One acquisition per forward frame, taking the traverses' seeds in turn (most
+        // trusted first): trying all of them at once made start-up frames cost 250 ms
+        // instead of 60-100.
+        const auto seeds = last_coarse_ && last_coarse_->query_index != last_startup_seed_
+                               ? startupSeeds()
+                               : std::vector<CoarseFix>{};
+        if (!seeds.empty()) {
             last_startup_seed_ = last_coarse_->query_index;
-            for (const auto& seed : startupSeeds()) {
-                auto tried = acquire(query, seed.pose, nullptr, out);
-                if (tried) result = tried;
-                if (result && result->accepted()) break;
-            }
+            const auto& seed = seeds[seed_turn_++ % seeds.size()];
+            result = acquire(query, seed.pose, nullptr, out);
             if (!result) {
                 startup_note = "; no ceiling match around its match from " +
                                std::to_string(last_coarse_->query_index + 1) + " frames";

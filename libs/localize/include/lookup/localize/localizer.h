@@ -154,6 +154,7 @@ class Localizer {
     bool fine_tracking_ = false;  ///< the last ceiling frame was refined
     /// Coarse query index of the last start-up seed tried against the ceiling.
     std::size_t last_startup_seed_ = std::numeric_limits<std::size_t>::max();
+    std::size_t seed_turn_ = 0;  ///< which traverse's seed the next start-up acquisition takes
     int unverified_coarse_frames_ = 0;  ///< frames in a row the coarse match gave no fix
 
     // Reference views with prepared pyramids, most recently used last (bounded).
