@@ -28,11 +28,12 @@ struct LocalizerOptions : public mrpt::config::CLoadableOptions {
     /// from the best fix scores within this margin of it (aliasing: rock-bolt grids, mesh).
     double acquisition_ambiguity_margin = 0.1;
     double acquisition_ambiguity_distance_m = 1.0;  ///< [m]
-    /// Start-up: until the coarse sequence is full (coarse.sequence_length forward frames,
-    /// 3 s at 10 Hz) its match from the frames seen so far is not trusted as a coarse pose.
-    /// From this many forward frames on it seeds an acquisition instead, which must find the
-    /// ceiling (best candidate, ambiguity check, confirmation) before the frame counts as
-    /// refined; the frame stays lost otherwise. 0 = wait for a full sequence. Not with the ECC
+    /// Seeds: a coarse match that is not trusted as a coarse pose (from a sequence not yet full,
+    /// a global match awaiting confirmation, a lost sequence's best guess) seeds an
+    /// acquisition from this many forward frames on, one per forward frame, the traverses'
+    /// guesses in turn before the first fix. The acquisition must find the ceiling (best
+    /// candidate, ambiguity check, confirmation) before the frame counts as refined; the frame
+    /// stays lost otherwise. 0 = no seeds: only trusted coarse matches. Not with the ECC
     /// baseline, whose inlier share cannot refuse a wrong place.
     int startup_acquisition_frames = 5;
     /// Survey traverse whose forward images feed the coarse matcher. "" = every traverse, each
