@@ -372,6 +372,21 @@ CoarseLocalizer::Search CoarseLocalizer::search(long cand_lo, long cand_hi, bool
     return s;
 }
 
+double CoarseLocalizer::odometryTolerance(double travelled_m) const {
+    return options_.odometry_tolerance_m + options_.odometry_tolerance_per_m * travelled_m;
+}
+
+int CoarseLocalizer::odometryFrames(double max_back_m) const {
+    int frames = 1;
+    double back_m = 0;
+    while (frames < static_cast<int>(columns_.size()) && columns_[frames - 1]->travelled_m) {
+        back_m += *columns_[frames - 1]->travelled_m;
+        if (back_m > max_back_m) break;
+        ++frames;
+    }
+    return frames;
+}
+
 std::size_t CoarseLocalizer::bufferLength() const {
     const bool odometry = options_.use_odometry && references_->hasPoses();
     return static_cast<std::size_t>(
@@ -394,8 +409,7 @@ double CoarseLocalizer::minConfidence(int frames) const {
 bool CoarseLocalizer::confirmGlobal(std::size_t best, std::size_t query_index, std::string& why) {
     const double arc = references_->arcLength(best);
     for (const auto& p : pending_) {
-        const double tolerance =
-            options_.odometry_tolerance_m + options_.odometry_tolerance_per_m * p.travelled_m;
+        const double tolerance = odometryTolerance(p.travelled_m);
         if (std::abs(p.arc_m + p.travelled_m - arc) > tolerance) continue;
         if (query_index >= p.query_index + options_.sequence_length) return true;
         // Agrees, but their sequences overlap: the older match waits for a later frame.
@@ -411,22 +425,14 @@ bool CoarseLocalizer::confirmGlobal(std::size_t best, std::size_t query_index, s
 }
 
 void CoarseLocalizer::auditTrack(CoarseResult& r, long n_refs) {
-    const double tolerance =
-        options_.odometry_tolerance_m + options_.odometry_tolerance_per_m * coasted_m_;
+    const double tolerance = odometryTolerance(coasted_m_);
     const long probe_lo = lastAtOrBelow(*references_, track_arc_m_ - tolerance);
     const long probe_hi = lastAtOrBelow(*references_, track_arc_m_ + tolerance) + 1;
     // Frames with odometry whose path back from the track stays on the reference (a longer
     // path would leave it before its start and lose to any place by default).
-    int odometry_cols = 1;
-    double back_m = 0;
-    const double room_m = (1.0 - options_.odometry_scale_tolerance) *
-                          (track_arc_m_ - tolerance - references_->arcLength(0));
-    while (odometry_cols < static_cast<int>(columns_.size()) &&
-           columns_[odometry_cols - 1]->travelled_m) {
-        back_m += *columns_[odometry_cols - 1]->travelled_m;
-        if (back_m > room_m) break;
-        ++odometry_cols;
-    }
+    const int odometry_cols =
+        odometryFrames((1.0 - options_.odometry_scale_tolerance) *
+                       (track_arc_m_ - tolerance - references_->arcLength(0)));
     // Two spans: the longest (a wrong track that chance window matches keep alive loses over
     // a hundred metres), and the frames since the window match turned unconfident with one
     // sequence before (after a kidnapping the longest span still favours the old place).
@@ -516,8 +522,7 @@ CoarseResult CoarseLocalizer::processDescriptor(const Descriptor& descriptor, do
     const long n_refs = static_cast<long>(references_->size());
 
     // Odometry applies when references are surveyed and every step of the sequence has it.
-    int odometry_cols = 1;  // newest frames whose steps all have odometry
-    while (odometry_cols < n_cols && columns_[odometry_cols - 1]->travelled_m) ++odometry_cols;
+    const int odometry_cols = odometryFrames(std::numeric_limits<double>::infinity());
     const int track_cols = std::min(n_cols, options_.sequence_length);
     const bool odometry =
         options_.use_odometry && references_->hasPoses() && odometry_cols >= track_cols;
@@ -545,9 +550,7 @@ CoarseResult CoarseLocalizer::processDescriptor(const Descriptor& descriptor, do
         const double off_m =
             odometry && s.valid ? std::abs(references_->arcLength(s.best) - (track_arc_m_ + step_m))
                                 : 0.0;
-        const bool far = odometry && s.valid &&
-                         off_m > options_.odometry_tolerance_m +
-                                     options_.odometry_tolerance_per_m * (coasted_m_ + step_m);
+        const bool far = odometry && s.valid && off_m > odometryTolerance(coasted_m_ + step_m);
         if (far && options_.max_coast_m > 0) confident = false;  // aliasing within the window
         global = !confident;
         if (!confident && odometry && coasted_m_ + step_m <= options_.max_coast_m) {

@@ -173,7 +173,7 @@ RunTiming runLocalization(const LocalizeRequest& req) {
     double first_stamp = -1, last_ceiling_stamp = -1, pass_shift_s = 0, last_stamp = -1;
     for (int pass = 0; pass < req.repeat && !session.done(); ++pass) {
         // Each pass starts one second after the previous one ended.
-        if (pass > 0) pass_shift_s += last_stamp - pass_shift_s - first_stamp + 1.0;
+        if (pass > 0) pass_shift_s = last_stamp - first_stamp + 1.0;
         common::RawlogReader reader(req.rawlog);
         mrpt::obs::CObservation::Ptr obs;
         while (reader.next(obs)) {

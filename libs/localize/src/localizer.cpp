@@ -63,9 +63,6 @@ class DatabaseSequenceSource : public coarse::CoarseSource {
     }
     std::string name() const override { return inner_->name(); }
     void rejectLastMatch() override { inner_->rejectLastMatch(); }
-    std::vector<coarse::CoarseResult> otherMatches() const override {
-        return inner_->otherMatches();
-    }
 
   private:
     std::unique_ptr<coarse::CoarseLocalizer> inner_;

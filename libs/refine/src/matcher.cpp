@@ -63,10 +63,8 @@ ImagePyramid ImagePyramid::build(const cv::Mat& image, int extra_levels, bool no
         CV_Error(cv::Error::StsUnsupportedFormat, "ImagePyramid: image must be CV_8UC1 or CV_8UC3");
     }
     cv::Mat source = grey;  // CV_8U, or CV_16S with the illumination removed
-    double offset = 0.0;
     if (illumination_sigma_px > 0.0) {
         source = subtractIllumination(grey, illumination_sigma_px);
-        offset = 128.0;
         p.illumination_sigma_px = illumination_sigma_px;
     }
     if (normalize) {
@@ -79,7 +77,7 @@ ImagePyramid ImagePyramid::build(const cv::Mat& image, int extra_levels, bool no
         grey = stretched;
         p.normalized = true;
     } else if (source.type() != CV_8U) {
-        source.convertTo(grey, CV_8U, 1.0, offset);
+        source.convertTo(grey, CV_8U, 1.0, 128.0);  // the texture around mid-grey
     }
     // Each level lives in a buffer 32 columns wider than the view, so SIMD rows may overrun.
     auto padded = [](const cv::Mat& src) {

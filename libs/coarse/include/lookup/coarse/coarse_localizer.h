@@ -67,6 +67,11 @@ class CoarseLocalizer : public CoarseSource {
                   std::size_t& evaluated, long probe_lo = -1, long probe_hi = -2);
     int strideFor(int frames) const;   ///< stride for a global search over `frames` frames
     std::size_t bufferLength() const;  ///< frames kept: the longest sequence searched
+    /// How far a match may lie from where odometry puts it after `travelled_m` [m].
+    double odometryTolerance(double travelled_m) const;
+    /// Newest buffered frames whose steps all have odometry, stopping before their distance
+    /// back from the newest exceeds `max_back_m`.
+    int odometryFrames(double max_back_m) const;
     /// min_confidence, given for sequence_length frames, for a path of `frames` frames.
     double minConfidence(int frames) const;
     /// True when a pending global match confirms the confident global match `best`;
