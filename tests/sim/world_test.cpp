@@ -1,4 +1,4 @@
-// Tunnel geometry and the lidar simulated against its occupancy grid.
+// Tunnel geometry and the lidar traced against its rock surface.
 
 #include "test_worlds.h"
 
@@ -45,14 +45,12 @@ TEST(World, ShorterWorldIsTheSameWorldCutShort) {
 TEST(World, LidarRangesAgreeWithTheAnalyticWalls) {
     const auto opt = straightTunnel(true);
     const TunnelWorld world(opt, 1);
-    mrpt::maps::COccupancyGridMap2D grid;
-    world.fillGridMap(grid);
     lookup::sim::LidarOptions lidar;
     lidar.noise_std_m = 0;
     const double hw = opt.width_m / 2;
     for (const double yaw : {0.0, 0.3, -0.25}) {
         const mrpt::poses::CPose2D vehicle(18.0, 0.6, yaw);
-        const auto scan = lookup::sim::simulateLidar(grid, vehicle, lidar, 1);
+        const auto scan = lookup::sim::simulateLidar(world, vehicle, lidar, 1);
         ASSERT_EQ(scan.getScanSize(), 541u);
         const mrpt::poses::CPose2D sensor = vehicle + mrpt::poses::CPose2D(lidar.mount.pose());
         int checked = 0;
@@ -64,7 +62,7 @@ TEST(World, LidarRangesAgreeWithTheAnalyticWalls) {
             const double expected = s > 0 ? (hw - sensor.y()) / s : (hw + sensor.y()) / -s;
             if (expected > 12) continue;
             ASSERT_TRUE(scan.getScanRangeValidity(i)) << "ray " << i;
-            EXPECT_NEAR(scan.getScanRange(i), expected, 0.08) << "yaw " << yaw << " ray " << i;
+            EXPECT_NEAR(scan.getScanRange(i), expected, 0.005) << "yaw " << yaw << " ray " << i;
             ++checked;
         }
         EXPECT_GT(checked, 200);
@@ -74,13 +72,11 @@ TEST(World, LidarRangesAgreeWithTheAnalyticWalls) {
 // Noise-free scans at x = 17 m and 18 m, 0.2 m off the centre line: {valid rays, rays whose
 // range changed by less than 6 cm}.
 std::pair<int, int> rangesUnchangedOneMetreOn(const TunnelWorld& world) {
-    mrpt::maps::COccupancyGridMap2D grid;
-    world.fillGridMap(grid);
     lookup::sim::LidarOptions lidar;
     lidar.noise_std_m = 0;
     lidar.max_range_m = 8;
-    const auto a = lookup::sim::simulateLidar(grid, mrpt::poses::CPose2D(17, 0.2, 0), lidar, 1);
-    const auto b = lookup::sim::simulateLidar(grid, mrpt::poses::CPose2D(18, 0.2, 0), lidar, 1);
+    const auto a = lookup::sim::simulateLidar(world, mrpt::poses::CPose2D(17, 0.2, 0), lidar, 1);
+    const auto b = lookup::sim::simulateLidar(world, mrpt::poses::CPose2D(18, 0.2, 0), lidar, 1);
     int same = 0, valid = 0;
     for (std::size_t i = 0; i < a.getScanSize(); ++i) {
         if (!a.getScanRangeValidity(i) || !b.getScanRangeValidity(i)) continue;
@@ -107,14 +103,12 @@ namespace {
 // Ranges of the rays perpendicular-ish to the left wall, as the vehicle drives along the tunnel:
 // the wall's lateral position seen by the lidar at each step.
 std::vector<double> leftWallOffsets(const TunnelWorld& world) {
-    mrpt::maps::COccupancyGridMap2D grid;
-    world.fillGridMap(grid);
     lookup::sim::LidarOptions lidar;
     lidar.noise_std_m = 0;
     lidar.max_range_m = 8;
     std::vector<double> out;
     for (double x = 8; x <= 32; x += 0.25) {
-        const auto scan = lookup::sim::simulateLidar(grid, mrpt::poses::CPose2D(x, 0, 0), lidar, 1);
+        const auto scan = lookup::sim::simulateLidar(world, mrpt::poses::CPose2D(x, 0, 0), lidar, 1);
         const std::size_t mid = scan.getScanSize() / 2 + 180;  // +90 deg: straight to the left
         EXPECT_TRUE(scan.getScanRangeValidity(mid));
         out.push_back(scan.getScanRange(mid) + lidar.mount.y_m);
@@ -127,7 +121,7 @@ std::vector<double> leftWallOffsets(const TunnelWorld& world) {
 TEST(World, ZeroRoughnessGivesStraightWalls) {
     const auto opt = straightTunnel(true);  // wall_roughness_m = 0
     const TunnelWorld world(opt, 1);
-    for (const double y : leftWallOffsets(world)) EXPECT_NEAR(y, opt.width_m / 2, 0.06);
+    for (const double y : leftWallOffsets(world)) EXPECT_NEAR(y, opt.width_m / 2, 0.005);
 }
 
 TEST(World, RoughWallsVaryByAboutTheConfiguredRoughness) {

@@ -235,7 +235,6 @@ ScenarioOptions::ScenarioOptions() {
     forward_camera.light_falloff_exp = 2.0;
     forward_camera.light_gain = 2.0;
     forward_camera.mount = {1.8, 0.0, 2.0, -90.0, 0.0, -90.0};  // optical axis = vehicle +x
-    lidar.mount = {1.9, 0.0, 1.2, 0.0, 0.0, 0.0};
 }
 
 void ScenarioOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
@@ -393,6 +392,8 @@ void ScenarioOptions::check() const {
               "in [0.05, 10]");
     c.require(lidar.max_range_m > 1, "lidar.max_range_m", "> 1");
     c.require(lidar.noise_std_m >= 0, "lidar.noise_std_m", ">= 0");
+    c.require(lidar.mount.z_m > 0.2 && lidar.mount.z_m < w.ceiling_height_m - w.arch_radius_m,
+              "lidar.pose_z_m", "in (0.2, ceiling_height_m - arch_radius_m): the scan plane");
     c.require(!odometry.label.empty(), "odometry.label", "non-empty");
     c.require(odometry.rate_hz > 0 && odometry.rate_hz <= 1000, "odometry.rate_hz", "in (0, 1000]");
     c.require(odometry.phase_s >= 0, "odometry.phase_s", ">= 0");

@@ -99,43 +99,9 @@ void writeDatasetIni(const std::string& path, const ScenarioOptions& sc) {
     if (!f) throw common::ConfigError(path + ": cannot write");
 }
 
-/// Distance from (x, y) along `angle` at which the ray enters the first cell that is not free
-/// (occupancy >= 0.5), by exact cell traversal; `max_range` if none before it.
-double cellEntryRange(const mrpt::maps::COccupancyGridMap2D& grid, double x, double y, double angle,
-                      double max_range) {
-    const double res = grid.getResolution();
-    const double dx = std::cos(angle), dy = std::sin(angle);
-    const double fx = (x - grid.getXMin()) / res, fy = (y - grid.getYMin()) / res;
-    int cx = static_cast<int>(std::floor(fx)), cy = static_cast<int>(std::floor(fy));
-    const int sx = dx >= 0 ? 1 : -1, sy = dy >= 0 ? 1 : -1;
-    const double inf = std::numeric_limits<double>::infinity();
-    // Ray parameter (in cells) to the next vertical / horizontal cell boundary, and per cell.
-    double tx = std::abs(dx) > 1e-12 ? ((sx > 0 ? cx + 1 - fx : fx - cx) / std::abs(dx)) : inf;
-    double ty = std::abs(dy) > 1e-12 ? ((sy > 0 ? cy + 1 - fy : fy - cy) / std::abs(dy)) : inf;
-    const double tdx = std::abs(dx) > 1e-12 ? 1 / std::abs(dx) : inf;
-    const double tdy = std::abs(dy) > 1e-12 ? 1 / std::abs(dy) : inf;
-    const double t_max = max_range / res;
-    const int nx = static_cast<int>(grid.getSizeX()), ny = static_cast<int>(grid.getSizeY());
-    double t = 0;
-    while (t <= t_max) {
-        if (cx < 0 || cy < 0 || cx >= nx || cy >= ny) break;
-        if (grid.getCell(cx, cy) <= 0.5f) return t * res;  // as MRPT: free > 0.5
-        if (tx < ty) {
-            t = tx;
-            tx += tdx;
-            cx += sx;
-        } else {
-            t = ty;
-            ty += tdy;
-            cy += sy;
-        }
-    }
-    return max_range;
-}
-
 }  // namespace
 
-mrpt::obs::CObservation2DRangeScan simulateLidar(const mrpt::maps::COccupancyGridMap2D& grid,
+mrpt::obs::CObservation2DRangeScan simulateLidar(const TunnelWorld& world,
                                                  const mrpt::poses::CPose2D& vehicle,
                                                  const LidarOptions& lidar, uint32_t noise_key) {
     mrpt::obs::CObservation2DRangeScan scan;
@@ -147,22 +113,26 @@ mrpt::obs::CObservation2DRangeScan simulateLidar(const mrpt::maps::COccupancyGri
     scan.sensorPose = lidar.mount.pose();
     const std::size_t rays =
         static_cast<std::size_t>(std::lround(lidar.aperture_deg / lidar.resolution_deg)) + 1;
-    grid.laserScanSimulator(scan, vehicle, 0.5f, rays, 0);
+    scan.resizeScan(rays);
     const mrpt::poses::CPose2D sensor = vehicle + mrpt::poses::CPose2D(scan.sensorPose);
-    for (std::size_t r = 0; r < scan.getScanSize(); ++r) {
-        if (!scan.getScanRangeValidity(r)) continue;
-        const double angle = sensor.phi() - scan.aperture / 2 +
-                             r * scan.aperture / static_cast<double>(scan.getScanSize() - 1);
-        const double exact = cellEntryRange(grid, sensor.x(), sensor.y(), angle,
-                                            scan.getScanRange(r) + 2 * grid.getResolution());
-        // Keep MRPT's answer if the exact traversal disagrees by more than a cell or two (a
-        // ray grazing a cell corner).
-        if (std::abs(exact - scan.getScanRange(r)) <= 2.5 * grid.getResolution()) {
-            scan.setScanRange(r, static_cast<float>(exact));
+    // A horizontal scan plane at the mount height; only the rock counts (walls, and the floor
+    // or roof where the plane meets them), as for a 2-D scanner above the furniture's reach.
+    const Eigen::Vector3d origin(sensor.x(), sensor.y(), lidar.mount.z_m);
+    const double rad_per_ray = mrpt::DEG2RAD(lidar.resolution_deg);
+    for (std::size_t r = 0; r < rays; ++r) {
+        const double angle =
+            sensor.phi() - scan.aperture / 2 + r * scan.aperture / static_cast<double>(rays - 1);
+        const Eigen::Vector3d dir(std::cos(angle), std::sin(angle), 0.0);
+        const SurfaceHit hit = world.traceStatic(origin, dir, 0.0, lidar.max_range_m, rad_per_ray);
+        if (hit.kind == SurfaceKind::None || !(hit.t < lidar.max_range_m)) {
+            scan.setScanRange(r, scan.maxRange);
+            scan.setScanRangeValidity(r, false);
+            continue;
         }
         const double noise =
             lidar.noise_std_m * gaussian(hash3(noise_key, r, 1), hash3(noise_key, r, 2));
-        scan.setScanRange(r, static_cast<float>(std::max(0.0, scan.getScanRange(r) + noise)));
+        scan.setScanRange(r, static_cast<float>(std::max(0.0, hit.t + noise)));
+        scan.setScanRangeValidity(r, true);
     }
     return scan;
 }
@@ -393,7 +363,7 @@ TraverseSummary Simulator::runTraverse(std::size_t index, const std::string& out
             }
             case Sensor::Lidar: {
                 mrpt::obs::CObservation2DRangeScan scan =
-                    simulateLidar(grid, mrpt::poses::CPose2D(vehicle), scenario_.lidar,
+                    simulateLidar(*world_, mrpt::poses::CPose2D(vehicle), scenario_.lidar,
                                   hash3(seed, 1000 + ev.index, 7));
                 scan.timestamp = stamp;
                 writer.write(scan);

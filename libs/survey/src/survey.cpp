@@ -150,6 +150,15 @@ std::string SurveyResult::toJson() const {
     o << "  \"time_s\": {\"total\": " << total_time_s << ", \"mapping\": " << mapping_time_s
       << ", \"localisation\": " << localisation_time_s << ", \"writing\": " << writing_time_s
       << "},\n";
+    if (pose_graph.keyframes > 0) {
+        const auto& g = pose_graph;
+        o << "  \"pose_graph\": {\"traverses\": " << g.traverses
+          << ", \"keyframes\": " << g.keyframes << ", \"registrations\": " << g.registrations
+          << ", \"cross_registrations\": " << g.cross_registrations
+          << ", \"rejected_registrations\": " << g.rejected_registrations
+          << ", \"initial_cost\": " << g.initial_cost << ", \"final_cost\": " << g.final_cost
+          << ", \"time_s\": " << g.time_s << "},\n";
+    }
     o << "  \"traverses\": [";
     for (std::size_t i = 0; i < traverses.size(); ++i) {
         const auto& t = traverses[i];
@@ -183,6 +192,7 @@ std::string SurveyResult::toJson() const {
 Survey::Survey(SurveyOptions options, const mrpt::config::CConfigFileBase& config)
     : options_(std::move(options)) {
     options_.check();
+    if (config.sectionExists("pose_graph")) graph_options_.loadFromConfigFile(config, "pose_graph");
     std::vector<std::string> sections;
     config.getAllSections(sections);
     for (const auto& s : sections) {
@@ -264,6 +274,8 @@ SurveyResult Survey::run(const SurveyInputs& in) const {
                 }
             }
             mrpt::poses::CPose2D map_origin;
+            // Pose-graph tracks per traverse (grid frame), where the graph optimised them.
+            std::vector<std::optional<common::PoseTrack>> graph_tracks(data.size());
             if (!in.map_file.empty()) {
                 result.pose_source = "laser+map:" + fs::absolute(in.map_file).string();
                 grid = loadGridMap(in.map_file);
@@ -280,21 +292,66 @@ SurveyResult Survey::run(const SurveyInputs& in) const {
                 map_origin = startOf(mapping, mrpt::poses::CPose2D());
                 timer.Tic();
                 ProgressBar bar(in.show_progress, "ICP-SLAM " + in.traverses[mapping].name);
-                grid = buildMapIcpSlam(data[mapping], config_, mrpt::poses::CPose2D(), bar,
-                                       options_.icp_max_range_m)
-                           .grid;
+                LaserMap icp = buildMapIcpSlam(data[mapping], config_, mrpt::poses::CPose2D(), bar,
+                                               options_.icp_max_range_m);
+                if (graph_options_.enabled) {
+                    ProgressBar graph_bar(in.show_progress,
+                                          "pose graph " + in.traverses[mapping].name);
+                    const std::vector<GraphTraverse> alone{{&data[mapping], icp.icp_track.poses}};
+                    graph_tracks[mapping] =
+                        optimisePoseGraph(alone, graph_options_, &result.pose_graph, graph_bar)[0];
+                    grid = gridFromTracks(alone, {*graph_tracks[mapping]}, config_);
+                } else {
+                    grid = std::move(icp.grid);
+                }
                 result.mapping_time_s = timer.Tac();
             }
+            // Poses in the grid's frame first; moved into the map frame at the end.
+            const bool joint = graph_tracks[mapping].has_value() && graph_options_.all_traverses;
             for (std::size_t i = 0; i < data.size(); ++i) {
-                if (!in.traverses[i].reference) continue;
+                if (!in.traverses[i].reference || (joint && i == mapping)) continue;
                 timer.Tic();
                 ProgressBar bar(in.show_progress, "MCL " + in.traverses[i].name);
                 const mrpt::poses::CPose2D start_in_grid = startOf(i, map_origin) - map_origin;
                 tracks[i] = localizeMcl(data[i], *grid, config_, options_, start_in_grid, bar);
-                const mrpt::poses::CPose3D origin3(map_origin);
-                for (auto& p : tracks[i].poses) p.pose = origin3 + p.pose;
                 localisation_time[i] = timer.Tac();
                 result.localisation_time_s += localisation_time[i];
+            }
+            if (joint) {
+                // Every reference traverse joins the mapping one in the graph, MCL's poses on
+                // the first map as its first estimate; the map is rebuilt from all of them.
+                std::vector<GraphTraverse> graph{{&data[mapping], *graph_tracks[mapping]}};
+                std::vector<std::size_t> members{mapping};
+                for (std::size_t i = 0; i < data.size(); ++i) {
+                    if (!in.traverses[i].reference || i == mapping) continue;
+                    graph.push_back({&data[i], tracks[i].poses});
+                    members.push_back(i);
+                }
+                if (graph.size() > 1) {
+                    timer.Tic();
+                    ProgressBar graph_bar(in.show_progress, "pose graph, all traverses");
+                    const auto optimised =
+                        optimisePoseGraph(graph, graph_options_, &result.pose_graph, graph_bar);
+                    for (std::size_t k = 0; k < members.size(); ++k) {
+                        graph_tracks[members[k]] = optimised[k];
+                    }
+                    grid = gridFromTracks(graph, optimised, config_);
+                    result.mapping_time_s += timer.Tac();
+                }
+                // The graph's poses replace MCL's; their error is the map's own.
+                mrpt::math::CMatrixDouble33 cov;
+                cov.setZero();
+                cov(0, 0) = cov(1, 1) = options_.map_std_xy_m * options_.map_std_xy_m;
+                cov(2, 2) = std::pow(mrpt::DEG2RAD(options_.map_std_yaw_deg), 2);
+                for (const std::size_t i : members) {
+                    if (!in.traverses[i].reference) continue;
+                    tracks[i].poses = *graph_tracks[i];
+                    tracks[i].covs.assign(tracks[i].poses.size(), cov);
+                }
+            }
+            const mrpt::poses::CPose3D origin3(map_origin);
+            for (std::size_t i = 0; i < data.size(); ++i) {
+                for (auto& p : tracks[i].poses) p.pose = origin3 + p.pose;
             }
         }
 

@@ -107,7 +107,9 @@ struct LidarOptions {
     double resolution_deg = 0.5;  ///< angle between rays [deg]
     double max_range_m = 30;      ///< maximum range [m]
     double noise_std_m = 0.01;    ///< range noise standard deviation [m]
-    MountPose mount;              ///< scanner pose on the vehicle
+    /// Scanner pose on the vehicle; its height is the scan plane's (it must lie below the
+    /// arch, above the floor).
+    MountPose mount{1.9, 0.0, 1.2, 0.0, 0.0, 0.0};
 };
 
 /// Wheel odometry: accumulated 2-D pose with scale error, yaw bias and noise.

@@ -52,15 +52,14 @@ std::string formatSummary(const SimulationResult& result);
 common::PoseTrack vehicleTrack(const TunnelWorld& world, const TraverseOptions& traverse,
                                const VehicleOptions& vehicle, double start_time_s);
 
-/// One scan of the 2-D lidar at `vehicle` (map frame), simulated by MRPT's
-/// COccupancyGridMap2D::laserScanSimulator against `grid`, plus Gaussian range noise drawn
-/// deterministically from `noise_key`. Rays that reach no wall within range are invalid.
-/// MRPT 2.5.8 marches each ray in whole cells from the sensor, so its ranges are multiples of
-/// the cell size counted from the sensor: a pattern that moves with the vehicle and makes scan
-/// matching stick (a real lidar has no such quantisation). Each valid range is therefore
-/// replaced by the exact distance at which the ray enters its first occupied cell of the same
-/// grid (cell traversal, Amanatides & Woo), as newer MRPT versions do.
-mrpt::obs::CObservation2DRangeScan simulateLidar(const mrpt::maps::COccupancyGridMap2D& grid,
+/// One scan of the 2-D lidar at `vehicle` (map frame): each ray traced against the world's rock
+/// surface (TunnelWorld::traceStatic, the surface the cameras see, rough walls included) in
+/// the horizontal plane at the mount height, plus Gaussian range noise drawn deterministically
+/// from `noise_key`. Rays that reach no rock within range are invalid. (Scans were once cast
+/// into the 0.1 m occupancy grid: its walls are staircases aligned with the map axes, and scan
+/// matching against them was biased by the tunnel's heading, 0.4 % in length and up to
+/// 0.007 deg/m in heading, which ICP-SLAM integrated over 1 km into metres.)
+mrpt::obs::CObservation2DRangeScan simulateLidar(const TunnelWorld& world,
                                                  const mrpt::poses::CPose2D& vehicle,
                                                  const LidarOptions& lidar, uint32_t noise_key);
 

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "lookup/survey/laser_poses.h"
+#include "lookup/survey/pose_graph.h"
 #include "lookup/survey/survey_options.h"
 
 namespace lookup::survey {
@@ -75,6 +76,7 @@ struct SurveyResult {
     std::string pose_source;  ///< "laser", "laser+map:<file>" or "file:<path>"
     std::size_t references = 0;
     double total_time_s = 0, mapping_time_s = 0, localisation_time_s = 0, writing_time_s = 0;
+    PoseGraphReport pose_graph;  ///< keyframes = 0: no pose graph was optimised
     std::uint64_t size_bytes = 0;  ///< database folder size
     std::vector<TraverseReport> traverses;
 
@@ -97,6 +99,7 @@ class Survey {
 
   private:
     SurveyOptions options_;
+    PoseGraphOptions graph_options_;
     mrpt::config::CConfigFileMemory config_;
 };
 

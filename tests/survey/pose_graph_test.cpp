@@ -1,0 +1,190 @@
+// The survey's pose-graph back end on scans of a bent, rough-walled lookup-sim tunnel.
+#include <gtest/gtest.h>
+
+#include <mrpt/config/CConfigFileMemory.h>
+#include <mrpt/obs/CObservationOdometry.h>
+
+#include <cmath>
+
+#include "lookup/common/config.h"
+#include "lookup/sim/simulator.h"
+#include "lookup/sim/world.h"
+#include "lookup/survey/pose_graph.h"
+
+using namespace lookup::survey;
+
+namespace {
+
+lookup::sim::WorldOptions bentTunnel() {
+    lookup::sim::WorldOptions w;
+    w.layout = "single";
+    w.length_m = 160;
+    w.segment_length_m = 40;
+    w.bend_max_deg = 8;
+    w.junction_spacing_m = 0;
+    w.drawpoint_spacing_m = 0;
+    w.duct_radius_m = 0;
+    w.pipe_radius_m = 0;
+    w.cable_span_m = 0;
+    w.light_spacing_m = 0;
+    w.sign_spacing_m = 0;
+    return w;  // rough walls and niches as in the presets
+}
+
+struct Drive {
+    TraverseData data;
+    lookup::common::PoseTrack truth;     ///< vehicle pose at each scan
+    lookup::common::PoseTrack odometry;  ///< dead reckoning at each scan, from the true start
+};
+
+/// A drive along the route at `lateral_m` from the centre line, a scan every `step_m`, with
+/// wheel odometry that is 1 % long and turns 0.05 deg per metre too far.
+Drive drive(const lookup::sim::TunnelWorld& world, double lateral_m, double t0, uint32_t seed) {
+    Drive d;
+    d.data.rawlog = "synthetic-" + std::to_string(seed);
+    const auto& route = world.route();
+    const double step_m = 0.5;
+    const std::size_t stride = std::size_t(step_m / 0.25);
+    lookup::sim::LidarOptions lidar;
+    mrpt::poses::CPose2D odometry, previous_truth;
+    for (std::size_t i = 8, n = 0; i + 8 < route.size(); i += stride, ++n) {
+        const Eigen::Vector2d dir = (route[i + 1] - route[i - 1]).normalized();
+        const Eigen::Vector2d p = route[i] + lateral_m * Eigen::Vector2d(-dir.y(), dir.x());
+        const mrpt::poses::CPose2D truth(p.x(), p.y(), std::atan2(dir.y(), dir.x()));
+        if (n == 0) {
+            odometry = truth;
+        } else {
+            mrpt::poses::CPose2D inc = truth - previous_truth;
+            inc = mrpt::poses::CPose2D(inc.x() * 1.01, inc.y() * 1.01,
+                                       inc.phi() + mrpt::DEG2RAD(0.05) * step_m);
+            odometry = odometry + inc;
+        }
+        previous_truth = truth;
+        const auto stamp = mrpt::Clock::fromDouble(t0 + 0.1 * double(n));
+        auto odo = std::make_shared<mrpt::obs::CObservationOdometry>();
+        odo->odometry = odometry;
+        odo->timestamp = stamp;
+        odo->sensorLabel = "ODOMETRY";
+        auto scan = std::make_shared<mrpt::obs::CObservation2DRangeScan>(
+            lookup::sim::simulateLidar(world, truth, lidar, seed * 100000 + uint32_t(n)));
+        scan->timestamp = stamp;
+        d.data.laser_sequence.push_back(odo);
+        d.data.laser_sequence.push_back(scan);
+        d.truth.push_back({t0 + 0.1 * double(n), mrpt::poses::CPose3D(truth)});
+        d.odometry.push_back({t0 + 0.1 * double(n), mrpt::poses::CPose3D(odometry)});
+    }
+    d.data.scan_count = d.data.odometry_count = d.truth.size();
+    return d;
+}
+
+/// Mean and max position error of `track` against `truth`.
+std::pair<double, double> errors(const lookup::common::PoseTrack& track,
+                                 const lookup::common::PoseTrack& truth) {
+    double sum = 0, worst = 0;
+    for (std::size_t i = 0; i < track.size(); ++i) {
+        const double e = std::hypot(track[i].pose.x() - truth[i].pose.x(),
+                                    track[i].pose.y() - truth[i].pose.y());
+        sum += e;
+        worst = std::max(worst, e);
+    }
+    return {sum / double(track.size()), worst};
+}
+
+}  // namespace
+
+TEST(PoseGraph, RegistrationsRemoveTheOdometryDrift) {
+    const lookup::sim::TunnelWorld world(bentTunnel(), 5);
+    const Drive d = drive(world, 0.0, 1000, 1);
+    const auto [odo_mean, odo_max] = errors(d.odometry, d.truth);
+    ASSERT_GT(odo_max, 2.0);  // 0.05 deg/m over 150 m: metres off at the end
+
+    PoseGraphOptions options;
+    options.max_correction_m = 3.0;  // the first estimate is dead reckoning here
+    options.max_correction_deg = 3.0;
+    PoseGraphReport report;
+    const auto out = optimisePoseGraph({{&d.data, d.odometry}}, options, &report);
+    ASSERT_EQ(out.size(), 1u);
+    ASSERT_EQ(out[0].size(), d.truth.size());
+    const auto [mean, worst] = errors(out[0], d.truth);
+    EXPECT_LT(mean, 0.05) << "odometry " << odo_mean;
+    EXPECT_LT(worst, 0.12);
+    // Beyond ~8 m two scans of a 5.5 m wide tunnel share too few walls and are dropped.
+    EXPECT_GT(report.registrations, 8 * report.keyframes);
+    EXPECT_LT(report.rejected_registrations, report.registrations / 2);
+    EXPECT_EQ(report.cross_registrations, 0u);
+    EXPECT_EQ(out[0][7].time_s, d.truth[7].time_s);
+}
+
+TEST(PoseGraph, TwoTraversesAreTiedTogether) {
+    const lookup::sim::TunnelWorld world(bentTunnel(), 5);
+    const Drive a = drive(world, 0.8, 1000, 1);
+    const Drive b = drive(world, -0.8, 2000, 2);
+    PoseGraphOptions options;
+    options.max_correction_m = 3.0;
+    options.max_correction_deg = 3.0;
+    // The second traverse's first estimate: its truth moved by 0.25 m and turned by 0.1 deg
+    // (0.3 m more at the far end), as if localised on a distorted map: the registrations
+    // across the traverses must undo it.
+    lookup::common::PoseTrack shifted = b.truth;
+    const mrpt::poses::CPose3D offset(mrpt::poses::CPose2D(0.2, -0.15, mrpt::DEG2RAD(0.1)));
+    for (auto& p : shifted) p.pose = offset + p.pose;
+    PoseGraphReport report;
+    const auto out = optimisePoseGraph({{&a.data, a.truth}, {&b.data, shifted}}, options, &report);
+    ASSERT_EQ(out.size(), 2u);
+    EXPECT_GT(report.cross_registrations, a.truth.size());
+    EXPECT_LT(errors(out[0], a.truth).first, 0.03);
+    EXPECT_LT(errors(out[1], b.truth).first, 0.05);
+    EXPECT_GT(errors(shifted, b.truth).first, 0.2);
+}
+
+TEST(PoseGraph, MismatchedTrackIsRefusedNamingTheRawlog) {
+    const lookup::sim::TunnelWorld world(bentTunnel(), 5);
+    const Drive d = drive(world, 0.0, 1000, 1);
+    auto short_track = d.truth;
+    short_track.pop_back();
+    try {
+        optimisePoseGraph({{&d.data, short_track}}, PoseGraphOptions());
+        FAIL() << "no exception";
+    } catch (const std::invalid_argument& e) {
+        EXPECT_NE(std::string(e.what()).find(d.data.rawlog), std::string::npos) << e.what();
+    }
+}
+
+TEST(PoseGraph, GridFromTracksSeesTheWalls) {
+    const lookup::sim::TunnelWorld world(bentTunnel(), 5);
+    const Drive d = drive(world, 0.0, 1000, 1);
+    mrpt::config::CConfigFileMemory ini;
+    ini.write("MappingApplication_occupancyGrid_00_creationOpts", "resolution", 0.1);
+    const auto grid = gridFromTracks({{&d.data, d.truth}}, {d.truth}, ini);
+    EXPECT_NEAR(grid.getResolution(), 0.1, 1e-6);
+    // Free on the centre line, occupied just beyond a wall.
+    const auto& p = d.truth[d.truth.size() / 2].pose;
+    EXPECT_GT(grid.getPos(float(p.x()), float(p.y())), 0.6f);
+    // Occupied somewhere across the rough wall band on each side.
+    const double c = std::cos(p.yaw()), s = std::sin(p.yaw());
+    for (const double side : {1.0, -1.0}) {
+        float wall = 1.0f;
+        for (double r = 2.0; r <= 3.6; r += 0.05) {
+            wall = std::min(wall,
+                            grid.getPos(float(p.x() - side * s * r), float(p.y() + side * c * r)));
+        }
+        EXPECT_LT(wall, 0.3f) << "side " << side;
+    }
+}
+
+TEST(PoseGraphOptions, LoadsSavesAndRefusesBadValues) {
+    mrpt::config::CConfigFileMemory ini;
+    PoseGraphOptions o;
+    o.edges_per_keyframe = 7;
+    o.all_traverses = false;
+    o.saveToConfigFile(ini, "pose_graph");
+    PoseGraphOptions back;
+    back.loadFromConfigFile(ini, "pose_graph");
+    EXPECT_EQ(back.edges_per_keyframe, 7);
+    EXPECT_FALSE(back.all_traverses);
+    ini.write("pose_graph", "point_std_m", -1.0);
+    EXPECT_THROW(back.loadFromConfigFile(ini, "pose_graph"), lookup::common::ConfigError);
+    mrpt::config::CConfigFileMemory unknown;
+    unknown.write("pose_graph", "edges_per_keyframes", 3);
+    EXPECT_THROW(back.loadFromConfigFile(unknown, "pose_graph"), lookup::common::ConfigError);
+}
