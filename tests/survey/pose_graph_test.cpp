@@ -102,8 +102,23 @@ TEST(PoseGraph, RegistrationsRemoveTheOdometryDrift) {
     options.max_correction_m = 3.0;  // the first estimate is dead reckoning here
     options.max_correction_deg = 3.0;
     PoseGraphReport report;
-    const auto out = optimisePoseGraph({{&d.data, d.odometry}}, options, &report);
+    std::vector<std::vector<mrpt::math::CMatrixDouble33>> covs;
+    const auto out = optimisePoseGraph({{&d.data, d.odometry}}, options, &report, {}, &covs);
     ASSERT_EQ(out.size(), 1u);
+    // Marginal covariances: zero at the fixed start, growing along the open drive, and the
+    // actual error inside their 99 % bound almost everywhere.
+    ASSERT_TRUE(report.covariance_ok);
+    ASSERT_EQ(covs.at(0).size(), d.truth.size());
+    const auto& c = covs[0];
+    EXPECT_LT(c.front()(0, 0) + c.front()(1, 1), 1e-12);
+    EXPECT_GT(c.back()(0, 0) + c.back()(1, 1), c[c.size() / 2](0, 0) + c[c.size() / 2](1, 1));
+    std::size_t inside = 0;
+    for (std::size_t i = 1; i < c.size(); ++i) {
+        const double e2 = std::pow(out[0][i].pose.x() - d.truth[i].pose.x(), 2) +
+                          std::pow(out[0][i].pose.y() - d.truth[i].pose.y(), 2);
+        inside += e2 <= 9.21 * (c[i](0, 0) + c[i](1, 1));  // chi2(2 dof, 99 %) on the trace
+    }
+    EXPECT_GT(double(inside), 0.9 * double(c.size()));
     ASSERT_EQ(out[0].size(), d.truth.size());
     const auto [mean, worst] = errors(out[0], d.truth);
     EXPECT_LT(mean, 0.05) << "odometry " << odo_mean;

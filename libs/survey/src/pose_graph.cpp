@@ -27,7 +27,7 @@ void PoseGraphOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& s
                          "min_matched_share", "max_correction_m", "max_correction_deg",
                          "point_std_m", "registration_min_std_xy_m", "registration_min_std_yaw_deg",
                          "odometry_std_per_m", "odometry_std_yaw_deg_per_m", "huber_sigmas",
-                         "max_iterations", "threads"});
+                         "max_iterations", "threads", "covariance_stride"});
     enabled = s.getBool("enabled", enabled);
     all_traverses = s.getBool("all_traverses", all_traverses);
     keyframe_spacing_m = s.getDouble("keyframe_spacing_m", keyframe_spacing_m);
@@ -48,6 +48,7 @@ void PoseGraphOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& s
     huber_sigmas = s.getDouble("huber_sigmas", huber_sigmas);
     max_iterations = s.getInt("max_iterations", max_iterations);
     threads = s.getInt("threads", threads);
+    covariance_stride = s.getInt("covariance_stride", covariance_stride);
     check();
 }
 
@@ -71,6 +72,7 @@ void PoseGraphOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
     c.write(section, "huber_sigmas", huber_sigmas);
     c.write(section, "max_iterations", max_iterations);
     c.write(section, "threads", threads);
+    c.write(section, "covariance_stride", covariance_stride);
 }
 
 void PoseGraphOptions::check() const {
@@ -91,6 +93,7 @@ void PoseGraphOptions::check() const {
     c.require(huber_sigmas > 0, "huber_sigmas", "> 0");
     c.require(max_iterations >= 1, "max_iterations", ">= 1");
     c.require(threads >= 0, "threads", ">= 0");
+    c.require(covariance_stride >= 0, "covariance_stride", ">= 0");
     c.throwIfFailed();
 }
 
@@ -296,10 +299,10 @@ void spread(std::size_t first, std::size_t last, int count, F&& take) {
 
 }  // namespace
 
-std::vector<common::PoseTrack> optimisePoseGraph(const std::vector<GraphTraverse>& traverses,
-                                                 const PoseGraphOptions& options,
-                                                 PoseGraphReport* report,
-                                                 const GraphProgressFn& progress) {
+std::vector<common::PoseTrack> optimisePoseGraph(
+    const std::vector<GraphTraverse>& traverses, const PoseGraphOptions& options,
+    PoseGraphReport* report, const GraphProgressFn& progress,
+    std::vector<std::vector<mrpt::math::CMatrixDouble33>>* covariances) {
     mrpt::system::CTicTac timer;
     PoseGraphReport rep;
     rep.traverses = traverses.size();
@@ -496,7 +499,40 @@ std::vector<common::PoseTrack> optimisePoseGraph(const std::vector<GraphTraverse
     rep.initial_cost = summary.initial_cost;
     rep.final_cost = summary.final_cost;
 
-    // 5. Every scan follows the keyframe at or before it: its first-estimate pose relative
+    // 5. Marginal covariances of every n-th keyframe (the first is fixed: zero).
+    std::vector<std::optional<Eigen::Matrix3d>> keyframe_cov(keyframes.size());
+    if (covariances && options.covariance_stride > 0) {
+        mrpt::system::CTicTac cov_timer;
+        ceres::Covariance::Options cov_options;
+        cov_options.algorithm_type = ceres::SPARSE_QR;
+        cov_options.num_threads = int(threads);
+        ceres::Covariance covariance(cov_options);
+        std::vector<std::pair<const double*, const double*>> blocks;
+        std::vector<std::size_t> sampled;
+        for (std::size_t t = 0; t < traverses.size(); ++t) {
+            for (std::size_t k = ranges[t].first; k < ranges[t].second;
+                 k += std::size_t(options.covariance_stride)) {
+                if (k != 0) sampled.push_back(k);
+            }
+            if (ranges[t].second > ranges[t].first &&
+                (sampled.empty() || sampled.back() != ranges[t].second - 1)) {
+                sampled.push_back(ranges[t].second - 1);
+            }
+        }
+        for (const std::size_t k : sampled) blocks.emplace_back(&state[3 * k], &state[3 * k]);
+        if (covariance.Compute(blocks, &problem)) {
+            rep.covariance_ok = true;
+            keyframe_cov[0] = Eigen::Matrix3d::Zero();
+            for (const std::size_t k : sampled) {
+                Eigen::Matrix<double, 3, 3, Eigen::RowMajor> c;
+                covariance.GetCovarianceBlock(&state[3 * k], &state[3 * k], c.data());
+                keyframe_cov[k] = c;
+            }
+        }
+        rep.covariance_time_s = cov_timer.Tac();
+    }
+
+    // 6. Every scan follows the keyframe at or before it: its first-estimate pose relative
     // to that keyframe is kept, the keyframe's correction applied.
     std::vector<common::PoseTrack> out;
     for (std::size_t t = 0; t < traverses.size(); ++t) {
@@ -510,6 +546,34 @@ std::vector<common::PoseTrack> optimisePoseGraph(const std::vector<GraphTraverse
             track[i].pose = mrpt::poses::CPose3D(optimised + relative);
         }
         out.push_back(std::move(track));
+        if (covariances) {
+            // Between two computed keyframes the covariance is interpolated by index.
+            std::vector<mrpt::math::CMatrixDouble33> covs;
+            if (rep.covariance_ok) {
+                std::vector<Eigen::Matrix3d> per_keyframe(ranges[t].second - ranges[t].first);
+                std::size_t prev = ranges[t].first;
+                if (!keyframe_cov[prev]) keyframe_cov[prev] = Eigen::Matrix3d::Zero();
+                for (std::size_t k = ranges[t].first; k < ranges[t].second; ++k) {
+                    if (!keyframe_cov[k]) continue;
+                    for (std::size_t m = prev; m <= k; ++m) {
+                        const double w = k == prev ? 1.0 : double(m - prev) / double(k - prev);
+                        per_keyframe[m - ranges[t].first] =
+                            (1 - w) * *keyframe_cov[prev] + w * *keyframe_cov[k];
+                    }
+                    prev = k;
+                }
+                std::size_t k = ranges[t].first;
+                for (std::size_t i = 0; i < out.back().size(); ++i) {
+                    while (k + 1 < ranges[t].second && keyframes[k + 1].scan <= i) ++k;
+                    mrpt::math::CMatrixDouble33 c;
+                    for (int r = 0; r < 3; ++r)
+                        for (int q = 0; q < 3; ++q)
+                            c(r, q) = per_keyframe[k - ranges[t].first](r, q);
+                    covs.push_back(c);
+                }
+            }
+            covariances->push_back(std::move(covs));
+        }
     }
     if (progress) progress(1.0);
     rep.time_s = timer.Tac();

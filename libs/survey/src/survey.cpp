@@ -157,7 +157,9 @@ std::string SurveyResult::toJson() const {
           << ", \"cross_registrations\": " << g.cross_registrations
           << ", \"rejected_registrations\": " << g.rejected_registrations
           << ", \"initial_cost\": " << g.initial_cost << ", \"final_cost\": " << g.final_cost
-          << ", \"time_s\": " << g.time_s << "},\n";
+          << ", \"time_s\": " << g.time_s
+          << ", \"covariance\": " << (g.covariance_ok ? "true" : "false")
+          << ", \"covariance_time_s\": " << g.covariance_time_s << "},\n";
     }
     o << "  \"traverses\": [";
     for (std::size_t i = 0; i < traverses.size(); ++i) {
@@ -276,6 +278,7 @@ SurveyResult Survey::run(const SurveyInputs& in) const {
             mrpt::poses::CPose2D map_origin;
             // Pose-graph tracks per traverse (grid frame), where the graph optimised them.
             std::vector<std::optional<common::PoseTrack>> graph_tracks(data.size());
+            std::vector<std::vector<mrpt::math::CMatrixDouble33>> graph_covs(data.size());
             if (!in.map_file.empty()) {
                 result.pose_source = "laser+map:" + fs::absolute(in.map_file).string();
                 grid = loadGridMap(in.map_file);
@@ -298,8 +301,10 @@ SurveyResult Survey::run(const SurveyInputs& in) const {
                     ProgressBar graph_bar(in.show_progress,
                                           "pose graph " + in.traverses[mapping].name);
                     const std::vector<GraphTraverse> alone{{&data[mapping], icp.icp_track.poses}};
-                    graph_tracks[mapping] =
-                        optimisePoseGraph(alone, graph_options_, &result.pose_graph, graph_bar)[0];
+                    std::vector<std::vector<mrpt::math::CMatrixDouble33>> covs;
+                    graph_tracks[mapping] = optimisePoseGraph(
+                        alone, graph_options_, &result.pose_graph, graph_bar, &covs)[0];
+                    graph_covs[mapping] = covs[0];
                     grid = gridFromTracks(alone, {*graph_tracks[mapping]}, config_);
                 } else {
                     grid = std::move(icp.grid);
@@ -330,23 +335,32 @@ SurveyResult Survey::run(const SurveyInputs& in) const {
                 if (graph.size() > 1) {
                     timer.Tic();
                     ProgressBar graph_bar(in.show_progress, "pose graph, all traverses");
-                    const auto optimised =
-                        optimisePoseGraph(graph, graph_options_, &result.pose_graph, graph_bar);
+                    std::vector<std::vector<mrpt::math::CMatrixDouble33>> covs;
+                    const auto optimised = optimisePoseGraph(graph, graph_options_,
+                                                             &result.pose_graph, graph_bar, &covs);
                     for (std::size_t k = 0; k < members.size(); ++k) {
                         graph_tracks[members[k]] = optimised[k];
+                        graph_covs[members[k]] = covs[k];
                     }
                     grid = gridFromTracks(graph, optimised, config_);
                     result.mapping_time_s += timer.Tac();
                 }
-                // The graph's poses replace MCL's; their error is the map's own.
-                mrpt::math::CMatrixDouble33 cov;
-                cov.setZero();
-                cov(0, 0) = cov(1, 1) = options_.map_std_xy_m * options_.map_std_xy_m;
-                cov(2, 2) = std::pow(mrpt::DEG2RAD(options_.map_std_yaw_deg), 2);
+                // The graph's poses replace MCL's. Their covariance: the graph's marginal one
+                // (how far the map may have drifted there, relative to its start) on top of
+                // the map's local error.
+                mrpt::math::CMatrixDouble33 floor;
+                floor.setZero();
+                floor(0, 0) = floor(1, 1) = options_.map_std_xy_m * options_.map_std_xy_m;
+                floor(2, 2) = std::pow(mrpt::DEG2RAD(options_.map_std_yaw_deg), 2);
                 for (const std::size_t i : members) {
                     if (!in.traverses[i].reference) continue;
                     tracks[i].poses = *graph_tracks[i];
-                    tracks[i].covs.assign(tracks[i].poses.size(), cov);
+                    tracks[i].covs.assign(tracks[i].poses.size(), floor);
+                    if (graph_covs[i].size() == tracks[i].poses.size()) {
+                        for (std::size_t k = 0; k < graph_covs[i].size(); ++k) {
+                            tracks[i].covs[k] += graph_covs[i][k];
+                        }
+                    }
                 }
             }
             const mrpt::poses::CPose3D origin3(map_origin);

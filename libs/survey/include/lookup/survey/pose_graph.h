@@ -54,6 +54,10 @@ struct PoseGraphOptions : public mrpt::config::CLoadableOptions {
     double huber_sigmas = 3.0;  ///< registration residuals beyond this many sigmas count linearly
     int max_iterations = 100;   ///< Ceres iterations
     int threads = 0;            ///< registration threads (0: all cores)
+    /// Marginal covariance of every n-th keyframe's pose (Ceres, sparse QR), relative to the
+    /// fixed first one, interpolated between: how far the map may have drifted there
+    /// (0: none computed).
+    int covariance_stride = 10;
 
     void loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
                             const std::string& section) override;
@@ -72,6 +76,8 @@ struct PoseGraphReport {
     std::size_t rejected_registrations = 0;  ///< too few matched points, or too far moved
     double initial_cost = 0, final_cost = 0;
     double time_s = 0;
+    double covariance_time_s = 0;
+    bool covariance_ok = false;  ///< marginal covariances computed
 };
 
 /// One traverse in the graph: its scans and a first estimate of the vehicle pose at each.
@@ -87,10 +93,12 @@ using GraphProgressFn = std::function<void(double)>;
 /// length and time stamps as `initial`). The first keyframe of the first traverse keeps its
 /// pose: it fixes the frame. Throws std::invalid_argument when a track and its scans differ in
 /// length.
-std::vector<common::PoseTrack> optimisePoseGraph(const std::vector<GraphTraverse>& traverses,
-                                                 const PoseGraphOptions& options,
-                                                 PoseGraphReport* report = nullptr,
-                                                 const GraphProgressFn& progress = {});
+/// `covariances`, when given and covariance_stride > 0, receives per traverse one (x, y, yaw)
+/// covariance per scan (empty where it could not be computed).
+std::vector<common::PoseTrack> optimisePoseGraph(
+    const std::vector<GraphTraverse>& traverses, const PoseGraphOptions& options,
+    PoseGraphReport* report = nullptr, const GraphProgressFn& progress = {},
+    std::vector<std::vector<mrpt::math::CMatrixDouble33>>* covariances = nullptr);
 
 /// Occupancy grid from every scan of the traverses at the given poses (`tracks[i]`: one per
 /// scan of `traverses[i].data`), with the grid resolution and insertion options of
