@@ -6,6 +6,7 @@
 
 #include <cmath>
 
+#include "../sim/test_worlds.h"
 #include "lookup/common/config.h"
 #include "lookup/sim/simulator.h"
 #include "lookup/sim/world.h"
@@ -15,20 +16,16 @@ using namespace lookup::survey;
 
 namespace {
 
+/// A 160 m tunnel with 8 deg bends, rough walls and niches as in the presets, no furniture.
 lookup::sim::WorldOptions bentTunnel() {
-    lookup::sim::WorldOptions w;
-    w.layout = "single";
+    lookup::sim::WorldOptions w = lookup::sim::testing::straightTunnel(false);
+    const lookup::sim::WorldOptions preset;
     w.length_m = 160;
     w.segment_length_m = 40;
     w.bend_max_deg = 8;
-    w.junction_spacing_m = 0;
-    w.drawpoint_spacing_m = 0;
-    w.duct_radius_m = 0;
-    w.pipe_radius_m = 0;
-    w.cable_span_m = 0;
-    w.light_spacing_m = 0;
-    w.sign_spacing_m = 0;
-    return w;  // rough walls and niches as in the presets
+    w.wall_roughness_m = preset.wall_roughness_m;
+    w.niche_spacing_m = preset.niche_spacing_m;
+    return w;
 }
 
 struct Drive {

@@ -496,6 +496,12 @@ std::vector<common::PoseTrack> optimisePoseGraph(
     solver.num_threads = int(threads);
     ceres::Solver::Summary summary;
     ceres::Solve(solver, &problem, &summary);
+    if (!summary.IsSolutionUsable()) {
+        std::string names;
+        for (const auto& tr : traverses) names += (names.empty() ? "" : ", ") + tr.data->rawlog;
+        throw std::runtime_error("pose graph over " + names + ": the optimisation failed (" +
+                                 summary.message + ")");
+    }
     rep.initial_cost = summary.initial_cost;
     rep.final_cost = summary.final_cost;
 
