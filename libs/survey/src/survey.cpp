@@ -3,6 +3,7 @@
 #include <mrpt/obs/CObservationImage.h>
 #include <mrpt/system/CTicTac.h>
 #include <mrpt/system/progress.h>
+#include <Eigen/Dense>
 
 #include <algorithm>
 #include <cmath>
@@ -363,9 +364,19 @@ SurveyResult Survey::run(const SurveyInputs& in) const {
                     }
                 }
             }
+            // Into the map frame: poses composed with its origin, (x, y) covariances rotated.
             const mrpt::poses::CPose3D origin3(map_origin);
+            mrpt::math::CMatrixDouble33 rotation;
+            rotation.setIdentity();
+            rotation(0, 0) = rotation(1, 1) = std::cos(map_origin.phi());
+            rotation(1, 0) = std::sin(map_origin.phi());
+            rotation(0, 1) = -rotation(1, 0);
             for (std::size_t i = 0; i < data.size(); ++i) {
                 for (auto& p : tracks[i].poses) p.pose = origin3 + p.pose;
+                for (auto& c : tracks[i].covs) {
+                    c = mrpt::math::CMatrixDouble33(rotation.asEigen() * c.asEigen() *
+                                                    rotation.asEigen().transpose());
+                }
             }
         }
 
