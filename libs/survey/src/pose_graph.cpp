@@ -11,6 +11,8 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <exception>
+#include <mutex>
 #include <optional>
 #include <stdexcept>
 #include <thread>
@@ -212,7 +214,7 @@ Registration registerPointToLine(const ScanPoints& a, const ScanPoints& b,
     constexpr double kGates[] = {0.5, 0.3, 0.2, 0.12};
     constexpr double kHuber = 0.03;
     constexpr int kMaxIterations = 20;
-    constexpr double kDamping = 1e-3, kMaxStepM = 0.1, kMaxStepRad = 0.005;
+    constexpr double kDamping = 1e-3;
     for (int it = 0; it < kMaxIterations; ++it) {
         const double gate = kGates[std::min(it / 2, 3)];
         const double c = std::cos(th), s = std::sin(th);
@@ -237,15 +239,12 @@ Registration registerPointToLine(const ScanPoints& a, const ScanPoints& b,
         }
         out.matched_share = double(matched) / double(bx.size());
         if (matched < 20) return out;
-        // Damped (Levenberg) and bounded steps: along a drive with little relief the
-        // problem is nearly degenerate, and an undamped step there runs away.
+        // Slightly damped (Levenberg): along a drive with little relief the problem is nearly
+        // degenerate.
         Eigen::Matrix3d damped = H;
         damped.diagonal() *= 1.0 + kDamping;
-        Eigen::Vector3d step = damped.ldlt().solve(-g);
+        const Eigen::Vector3d step = damped.ldlt().solve(-g);
         if (!step.allFinite()) return out;
-        const double scale = std::min({1.0, kMaxStepM / std::max(1e-12, step.head<2>().norm()),
-                                       kMaxStepRad / std::max(1e-12, std::abs(step(2)))});
-        step *= scale;
         x += step(0);
         y += step(1);
         th += step(2);
@@ -406,28 +405,46 @@ std::vector<common::PoseTrack> optimisePoseGraph(
     const unsigned threads = options.threads > 0
                                  ? unsigned(options.threads)
                                  : std::max(1u, std::thread::hardware_concurrency());
-    std::vector<std::optional<Registration>> results(pairs.size());
+    std::vector<Registration> results(pairs.size());
     {
         std::atomic<std::size_t> next_keyframe{0}, next_pair{0}, done{0};
-        const auto worker = [&] {
-            for (std::size_t k; (k = next_keyframe++) < keyframes.size();) {
-                keyframes[k].points =
-                    scanPoints(*scans[keyframes[k].traverse][keyframes[k].scan].scan);
-            }
+        // A worker's exception would end the process: the first is kept and rethrown here.
+        std::mutex failure_mutex;
+        std::exception_ptr failure;
+        const auto guarded = [&](auto&& body) {
+            return [&, body] {
+                try {
+                    body();
+                } catch (...) {
+                    const std::lock_guard<std::mutex> lock(failure_mutex);
+                    if (!failure) failure = std::current_exception();
+                    next_keyframe = keyframes.size();
+                    next_pair = done = pairs.size();
+                }
+            };
         };
-        std::vector<std::thread> pool;
-        for (unsigned i = 0; i < threads; ++i) pool.emplace_back(worker);
-        for (auto& th : pool) th.join();
-        pool.clear();
-        const auto registrar = [&] {
+        const auto run = [&](auto&& body) {
+            std::vector<std::thread> pool;
+            for (unsigned i = 0; i < threads; ++i) pool.emplace_back(guarded(body));
+            return pool;
+        };
+        for (auto& th : run([&] {
+                 for (std::size_t k; (k = next_keyframe++) < keyframes.size();) {
+                     keyframes[k].points =
+                         scanPoints(*scans[keyframes[k].traverse][keyframes[k].scan].scan);
+                 }
+             })) {
+            th.join();
+        }
+        if (failure) std::rethrow_exception(failure);
+        auto pool = run([&] {
             for (std::size_t p; (p = next_pair++) < pairs.size();) {
                 const auto& ka = keyframes[pairs[p].a];
                 const auto& kb = keyframes[pairs[p].b];
                 results[p] = registerPointToLine(ka.points, kb.points, kb.initial - ka.initial);
                 ++done;
             }
-        };
-        for (unsigned i = 0; i < threads; ++i) pool.emplace_back(registrar);
+        });
         if (progress) {
             while (done < pairs.size()) {
                 progress(0.95 * double(done) / double(std::max<std::size_t>(1, pairs.size())));
@@ -435,6 +452,7 @@ std::vector<common::PoseTrack> optimisePoseGraph(
             }
         }
         for (auto& th : pool) th.join();
+        if (failure) std::rethrow_exception(failure);
     }
 
     // 4. One least-squares problem over all keyframe poses.
@@ -447,7 +465,7 @@ std::vector<common::PoseTrack> optimisePoseGraph(
     ceres::Problem problem;
     const double min_yaw_std = mrpt::DEG2RAD(options.registration_min_std_yaw_deg);
     for (std::size_t p = 0; p < pairs.size(); ++p) {
-        const Registration& r = *results[p];
+        const Registration& r = results[p];
         const auto& ka = keyframes[pairs[p].a];
         const auto& kb = keyframes[pairs[p].b];
         const mrpt::poses::CPose2D correction = r.pose - (kb.initial - ka.initial);
