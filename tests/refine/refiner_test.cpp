@@ -79,6 +79,25 @@ TEST(Refiner, TwoReferencesRecoverTheCeilingHeightWithinOnePercent) {
     EXPECT_EQ(r.references.size(), 2u);
 }
 
+TEST(Refiner, QueryHeightAndTiltComeFromTheReferencesNotThePlanarHint) {
+    // Surveyed references on a bump of the floor, 0.12 m up and tilted by 0.5 deg, as is the
+    // query beside them; the coarse hint is planar (z = 0, level), as a coarse stage gives it.
+    // Taken from the hint, the query's view of the ceiling was scaled by 0.12 / 2.9 and its
+    // tilt prior off by 0.5 deg: centimetres of error.
+    const Scene& s = scene();
+    const double z = 0.12, pitch = mrpt::DEG2RAD(0.5), roll = mrpt::DEG2RAD(-0.4);
+    const CPose3D truth(0.35, 0.2, z, 0.03, pitch, roll);
+    CoarseHint hint;
+    hint.vehicle_pose = CPose3D(0.3, 0.15, 0, 0.03, 0, 0);
+    const Refiner refiner(optionsWithHeight(5.3));
+    const auto r = refiner.refine(
+        s.query(truth), s.camera, s.on_vehicle, hint,
+        {s.reference(1, CPose3D(0, 0, z, 0, pitch, roll)),
+         s.reference(2, CPose3D(0.6, 0.1, z, 0.02, pitch, roll))});
+    ASSERT_TRUE(r.accepted()) << r.reason;
+    EXPECT_LT(distanceXY(r.pose, truth), 0.004);
+}
+
 TEST(Refiner, OccludingObjectPointsAreOutliers) {
     const Scene& s = scene();
     const CPose3D truth(0.1, 0.05, 0, 0.0, 0, 0);

@@ -207,10 +207,15 @@ RefineResult Refiner::refine(const cv::Mat& query_image, const mrpt::img::TCamer
     input.query_camera = query_cam;
     input.query_camera_on_vehicle = camera_on_vehicle;
     input.ceiling_height_m = h0;
-    input.vehicle_z = hint.vehicle_pose ? hint.vehicle_pose->z() : refs.front()->vehicle_in_map.z();
-    if (hint.vehicle_pose) {
-        input.prior_pitch_rad = hint.vehicle_pose->pitch();
-        input.prior_roll_rad = hint.vehicle_pose->roll();
+    // The query stands on the floor its references stood on: their mean z, not the hint's (a
+    // coarse pose is planar, z = 0, while surveyed references carry the floor's bumps; the
+    // difference would scale the query's view of the ceiling by up to 5 %).
+    input.vehicle_z = 0.0;
+    for (const Reference* r : refs) input.vehicle_z += r->vehicle_in_map.z() / double(refs.size());
+    // ... and is tilted about as they were (the floor's bumps are the same for every drive).
+    for (const Reference* r : refs) {
+        input.prior_pitch_rad += r->vehicle_in_map.pitch() / double(refs.size());
+        input.prior_roll_rad += r->vehicle_in_map.roll() / double(refs.size());
     }
     const cv::Matx33d K_query = query_cam.K();
 

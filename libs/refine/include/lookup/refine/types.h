@@ -86,7 +86,9 @@ struct Reference {
 /// stamp; here reference ids and/or a pose).
 struct CoarseHint {
     std::vector<std::int64_t> reference_ids;           ///< references to use; empty = all given
-    std::optional<mrpt::poses::CPose3D> vehicle_pose;  ///< coarse query vehicle pose in map
+    /// Coarse query vehicle pose in the map: x, y and yaw are used (the query's height and tilt
+    /// prior come from its references, which stood on the same floor).
+    std::optional<mrpt::poses::CPose3D> vehicle_pose;
     std::optional<double> ceiling_height_m;  ///< overrides EstimatorOptions::ceiling_height_m
 };
 
