@@ -90,10 +90,9 @@ TEST(Refiner, QueryHeightAndTiltComeFromTheReferencesNotThePlanarHint) {
     CoarseHint hint;
     hint.vehicle_pose = CPose3D(0.3, 0.15, 0, 0.03, 0, 0);
     const Refiner refiner(optionsWithHeight(5.3));
-    const auto r = refiner.refine(
-        s.query(truth), s.camera, s.on_vehicle, hint,
-        {s.reference(1, CPose3D(0, 0, z, 0, pitch, roll)),
-         s.reference(2, CPose3D(0.6, 0.1, z, 0.02, pitch, roll))});
+    const auto r = refiner.refine(s.query(truth), s.camera, s.on_vehicle, hint,
+                                  {s.reference(1, CPose3D(0, 0, z, 0, pitch, roll)),
+                                   s.reference(2, CPose3D(0.6, 0.1, z, 0.02, pitch, roll))});
     ASSERT_TRUE(r.accepted()) << r.reason;
     EXPECT_LT(distanceXY(r.pose, truth), 0.004);
 }

@@ -108,7 +108,8 @@ std::vector<double> leftWallOffsets(const TunnelWorld& world) {
     lidar.max_range_m = 8;
     std::vector<double> out;
     for (double x = 8; x <= 32; x += 0.25) {
-        const auto scan = lookup::sim::simulateLidar(world, mrpt::poses::CPose2D(x, 0, 0), lidar, 1);
+        const auto scan =
+            lookup::sim::simulateLidar(world, mrpt::poses::CPose2D(x, 0, 0), lidar, 1);
         const std::size_t mid = scan.getScanSize() / 2 + 180;  // +90 deg: straight to the left
         EXPECT_TRUE(scan.getScanRangeValidity(mid));
         out.push_back(scan.getScanRange(mid) + lidar.mount.y_m);

@@ -85,7 +85,7 @@ struct Reference {
 /// What the coarse stage tells the refiner (paper Sec. III-E: the matched reference time
 /// stamp; here reference ids and/or a pose).
 struct CoarseHint {
-    std::vector<std::int64_t> reference_ids;           ///< references to use; empty = all given
+    std::vector<std::int64_t> reference_ids;  ///< references to use; empty = all given
     /// Coarse query vehicle pose in the map: x, y and yaw are used (the query's height and tilt
     /// prior come from its references, which stood on the same floor).
     std::optional<mrpt::poses::CPose3D> vehicle_pose;

@@ -76,7 +76,7 @@ struct SurveyResult {
     std::string pose_source;  ///< "laser", "laser+map:<file>" or "file:<path>"
     std::size_t references = 0;
     double total_time_s = 0, mapping_time_s = 0, localisation_time_s = 0, writing_time_s = 0;
-    PoseGraphReport pose_graph;  ///< keyframes = 0: no pose graph was optimised
+    PoseGraphReport pose_graph;    ///< keyframes = 0: no pose graph was optimised
     std::uint64_t size_bytes = 0;  ///< database folder size
     std::vector<TraverseReport> traverses;
 
