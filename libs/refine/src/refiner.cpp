@@ -207,13 +207,12 @@ RefineResult Refiner::refine(const cv::Mat& query_image, const mrpt::img::TCamer
     input.query_camera = query_cam;
     input.query_camera_on_vehicle = camera_on_vehicle;
     input.ceiling_height_m = h0;
-    // The query stands on the floor its references stood on: their mean z, not the hint's (a
-    // coarse pose is planar, z = 0, while surveyed references carry the floor's bumps; the
-    // difference would scale the query's view of the ceiling by up to 5 %).
-    input.vehicle_z = 0.0;
-    for (const Reference* r : refs) input.vehicle_z += r->vehicle_in_map.z() / double(refs.size());
-    // ... and is tilted about as they were (the floor's bumps are the same for every drive).
+    // The query stands on the floor its references stood on, and is tilted about as they were:
+    // their mean z and tilt, not the hint's (a coarse pose is planar, z = 0 and level, while
+    // surveyed references carry the floor's bumps; the difference would scale the query's view
+    // of the ceiling by up to 5 %).
     for (const Reference* r : refs) {
+        input.vehicle_z += r->vehicle_in_map.z() / double(refs.size());
         input.prior_pitch_rad += r->vehicle_in_map.pitch() / double(refs.size());
         input.prior_roll_rad += r->vehicle_in_map.roll() / double(refs.size());
     }

@@ -135,6 +135,7 @@ LaserTrack localizeMcl(const TraverseData& traverse, const mrpt::maps::COccupanc
     motion.gaussianModel.minStdXY = options.odometry_min_std_xy_m;
     motion.gaussianModel.minStdPHI = mrpt::DEG2RAD(options.odometry_min_std_yaw_deg);
 
+    const mrpt::math::CMatrixDouble33 map_error = mapErrorCovariance(options);
     LaserTrack out;
     const std::size_t n = traverse.laser_sequence.size();
     forEachScanStep(
@@ -143,16 +144,21 @@ LaserTrack localizeMcl(const TraverseData& traverse, const mrpt::maps::COccupanc
             pf.executeOn(pdf, &action, &sf);
 
             auto [cov, mean] = pdf.getCovarianceAndMean();
-            // MCL's spread is relative to the map; the map's own error comes on top.
-            cov(0, 0) += options.map_std_xy_m * options.map_std_xy_m;
-            cov(1, 1) += options.map_std_xy_m * options.map_std_xy_m;
-            cov(2, 2) += std::pow(mrpt::DEG2RAD(options.map_std_yaw_deg), 2);
+            cov += map_error;  // MCL's spread is relative to the map
             out.poses.push_back(
                 {mrpt::Clock::toDouble(scan.timestamp), mrpt::poses::CPose3D(mean)});
             out.covs.push_back(cov);
             if (progress && (i % 64 == 0 || i + 1 == n)) progress(double(i + 1) / double(n));
         });
     return out;
+}
+
+mrpt::math::CMatrixDouble33 mapErrorCovariance(const SurveyOptions& options) {
+    mrpt::math::CMatrixDouble33 cov;
+    cov.setZero();
+    cov(0, 0) = cov(1, 1) = options.map_std_xy_m * options.map_std_xy_m;
+    cov(2, 2) = std::pow(mrpt::DEG2RAD(options.map_std_yaw_deg), 2);
+    return cov;
 }
 
 mrpt::maps::COccupancyGridMap2D loadGridMap(const std::string& path) {

@@ -556,11 +556,28 @@ std::vector<common::PoseTrack> optimisePoseGraph(
         rep.covariance_time_s = cov_timer.Tac();
     }
 
+    // Between two computed keyframes (each traverse's first and last are among them) the
+    // covariance is interpolated by keyframe index.
+    std::vector<Eigen::Matrix3d> interpolated_cov;
+    if (rep.covariance_ok) {
+        interpolated_cov.resize(keyframes.size());
+        std::size_t prev = 0;
+        for (std::size_t k = 0; k < keyframes.size(); ++k) {
+            if (!keyframe_cov[k]) continue;
+            for (std::size_t m = prev; m <= k; ++m) {
+                const double w = k == prev ? 1.0 : double(m - prev) / double(k - prev);
+                interpolated_cov[m] = (1 - w) * *keyframe_cov[prev] + w * *keyframe_cov[k];
+            }
+            prev = k;
+        }
+    }
+
     // 6. Every scan follows the keyframe at or before it: its first-estimate pose relative
-    // to that keyframe is kept, the keyframe's correction applied.
+    // to that keyframe is kept, the keyframe's correction (and covariance) applied.
     std::vector<common::PoseTrack> out;
     for (std::size_t t = 0; t < traverses.size(); ++t) {
         common::PoseTrack track = traverses[t].initial;
+        std::vector<mrpt::math::CMatrixDouble33> covs;
         std::size_t k = ranges[t].first;
         for (std::size_t i = 0; i < track.size(); ++i) {
             while (k + 1 < ranges[t].second && keyframes[k + 1].scan <= i) ++k;
@@ -568,36 +585,10 @@ std::vector<common::PoseTrack> optimisePoseGraph(
             const mrpt::poses::CPose2D relative =
                 mrpt::poses::CPose2D(traverses[t].initial[i].pose) - keyframes[k].initial;
             track[i].pose = mrpt::poses::CPose3D(optimised + relative);
+            if (!interpolated_cov.empty()) covs.emplace_back(interpolated_cov[k]);
         }
         out.push_back(std::move(track));
-        if (covariances) {
-            // Between two computed keyframes the covariance is interpolated by index.
-            std::vector<mrpt::math::CMatrixDouble33> covs;
-            if (rep.covariance_ok) {
-                std::vector<Eigen::Matrix3d> per_keyframe(ranges[t].second - ranges[t].first);
-                std::size_t prev = ranges[t].first;
-                if (!keyframe_cov[prev]) keyframe_cov[prev] = Eigen::Matrix3d::Zero();
-                for (std::size_t k = ranges[t].first; k < ranges[t].second; ++k) {
-                    if (!keyframe_cov[k]) continue;
-                    for (std::size_t m = prev; m <= k; ++m) {
-                        const double w = k == prev ? 1.0 : double(m - prev) / double(k - prev);
-                        per_keyframe[m - ranges[t].first] =
-                            (1 - w) * *keyframe_cov[prev] + w * *keyframe_cov[k];
-                    }
-                    prev = k;
-                }
-                std::size_t k = ranges[t].first;
-                for (std::size_t i = 0; i < out.back().size(); ++i) {
-                    while (k + 1 < ranges[t].second && keyframes[k + 1].scan <= i) ++k;
-                    mrpt::math::CMatrixDouble33 c;
-                    for (int r = 0; r < 3; ++r)
-                        for (int q = 0; q < 3; ++q)
-                            c(r, q) = per_keyframe[k - ranges[t].first](r, q);
-                    covs.push_back(c);
-                }
-            }
-            covariances->push_back(std::move(covs));
-        }
+        if (covariances) covariances->push_back(std::move(covs));
     }
     if (progress) progress(1.0);
     rep.time_s = timer.Tac();

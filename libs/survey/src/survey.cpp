@@ -302,10 +302,16 @@ SurveyResult Survey::run(const SurveyInputs& in) const {
                     ProgressBar graph_bar(in.show_progress,
                                           "pose graph " + in.traverses[mapping].name);
                     const std::vector<GraphTraverse> alone{{&data[mapping], icp.icp_track.poses}};
+                    // Its covariances are only kept when no joint graph follows.
+                    const bool others = std::any_of(
+                        in.traverses.begin(), in.traverses.end(),
+                        [&](const auto& t) { return t.reference && &t != &in.traverses[mapping]; });
+                    const bool final_poses = graph_options_.all_traverses && !others;
                     std::vector<std::vector<mrpt::math::CMatrixDouble33>> covs;
-                    graph_tracks[mapping] = optimisePoseGraph(
-                        alone, graph_options_, &result.pose_graph, graph_bar, &covs)[0];
-                    graph_covs[mapping] = covs[0];
+                    graph_tracks[mapping] =
+                        optimisePoseGraph(alone, graph_options_, &result.pose_graph, graph_bar,
+                                          final_poses ? &covs : nullptr)[0];
+                    if (final_poses) graph_covs[mapping] = covs[0];
                     grid = gridFromTracks(alone, {*graph_tracks[mapping]}, config_);
                 } else {
                     grid = std::move(icp.grid);
@@ -349,10 +355,7 @@ SurveyResult Survey::run(const SurveyInputs& in) const {
                 // The graph's poses replace MCL's. Their covariance: the graph's marginal one
                 // (how far the map may have drifted there, relative to its start) on top of
                 // the map's local error.
-                mrpt::math::CMatrixDouble33 floor;
-                floor.setZero();
-                floor(0, 0) = floor(1, 1) = options_.map_std_xy_m * options_.map_std_xy_m;
-                floor(2, 2) = std::pow(mrpt::DEG2RAD(options_.map_std_yaw_deg), 2);
+                const mrpt::math::CMatrixDouble33 floor = mapErrorCovariance(options_);
                 for (const std::size_t i : members) {
                     if (!in.traverses[i].reference) continue;
                     tracks[i].poses = *graph_tracks[i];

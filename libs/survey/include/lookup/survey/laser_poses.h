@@ -40,6 +40,10 @@ LaserMap buildMapIcpSlam(const TraverseData& traverse, const mrpt::config::CConf
                          const mrpt::poses::CPose2D& start, const ProgressFn& progress = {},
                          double max_range_m = 0);
 
+/// The map's own error (SurveyOptions::map_std_*) as an (x, y, yaw) covariance: laser poses
+/// are relative to the map, so it comes on top of their own spread.
+mrpt::math::CMatrixDouble33 mapErrorCovariance(const SurveyOptions& options);
+
 /// MCL of `traverse` on `grid` (particles around `start`), with [PF_options], [KLD_options]
 /// and [LikelihoodOptions] of `config` and the odometry noise of `options`. One mean pose and
 /// covariance per lidar scan.
