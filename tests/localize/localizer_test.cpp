@@ -7,6 +7,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgproc.hpp>
 #include <vector>
@@ -75,6 +76,7 @@ struct SurveyTraverse {
     int references;
     double t0;
     int forward_seed = 0;
+    double y_m = 0;  ///< lateral position of the traverse
 };
 
 void writeDatabase(const Scene& scene, const std::string& dir,
@@ -84,7 +86,7 @@ void writeDatabase(const Scene& scene, const std::string& dir,
         for (int k = 0; k < tr.references; ++k) {
             database::ReferenceInput in;
             in.traverse = tr.name;
-            in.vehicle_pose = mrpt::poses::CPose3D(-8 + 0.25 * k, 0, 0, 0, 0, 0);
+            in.vehicle_pose = mrpt::poses::CPose3D(-8 + 0.25 * k, tr.y_m, 0, 0, 0, 0);
             in.vehicle_cov.setIdentity();
             in.vehicle_cov *= 1e-4;
             in.ceiling = scene.image(in.vehicle_pose, tr.t0 + 0.1 * k);
@@ -277,6 +279,43 @@ TEST(Localize, CoarseStageMatchesEachSurveyTraverseAsItsOwnSequence) {
     auto only_long = localize::makeSequenceCoarseSource(db, options, "long");
     EXPECT_EQ(only_long->name().find('+'), std::string::npos);
     EXPECT_THROW(localize::makeSequenceCoarseSource(db, options, "absent"), std::runtime_error);
+}
+
+TEST(Localize, AcquisitionCandidatesCoverEveryNearbyTraverse) {
+    // Two traverses 0.4 m apart, closer than acquisition_step_m (0.5 m): thinned together, the
+    // nearer one would shadow the other, and a query driving beside the farther one would get
+    // candidates only 0.4 m further off, beyond the SAD window (mine-a query4 start-up).
+    const Scene scene;
+    const auto dir = freshDir("candidates");
+    writeDatabase(scene, (dir / "db").string(),
+                  {{"near", 40, 100.0, 0, /*y_m=*/0.0}, {"far", 40, 200.0, 0, /*y_m=*/0.4}});
+    const auto db = database::ReferenceDatabase::load((dir / "db").string());
+    localize::LocalizerOptions options;
+    options.acquisition_radius_m = 2.0;
+    options.acquisition_step_m = 0.5;
+    const localize::Localizer localizer(db, options, refine::RefinerOptions{}, nullptr, false);
+
+    const auto candidates = localizer.acquisitionCandidates(mrpt::poses::CPose2D(-4.0, 0.0, 0));
+    std::map<std::string, std::vector<double>> along;  // x of the candidates, per traverse
+    for (std::size_t i : candidates) {
+        const auto& ref = db.reference(i);
+        EXPECT_LE(std::hypot(ref.vehicle_pose.x() + 4.0, ref.vehicle_pose.y()), 2.0 + 1e-9);
+        along[ref.traverse].push_back(ref.vehicle_pose.x());
+    }
+    ASSERT_EQ(along.size(), 2u);
+    for (auto& [name, xs] : along) {
+        std::sort(xs.begin(), xs.end());
+        // References 0.25 m apart thinned to >= 0.5 m: every other one, across the whole disc.
+        EXPECT_GE(xs.size(), 6u) << name;
+        for (std::size_t k = 1; k < xs.size(); ++k) {
+            EXPECT_GE(xs[k] - xs[k - 1], 0.5 - 1e-9) << name;
+            EXPECT_LE(xs[k] - xs[k - 1], 0.75 + 1e-9) << name;  // no gap beyond the thinning
+        }
+    }
+    // The nearest reference comes first.
+    ASSERT_FALSE(candidates.empty());
+    EXPECT_NEAR(db.reference(candidates.front()).vehicle_pose.x(), -4.0, 1e-9);
+    EXPECT_NEAR(db.reference(candidates.front()).vehicle_pose.y(), 0.0, 1e-9);
 }
 
 TEST(Localize, SkippedCoarseSearchesStillBuildTheSequence) {

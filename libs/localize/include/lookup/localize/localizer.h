@@ -101,6 +101,11 @@ class Localizer {
 
     const LocalizerOptions& options() const { return options_; }
 
+    /// References an acquisition around `pose` refines against, one by one: those within
+    /// acquisition_radius_m, nearest first, each survey traverse thinned to
+    /// acquisition_step_m along itself.
+    std::vector<std::size_t> acquisitionCandidates(const mrpt::poses::CPose2D& pose) const;
+
   private:
     struct Prediction {
         mrpt::poses::CPose2D pose;
@@ -124,7 +129,6 @@ class Localizer {
     std::optional<mrpt::poses::CPose2D> odometryAt(double time_s) const;
     std::vector<std::size_t> referencesNearTime(double time_s) const;
     std::vector<std::size_t> referencesNear(const mrpt::poses::CPose2D& pose) const;
-    std::vector<std::size_t> acquisitionCandidates(const mrpt::poses::CPose2D& pose) const;
     std::shared_ptr<const refine::RefineResult> acquire(
         const mrpt::obs::CObservationImage& query, const mrpt::poses::CPose2D& coarse,
         std::shared_ptr<const refine::RefineResult> failed, FrameResult& out);
