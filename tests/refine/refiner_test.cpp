@@ -97,6 +97,40 @@ TEST(Refiner, QueryHeightAndTiltComeFromTheReferencesNotThePlanarHint) {
     EXPECT_LT(distanceXY(r.pose, truth), 0.004);
 }
 
+TEST(Refiner, AProbeThatPassesChangesNothingAndOneThatFailsStopsEarly) {
+    const Scene& s = scene();
+    const CPose3D truth(0.35, 0.2, 0, 0.03, 0, 0);
+    // The presets' distinctiveness test: an unrelated texture's best SAD is rarely distinct.
+    auto options = optionsWithHeight(5.3);
+    options.matcher.min_distinctiveness = 0.2;
+    const Refiner refiner(options);
+    CoarseHint hint;
+    hint.vehicle_pose = CPose3D(0.3, 0.15, 0, 0.03, 0, 0);
+    const std::vector<Reference> refs{s.reference(1, CPose3D(0, 0, 0, 0, 0, 0))};
+    const auto full = refiner.refine(s.query(truth), s.camera, s.on_vehicle, hint, refs);
+    ASSERT_TRUE(full.accepted()) << full.reason;
+
+    // The right place: the probe's points match, and the result is the full match's.
+    CoarseHint probed = hint;
+    probed.probe_points = 8;
+    probed.probe_min_matched = 4;
+    const auto same = refiner.refine(s.query(truth), s.camera, s.on_vehicle, probed, refs);
+    ASSERT_TRUE(same.accepted()) << same.reason;
+    EXPECT_EQ(same.inliers, full.inliers);
+    EXPECT_EQ(same.sample_points, full.sample_points);
+    EXPECT_DOUBLE_EQ(same.pose.mean.x(), full.pose.mean.x());
+    EXPECT_DOUBLE_EQ(same.pose.mean.y(), full.pose.mean.y());
+    EXPECT_DOUBLE_EQ(same.pose.mean.phi(), full.pose.mean.phi());
+
+    // A wrong place (an unrelated ceiling): refused after the probe, with its reason.
+    const cv::Mat unrelated = synthetic::makeNoiseTexture(cv::Size(320, 240), 77);
+    const auto wrong = refiner.refine(unrelated, s.camera, s.on_vehicle, probed, refs);
+    EXPECT_EQ(wrong.status, RefineStatus::TooFewMatches);
+    EXPECT_NE(wrong.reason.find("probe: "), std::string::npos) << wrong.reason;
+    EXPECT_NE(wrong.reason.find("of 8 probe points"), std::string::npos) << wrong.reason;
+    EXPECT_TRUE(wrong.references.empty());  // the full match never ran
+}
+
 TEST(Refiner, OccludingObjectPointsAreOutliers) {
     const Scene& s = scene();
     const CPose3D truth(0.1, 0.05, 0, 0.0, 0, 0);

@@ -447,7 +447,7 @@ const refine::Reference& Localizer::referenceView(std::size_t index) {
 
 std::shared_ptr<const refine::RefineResult> Localizer::refineAgainst(
     const mrpt::obs::CObservationImage& query, const std::vector<std::size_t>& refs,
-    const mrpt::poses::CPose2D& hint, FrameResult& out) {
+    const mrpt::poses::CPose2D& hint, FrameResult& out, bool probe) {
     mrpt::system::CTicTac timer;
     std::vector<refine::Reference> views;
     for (std::size_t i : refs) views.push_back(referenceView(i));
@@ -457,6 +457,10 @@ std::shared_ptr<const refine::RefineResult> Localizer::refineAgainst(
     refine::CoarseHint coarse_hint;
     coarse_hint.vehicle_pose = mrpt::poses::CPose3D(hint.x(), hint.y(), 0, hint.phi(), 0, 0);
     if (db_.info().ceiling_height_m > 0) coarse_hint.ceiling_height_m = db_.info().ceiling_height_m;
+    if (probe) {
+        coarse_hint.probe_points = options_.acquisition_probe_points;
+        coarse_hint.probe_min_matched = options_.acquisition_probe_min_matched;
+    }
     auto result =
         std::make_shared<const refine::RefineResult>(refiner_.refine(query, coarse_hint, views));
     out.times.refine_ms += 1e3 * timer.Tac();
@@ -490,7 +494,7 @@ std::shared_ptr<const refine::RefineResult> Localizer::acquire(
     std::vector<Scored> accepted;
     for (std::size_t candidate : acquisitionCandidates(coarse)) {
         const auto cand_pose = toPose2D(db_.reference(candidate).vehicle_pose);
-        auto single = refineAgainst(query, {candidate}, cand_pose, out);
+        auto single = refineAgainst(query, {candidate}, cand_pose, out, /*probe=*/true);
         if (single->accepted()) accepted.push_back({single, single->pose.mean, candidate});
     }
     if (accepted.empty()) return failed ? report(failed, failed_refs) : nullptr;

@@ -7,12 +7,26 @@ namespace lookup::localize {
 void LocalizerOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
                                           const std::string& section) {
     const common::IniSection s(source, section, "localizer options");
-    s.rejectUnknownKeys(
-        {"ceiling_camera_label", "forward_camera_label", "odometry_label", "references_per_query",
-         "use_tracking", "max_tracking_gap_s", "acquisition_radius_m", "acquisition_step_m",
-         "acquisition_ambiguity_margin", "acquisition_ambiguity_distance_m",
-         "startup_acquisition_frames", "coarse_traverse", "coarse_while_tracking", "realtime",
-         "max_latency_s", "write_debug_images", "debug_image_every", "image_cache_capacity"});
+    s.rejectUnknownKeys({"ceiling_camera_label",
+                         "forward_camera_label",
+                         "odometry_label",
+                         "references_per_query",
+                         "use_tracking",
+                         "max_tracking_gap_s",
+                         "acquisition_radius_m",
+                         "acquisition_step_m",
+                         "acquisition_ambiguity_margin",
+                         "acquisition_ambiguity_distance_m",
+                         "acquisition_probe_points",
+                         "acquisition_probe_min_matched",
+                         "startup_acquisition_frames",
+                         "coarse_traverse",
+                         "coarse_while_tracking",
+                         "realtime",
+                         "max_latency_s",
+                         "write_debug_images",
+                         "debug_image_every",
+                         "image_cache_capacity"});
     ceiling_camera_label = s.getString("ceiling_camera_label", ceiling_camera_label);
     forward_camera_label = s.getString("forward_camera_label", forward_camera_label);
     odometry_label = s.getString("odometry_label", odometry_label);
@@ -25,6 +39,9 @@ void LocalizerOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& s
         s.getDouble("acquisition_ambiguity_margin", acquisition_ambiguity_margin);
     acquisition_ambiguity_distance_m =
         s.getDouble("acquisition_ambiguity_distance_m", acquisition_ambiguity_distance_m);
+    acquisition_probe_points = s.getInt("acquisition_probe_points", acquisition_probe_points);
+    acquisition_probe_min_matched =
+        s.getInt("acquisition_probe_min_matched", acquisition_probe_min_matched);
     startup_acquisition_frames = s.getInt("startup_acquisition_frames", startup_acquisition_frames);
     coarse_traverse = s.getString("coarse_traverse", coarse_traverse);
     coarse_while_tracking = s.getBool("coarse_while_tracking", coarse_while_tracking);
@@ -49,6 +66,8 @@ void LocalizerOptions::saveToConfigFile(mrpt::config::CConfigFileBase& target,
     target.write(section, "acquisition_step_m", acquisition_step_m);
     target.write(section, "acquisition_ambiguity_margin", acquisition_ambiguity_margin);
     target.write(section, "acquisition_ambiguity_distance_m", acquisition_ambiguity_distance_m);
+    target.write(section, "acquisition_probe_points", acquisition_probe_points);
+    target.write(section, "acquisition_probe_min_matched", acquisition_probe_min_matched);
     target.write(section, "startup_acquisition_frames", startup_acquisition_frames);
     target.write(section, "coarse_traverse", coarse_traverse);
     target.write(section, "coarse_while_tracking", coarse_while_tracking);
@@ -69,6 +88,10 @@ void LocalizerOptions::check() const {
     c.require(acquisition_ambiguity_margin >= 0 && acquisition_ambiguity_margin < 1,
               "acquisition_ambiguity_margin", "in [0, 1)");
     c.require(acquisition_ambiguity_distance_m > 0, "acquisition_ambiguity_distance_m", "> 0");
+    c.require(acquisition_probe_points >= 0, "acquisition_probe_points", ">= 0");
+    c.require(acquisition_probe_min_matched >= 0 &&
+                  acquisition_probe_min_matched <= acquisition_probe_points,
+              "acquisition_probe_min_matched", "in [0, acquisition_probe_points]");
     c.require(startup_acquisition_frames >= 0, "startup_acquisition_frames", ">= 0");
     c.require(max_latency_s > 0, "max_latency_s", "> 0");
     c.require(debug_image_every >= 1, "debug_image_every", ">= 1");

@@ -281,11 +281,45 @@ RefineResult Refiner::refine(const cv::Mat& query_image, const mrpt::img::TCamer
             outcome.matches = std::move(c.matches);
             if (!c.ok) matcher_notes += "; reference " + std::to_string(ref.id) + ": " + c.reason;
         } else {
-            outcome.matches =
-                reference_to_query
-                    ? matchPointsCompensated(*ref_pyramid, query_pyramid, points,
-                                             *reference_to_query, o.matcher)
-                    : matchPoints(*ref_pyramid, query_pyramid, points, predicted, o.matcher);
+            const auto match = [&](const std::vector<std::size_t>& which) {
+                std::vector<cv::Point2f> pts, offsets;
+                for (std::size_t i : which) {
+                    pts.push_back(points[i]);
+                    if (!predicted.empty()) offsets.push_back(predicted[i]);
+                }
+                return reference_to_query
+                           ? matchPointsCompensated(*ref_pyramid, query_pyramid, pts,
+                                                    *reference_to_query, o.matcher)
+                           : matchPoints(*ref_pyramid, query_pyramid, pts, offsets, o.matcher);
+            };
+            // Probe: every (n / probe_points)-th point first (points run row by row, so these
+            // spread over the image); the rest only if enough of them matched.
+            std::vector<std::size_t> probe, rest;
+            const std::size_t n = points.size();
+            const std::size_t n_probe = static_cast<std::size_t>(std::max(0, hint.probe_points));
+            for (std::size_t i = 0; i < n; ++i) {
+                const bool in_probe = n_probe > 0 && n_probe < n && (i * n_probe) % n < n_probe;
+                (in_probe ? probe : rest).push_back(i);
+            }
+            outcome.matches.resize(n);
+            int probe_matched = 0;
+            if (!probe.empty()) {
+                const auto m = match(probe);
+                for (std::size_t k = 0; k < probe.size(); ++k) {
+                    outcome.matches[probe[k]] = m[k];
+                    probe_matched += m[k].status == MatchStatus::Matched;
+                }
+            }
+            if (!probe.empty() && probe_matched < hint.probe_min_matched) {
+                res.times.match_ms += msSince(t0);
+                return fallback(RefineStatus::TooFewMatches,
+                                "probe: " + std::to_string(probe_matched) + " of " +
+                                    std::to_string(probe.size()) + " probe points of reference " +
+                                    std::to_string(ref.id) + " matched (need " +
+                                    std::to_string(hint.probe_min_matched) + ")");
+            }
+            const auto m = match(rest);
+            for (std::size_t k = 0; k < rest.size(); ++k) outcome.matches[rest[k]] = m[k];
         }
         res.times.match_ms += msSince(t0);
 

@@ -134,7 +134,7 @@ class Localizer {
         std::shared_ptr<const refine::RefineResult> failed, FrameResult& out);
     std::shared_ptr<const refine::RefineResult> refineAgainst(
         const mrpt::obs::CObservationImage& query, const std::vector<std::size_t>& refs,
-        const mrpt::poses::CPose2D& hint, FrameResult& out);
+        const mrpt::poses::CPose2D& hint, FrameResult& out, bool probe = false);
     const refine::Reference& referenceView(std::size_t index);
 
     const database::ReferenceDatabase& db_;

@@ -28,6 +28,12 @@ struct LocalizerOptions : public mrpt::config::CLoadableOptions {
     /// from the best fix scores within this margin of it (aliasing: rock-bolt grids, mesh).
     double acquisition_ambiguity_margin = 0.1;
     double acquisition_ambiguity_distance_m = 1.0;  ///< [m]
+    /// Each acquisition candidate is probed first: acquisition_probe_points sample points
+    /// spread over it are matched, and it is dropped when fewer than
+    /// acquisition_probe_min_matched of them match (nearly every candidate is a wrong place,
+    /// and a full match of all points cost 1 ms each, dozens per acquisition). 0 = no probe.
+    int acquisition_probe_points = 8;
+    int acquisition_probe_min_matched = 2;
     /// Seeds: a coarse match that is not trusted as a coarse pose (from a sequence not yet full,
     /// a global match awaiting confirmation, a lost sequence's best guess) seeds an
     /// acquisition from this many forward frames on, one per forward frame, the traverses'

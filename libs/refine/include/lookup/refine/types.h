@@ -90,6 +90,12 @@ struct CoarseHint {
     /// prior come from its references, which stood on the same floor).
     std::optional<mrpt::poses::CPose3D> vehicle_pose;
     std::optional<double> ceiling_height_m;  ///< overrides EstimatorOptions::ceiling_height_m
+    /// A quick look before the full match (acquisition tries dozens of places, nearly all
+    /// wrong): with the SAD matcher, `probe_points` sample points spread over each reference
+    /// are matched first; when fewer than `probe_min_matched` of them match, the refinement
+    /// stops there (TooFewMatches). 0 = no probe.
+    int probe_points = 0;
+    int probe_min_matched = 0;
 };
 
 /// Why the matcher kept or dropped a point.
