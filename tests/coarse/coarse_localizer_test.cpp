@@ -234,6 +234,20 @@ TEST(CoarseLocalizer, HeldTrackIsDroppedAndTheRightPlaceFoundAfterKidnappingWith
     // frames, and its match one more sequence to be confirmed.
     ASSERT_GE(recovered_after, 0);
     EXPECT_LE(recovered_after, 4 * o.sequence_length);
+
+    // Without audits (the caller verifies the place itself, CoarseQuery::audit = false) the
+    // held track survives the same frames: only the caller, or max_coast_m, ends it.
+    CoarseLocalizer unaudited(makeReferences(route, 400, o, /*with_poses=*/true), o);
+    for (int t = 0; t < 70; ++t) {
+        unaudited.process(route.image(30.0 + t, 8.0), t,
+                          t > 0 ? std::optional<double>(1.0) : std::nullopt, true, false);
+    }
+    for (int t = 0; t <= recovered_after; ++t) {
+        const auto r = unaudited.process(route.image(250.0 + t, 8.0), 70.0 + t, 1.0, true, false);
+        if (t >= o.sequence_length) {
+            EXPECT_EQ(r.status, CoarseStatus::kOdometry) << "frame " << t << ": " << r.reason;
+        }
+    }
 }
 
 TEST(CoarseLocalizer, RejectedMatchStartsAFreshConfirmedAcquisition) {

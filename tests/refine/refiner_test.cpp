@@ -309,6 +309,16 @@ TEST(Refiner, HeatMapSamplingUsesTheBestRegionsAndIsDeterministic) {
     const auto e = Refiner(five_points).refine(s.query(truth), s.camera, s.on_vehicle, hint, {ref});
     ASSERT_EQ(e.references[0].matches.size(), 5u);
     EXPECT_EQ(e.references[0].matches[0].reference_px, ref.sample_points->points[0]);
+
+    // A heat map with a NaN gets no cached points, and the Refiner refuses it, saying why.
+    Reference broken = ref;
+    broken.heat_map = ref.heat_map.clone();
+    broken.heat_map.at<float>(10, 10) = std::numeric_limits<float>::quiet_NaN();
+    broken.prepareSamplePoints(refiner.options().sampler);
+    EXPECT_FALSE(broken.sample_points);
+    const auto f = refiner.refine(s.query(truth), s.camera, s.on_vehicle, hint, {broken});
+    EXPECT_EQ(f.status, RefineStatus::NoReferences);
+    EXPECT_NE(f.reason.find("heat map"), std::string::npos) << f.reason;
 }
 
 TEST(Reference, FromObservationConvertsToGreyAndKeepsPoses) {

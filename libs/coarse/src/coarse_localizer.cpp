@@ -174,11 +174,12 @@ CoarseResult CoarseLocalizer::locate(const CoarseQuery& query) {
         r.query_time_s = query.time_s;
         return r;
     }
-    return process(*query.forward_image, query.time_s, query.travelled_m, query.search);
+    return process(*query.forward_image, query.time_s, query.travelled_m, query.search,
+                   query.audit);
 }
 
 CoarseResult CoarseLocalizer::process(const mrpt::img::CImage& image, double time_s,
-                                      std::optional<double> travelled_m, bool search) {
+                                      std::optional<double> travelled_m, bool search, bool audit) {
     const auto t0 = Clock::now();
     CoarseResult invalid;
     invalid.status = CoarseStatus::kInvalidInput;
@@ -204,7 +205,7 @@ CoarseResult CoarseLocalizer::process(const mrpt::img::CImage& image, double tim
         return invalid;
     }
     const double descriptor_ms = msSince(t0);
-    CoarseResult r = processDescriptor(d, time_s, travelled_m, search);
+    CoarseResult r = processDescriptor(d, time_s, travelled_m, search, audit);
     r.descriptor_ms = descriptor_ms;
     return r;
 }
@@ -467,8 +468,8 @@ void CoarseLocalizer::auditTrack(CoarseResult& r, long n_refs) {
 }
 
 CoarseResult CoarseLocalizer::processDescriptor(const Descriptor& descriptor, double time_s,
-                                                std::optional<double> travelled_m,
-                                                bool search_now) {
+                                                std::optional<double> travelled_m, bool search_now,
+                                                bool audit) {
     const auto t0 = Clock::now();
     CoarseResult r;
     r.query_index = queries_++;
@@ -576,7 +577,7 @@ CoarseResult CoarseLocalizer::processDescriptor(const Descriptor& descriptor, do
             r.reason = why.str();
             last_match_ = r.reference_index;
             ++coast_frames_;
-            if (++frames_since_audit_ >= kAuditEveryFrames) {
+            if (++frames_since_audit_ >= kAuditEveryFrames && audit) {
                 frames_since_audit_ = 0;
                 auditTrack(r, n_refs);
             }
@@ -641,7 +642,7 @@ CoarseResult CoarseLocalizer::processDescriptor(const Descriptor& descriptor, do
         if (global) {
             pending_.clear();
             frames_since_audit_ = 0;
-        } else if (odometry && ++frames_since_audit_ >= kAuditEveryFrames) {
+        } else if (odometry && ++frames_since_audit_ >= kAuditEveryFrames && audit) {
             frames_since_audit_ = 0;
             auditTrack(r, n_refs);
         }

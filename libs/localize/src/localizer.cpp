@@ -298,6 +298,10 @@ void Localizer::processForward(const mrpt::obs::CObservationImage& image) {
     q.time_s = mrpt::Clock::toDouble(image.timestamp);
     q.forward_image = &image.image;
     q.search = options_.coarse_while_tracking || !fine_tracking_;
+    // While the ceiling confirms the place, a wrong coarse track is contradicted by the fixes
+    // (processCeiling), so the coarse stage's own audit is not needed (on mine-b it was most
+    // of the coarse stage's time).
+    q.audit = !fine_tracking_;
     if (!odometry_.empty()) {
         if (last_forward_odometry_) q.travelled_m = travelled_since_forward_;
         last_forward_odometry_ = odometry_.back().second;

@@ -15,8 +15,16 @@ void Reference::prepare(const MatcherOptions& matcher) {
 }
 
 void Reference::prepareSamplePoints(const SamplerOptions& options) {
-    sample_points = std::make_shared<const SamplePoints>(
-        SamplePoints{options, selectSamplePoints(image.size(), heat_map, options)});
+    // A heat map the Refiner would refuse gets no cache: the Refiner then checks it per query
+    // and names it in its reason. (The selection itself refuses a non-finite map with no
+    // points.)
+    sample_points.reset();
+    if (!heat_map.empty() && (heat_map.type() != CV_32FC1 || heat_map.size() != image.size())) {
+        return;
+    }
+    auto points = selectSamplePoints(image.size(), heat_map, options);
+    if (!heat_map.empty() && points.empty()) return;
+    sample_points = std::make_shared<const SamplePoints>(SamplePoints{options, std::move(points)});
 }
 
 Reference Reference::fromObservation(std::int64_t id, const mrpt::obs::CObservationImage& obs,

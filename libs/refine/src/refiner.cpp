@@ -136,8 +136,11 @@ RefineResult Refiner::refine(const cv::Mat& query_image, const mrpt::img::TCamer
         } else if (r.image.empty() || r.image.type() != CV_8UC1) {
             skipped += " reference " + std::to_string(r.id) + ": image empty or not CV_8UC1;";
         } else if (!r.heat_map.empty() &&
+                   !(r.sample_points && sameSelection(r.sample_points->options, o.sampler)) &&
                    (r.heat_map.type() != CV_32FC1 || r.heat_map.size() != r.image.size() ||
                     !cv::checkRange(r.heat_map))) {
+            // (Checked only when the points are selected here: cached points were selected
+            // from it already, and the scan cost 5 % of a heat-map localisation run.)
             skipped += " reference " + std::to_string(r.id) +
                        ": heat map not CV_32FC1 of the image size, or not finite;";
         } else {

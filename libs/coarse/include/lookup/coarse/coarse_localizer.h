@@ -41,12 +41,14 @@ class CoarseLocalizer : public CoarseSource {
     /// Same as locate() for an image; kInvalidInput when it is empty or its size differs from
     /// the references' images.
     CoarseResult process(const mrpt::img::CImage& image, double time_s,
-                         std::optional<double> travelled_m = std::nullopt, bool search = true);
+                         std::optional<double> travelled_m = std::nullopt, bool search = true,
+                         bool audit = true);
     /// With a descriptor computed by the caller (computeDescriptor with the same options).
     /// `search` = false: the frame only joins the sequence (kNotSearched), see CoarseQuery.
+    /// `audit` = false: the track audit waits (CoarseQuery::audit).
     CoarseResult processDescriptor(const Descriptor& descriptor, double time_s,
                                    std::optional<double> travelled_m = std::nullopt,
-                                   bool search = true);
+                                   bool search = true, bool audit = true);
 
     /// Forgets the query history (next frame starts a global search).
     void reset();

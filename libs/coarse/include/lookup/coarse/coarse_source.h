@@ -44,6 +44,10 @@ struct CoarseQuery {
     /// false: the caller needs no match for this frame (e.g. the fine stage is tracking). A
     /// sequence matcher only adds the frame to its sequence; its next search is global.
     bool search = true;
+    /// false: the caller verifies the place by other means (LookUP's ceiling match contradicts
+    /// a wrong coarse track within frames), so a sequence matcher skips its periodic track
+    /// audit, a global search that costs most of its time on a long reference.
+    bool audit = true;
 };
 
 struct CoarseResult {

@@ -21,7 +21,8 @@ struct LocalizerOptions : public mrpt::config::CLoadableOptions {
     /// Acquisition (not tracking): also try references within this distance of the coarse
     /// match, one by one, before giving up, since the SAD window covers only +-L_SR/2 [m].
     double acquisition_radius_m = 4.0;
-    /// Spacing of the acquisition candidates along the surveyed route [m].
+    /// Spacing of the acquisition candidates along each survey traverse [m] (traverses are
+    /// thinned apart: side by side they cover different lateral offsets).
     double acquisition_step_m = 0.5;
     /// Acquisition refines against every candidate and keeps the best by inlier share; it is
     /// refused as ambiguous when a candidate more than acquisition_ambiguity_distance_m away

@@ -73,6 +73,8 @@ struct Reference {
         std::vector<cv::Point2f> points;
     };
     std::shared_ptr<const SamplePoints> sample_points;
+    /// Leaves `sample_points` empty when the heat map is not a finite CV_32FC1 map of the
+    /// image's size (the Refiner then refuses the reference, saying why).
     void prepareSamplePoints(const SamplerOptions& options);
 
     mrpt::poses::CPose3D cameraInMap() const { return vehicle_in_map + camera_on_vehicle; }
