@@ -174,12 +174,13 @@ CoarseResult CoarseLocalizer::locate(const CoarseQuery& query) {
         r.query_time_s = query.time_s;
         return r;
     }
-    return process(*query.forward_image, query.time_s, query.travelled_m, query.search,
-                   query.audit);
+    return process(*query.forward_image, query.time_s, query.travelled_m, query.search, query.audit,
+                   query.forward_descriptor);
 }
 
 CoarseResult CoarseLocalizer::process(const mrpt::img::CImage& image, double time_s,
-                                      std::optional<double> travelled_m, bool search, bool audit) {
+                                      std::optional<double> travelled_m, bool search, bool audit,
+                                      const Descriptor* descriptor) {
     const auto t0 = Clock::now();
     CoarseResult invalid;
     invalid.status = CoarseStatus::kInvalidInput;
@@ -195,7 +196,7 @@ CoarseResult CoarseLocalizer::process(const mrpt::img::CImage& image, double tim
                              ", reference images are " + std::to_string(references_->imageWidth()) +
                              "x" + std::to_string(references_->imageHeight());
         } else {
-            d = computeDescriptor(image, options_);
+            d = descriptor ? *descriptor : computeDescriptor(image, options_);
         }
     } catch (const std::exception& e) {
         invalid.reason = std::string("cannot use the query image: ") + e.what();

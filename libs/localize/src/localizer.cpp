@@ -74,11 +74,26 @@ class DatabaseSequenceSource : public coarse::CoarseSource {
 // sequences they do not alias each other, and the one driven nearest the query's line wins.
 class MultiTraverseSource : public coarse::CoarseSource {
   public:
-    explicit MultiTraverseSource(std::vector<std::unique_ptr<coarse::CoarseSource>> sources)
-        : sources_(std::move(sources)) {}
+    /// Every source is a sequence matcher with `descriptor_options`.
+    MultiTraverseSource(std::vector<std::unique_ptr<coarse::CoarseSource>> sources,
+                        const coarse::CoarseOptions& descriptor_options)
+        : sources_(std::move(sources)), descriptor_options_(descriptor_options) {}
     coarse::CoarseResult locate(const coarse::CoarseQuery& query) override {
+        // One descriptor for all sequences (it was computed once per traverse); a broken image
+        // leaves it to each sequence to say why.
+        coarse::CoarseQuery shared = query;
+        coarse::Descriptor descriptor;
+        if (query.forward_image && !query.forward_descriptor) {
+            try {
+                if (query.forward_image->isExternallyStored()) query.forward_image->forceLoad();
+                descriptor = coarse::computeDescriptor(*query.forward_image, descriptor_options_);
+            } catch (const std::exception&) {
+                descriptor.clear();
+            }
+            if (!descriptor.empty()) shared.forward_descriptor = &descriptor;
+        }
         std::vector<coarse::CoarseResult> all;
-        for (auto& source : sources_) all.push_back(source->locate(query));
+        for (auto& source : sources_) all.push_back(source->locate(shared));
         last_source_ = 0;
         for (std::size_t k = 1; k < all.size(); ++k) {
             const int rank = trust(all[k]), best_rank = trust(all[last_source_]);
@@ -122,6 +137,7 @@ class MultiTraverseSource : public coarse::CoarseSource {
         }
     }
     std::vector<std::unique_ptr<coarse::CoarseSource>> sources_;
+    coarse::CoarseOptions descriptor_options_;
     std::size_t last_source_ = 0;
     std::vector<coarse::CoarseResult> others_;
 };
@@ -206,7 +222,7 @@ std::unique_ptr<coarse::CoarseSource> makeSequenceCoarseSource(
                                  ": the coarse stage needs them (or give a coarse file)");
     }
     if (sources.size() == 1) return std::move(sources.front());
-    return std::make_unique<MultiTraverseSource>(std::move(sources));
+    return std::make_unique<MultiTraverseSource>(std::move(sources), coarse_options);
 }
 
 Localizer::Localizer(const database::ReferenceDatabase& db, const LocalizerOptions& options,

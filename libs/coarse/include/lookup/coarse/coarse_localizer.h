@@ -40,9 +40,10 @@ class CoarseLocalizer : public CoarseSource {
 
     /// Same as locate() for an image; kInvalidInput when it is empty or its size differs from
     /// the references' images.
+    /// `descriptor`: the image's descriptor when the caller computed it (same options).
     CoarseResult process(const mrpt::img::CImage& image, double time_s,
                          std::optional<double> travelled_m = std::nullopt, bool search = true,
-                         bool audit = true);
+                         bool audit = true, const Descriptor* descriptor = nullptr);
     /// With a descriptor computed by the caller (computeDescriptor with the same options).
     /// `search` = false: the frame only joins the sequence (kNotSearched), see CoarseQuery.
     /// `audit` = false: the track audit waits (CoarseQuery::audit).

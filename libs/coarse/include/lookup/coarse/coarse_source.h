@@ -48,6 +48,10 @@ struct CoarseQuery {
     /// a wrong coarse track within frames), so a sequence matcher skips its periodic track
     /// audit, a global search that costs most of its time on a long reference.
     bool audit = true;
+    /// Optional: the descriptor of forward_image, computed once by a caller that feeds several
+    /// sequence matchers with the same descriptor options (one per survey traverse). Null: each
+    /// computes its own.
+    const Descriptor* forward_descriptor = nullptr;
 };
 
 struct CoarseResult {
