@@ -125,6 +125,50 @@ TEST(CoarseLocalizer, TrackingWorkDoesNotGrowWithTheDatabase) {
     EXPECT_LT(evaluated[1], 200u);  // far fewer than the 2000 references
 }
 
+TEST(CoarseLocalizer, IndexedGlobalSearchFindsThePlaceAtACostThatDoesNotGrowWithTheDatabase) {
+    // Global searches (start-up, and after a kidnapping) through the descriptor index score a
+    // few windows; the exhaustive search scores every reference.
+    CoarseOptions indexed = testOptions();
+    indexed.global_index_min_references = 0;
+    CoarseOptions exhaustive = testOptions();
+    exhaustive.global_index_min_references = 1 << 30;
+    const int sizes[2] = {1500, 15000};
+    std::size_t global_candidates[2] = {0, 0}, global_evaluated[2] = {0, 0};
+    for (int k = 0; k < 2; ++k) {
+        SyntheticRoute route(sizes[k], 400, 17);  // 4 to 40 look-alikes per place
+        auto refs = makeReferences(route, sizes[k], indexed);
+        for (const bool use_index : {false, true}) {
+            if (!use_index && k == 1) continue;  // (the exhaustive one only as the reference)
+            CoarseLocalizer loc(refs, use_index ? indexed : exhaustive);
+            ASSERT_EQ(loc.indexed(), use_index);
+            int correct = 0, full = 0;
+            for (int leg = 0; leg < 2; ++leg) {  // the second leg is a kidnapping
+                const double x0 = leg == 0 ? 0.31 * sizes[k] : 0.77 * sizes[k];
+                for (int t = 0; t < 70; ++t) {
+                    const double x = x0 + t;
+                    const auto r = loc.process(route.image(x, 8.0, 0.7, 25.0), 1000.0 * leg + t);
+                    const bool global = r.status != CoarseStatus::kTracking;
+                    if (use_index && global) {
+                        global_candidates[k] = std::max(global_candidates[k], r.searched_candidates);
+                        global_evaluated[k] = std::max(global_evaluated[k], r.evaluated_references);
+                    }
+                    if (t < 2 * indexed.sequence_length) continue;  // the old place may still win
+                    ++full;
+                    correct += r.usable() &&
+                               std::abs(static_cast<long>(r.reference_index) - std::lround(x)) <= 1;
+                }
+            }
+            EXPECT_GE(correct, 0.95 * full) << sizes[k] << " references, index " << use_index;
+        }
+    }
+    // Windows around the places the index finds: far fewer candidates than references, and
+    // about as many on a 10x longer reference.
+    EXPECT_GT(global_candidates[0], 0u);
+    EXPECT_LT(global_candidates[1], static_cast<std::size_t>(sizes[1] / 5));
+    EXPECT_LT(global_candidates[1], 3 * global_candidates[0]);
+    EXPECT_LT(global_evaluated[1], 2 * global_evaluated[0]) << global_evaluated[0];
+}
+
 TEST(CoarseLocalizer, RecoversFromKidnapping) {
     SyntheticRoute route(400, 3, 3);
     const auto o = testOptions();

@@ -107,12 +107,18 @@ const char* toString(CoarseStatus status) {
 }
 
 /// One query frame of the buffer: its descriptor and the confusion-matrix entries computed so
-/// far against references [lo, lo + raw.size()).
+/// far, in blocks of kBlockRefs references (an indexed global search touches a few places of a
+/// long reference; pages of kPageRefs are allocated as they are touched).
 struct CoarseLocalizer::Column {
+    static constexpr long kBlockRefs = 8;
+    static constexpr long kPageRefs = 256;
     Descriptor descriptor;
     std::optional<double> travelled_m;  ///< odometry since the previous query frame
-    long lo = 0;
-    std::vector<float> raw;
+    std::vector<std::unique_ptr<float[]>> pages;
+    std::vector<bool> computed;  ///< per block
+    std::optional<std::vector<long>> neighbours;  ///< nearest references (DescriptorIndex)
+
+    float raw(long i) const { return pages[i / kPageRefs][i % kPageRefs]; }
 };
 
 struct CoarseLocalizer::Search {
@@ -147,6 +153,9 @@ CoarseLocalizer::CoarseLocalizer(std::shared_ptr<const ReferenceDescriptors> ref
             "CoarseLocalizer: the reference sequence has " + std::to_string(references_->size()) +
             " frames, fewer than coarse.sequence_length = " +
             std::to_string(options_.sequence_length) + ": sequences cannot be matched");
+    }
+    if (references_->size() >= static_cast<std::size_t>(options_.global_index_min_references)) {
+        index_ = std::make_shared<const DescriptorIndex>(*references_);
     }
 }
 
@@ -217,44 +226,115 @@ void CoarseLocalizer::ensureComputed(Column& column, long lo, long hi,
     lo = std::max(lo, 0L);
     hi = std::min(hi, n - 1);
     if (lo > hi) return;
-    auto diff = [&](long i) {
-        ++evaluated;
-        return descriptorDifference(column.descriptor, references_->descriptor(i));
-    };
-    if (column.raw.empty()) {
-        column.lo = lo;
-        column.raw.resize(static_cast<std::size_t>(hi - lo + 1));
-        for (long i = lo; i <= hi; ++i) column.raw[i - lo] = diff(i);
-        return;
+    if (column.computed.empty()) {
+        column.computed.assign(static_cast<std::size_t>((n + Column::kBlockRefs - 1) /
+                                                        Column::kBlockRefs),
+                               false);
+        column.pages.resize(static_cast<std::size_t>((n + Column::kPageRefs - 1) /
+                                                     Column::kPageRefs));
     }
-    const long cached_hi = column.lo + static_cast<long>(column.raw.size()) - 1;
-    if (lo < column.lo) {  // extend to the left (filling any gap, so the cache stays contiguous)
-        std::vector<float> front(static_cast<std::size_t>(column.lo - lo));
-        for (long i = lo; i < column.lo; ++i) front[i - lo] = diff(i);
-        column.raw.insert(column.raw.begin(), front.begin(), front.end());
-        column.lo = lo;
+    for (long b = lo / Column::kBlockRefs; b <= hi / Column::kBlockRefs; ++b) {
+        if (column.computed[b]) continue;
+        column.computed[b] = true;
+        const long first = b * Column::kBlockRefs;
+        const long last = std::min(n, first + Column::kBlockRefs);
+        auto& page = column.pages[first / Column::kPageRefs];
+        if (!page) page.reset(new float[Column::kPageRefs]);
+        for (long i = first; i < last; ++i) {
+            page[i % Column::kPageRefs] =
+                descriptorDifference(column.descriptor, references_->descriptor(i));
+        }
+        evaluated += static_cast<std::size_t>(last - first);
     }
-    for (long i = cached_hi + 1; i <= hi; ++i) column.raw.push_back(diff(i));
 }
 
-CoarseLocalizer::Search CoarseLocalizer::search(long cand_lo, long cand_hi, bool odometry,
-                                                int n_cols, int stride, std::size_t& evaluated,
-                                                long probe_lo, long probe_hi) {
+std::vector<std::pair<long, long>> CoarseLocalizer::globalWindows(bool odometry, int n_cols,
+                                                                  int stride,
+                                                                  std::pair<long, long> extra) {
     const long n_refs = static_cast<long>(references_->size());
-    const long R = options_.contrast_window_refs;
-    const int H = odometry ? options_.odometry_scale_steps : options_.velocity_steps;
+    if (!index_) return {{0, n_refs - 1}};
+    const long w = options_.tracking_half_window_refs;
+    const std::vector<double> back_m = backDistances(n_cols);
+    // Each place the index finds for a buffered frame votes for the span of sequence ends its
+    // paths can reach; where many votes overlap, the frames agree on a place.
+    std::vector<std::pair<long, int>> events;  // (position, +1 at a span's start, -1 past its end)
+    for (int k = 0; k < n_cols; k += stride) {
+        Column& col = *columns_[k];
+        if (!col.neighbours) {
+            col.neighbours = index_->nearest(col.descriptor, options_.global_index_neighbours);
+        }
+        for (long r : *col.neighbours) {
+            long lo, hi;
+            if (odometry) {
+                const double arc = references_->arcLength(r) + back_m[k];
+                const double tol = options_.odometry_scale_tolerance * back_m[k];
+                if (arc - tol > references_->arcLength(n_refs - 1)) continue;  // beyond the end
+                lo = lastAtOrBelow(*references_, arc - tol);
+                hi = std::min(n_refs - 1, lastAtOrBelow(*references_, arc + tol) + 1);
+            } else {
+                lo = r + static_cast<long>(std::floor(options_.velocity_min * k));
+                hi = std::min(n_refs - 1, r + static_cast<long>(std::ceil(options_.velocity_max * k)));
+                if (lo > n_refs - 1) continue;
+            }
+            events.emplace_back(lo, 1);
+            events.emplace_back(hi + 1, -1);
+        }
+    }
+    std::sort(events.begin(), events.end());
+    // Segments of constant vote count, most voted first; each picked segment's centre becomes
+    // a window of +/- w, and segments within a window of a picked centre are passed over.
+    struct Segment {
+        long lo, hi;
+        int votes;
+    };
+    std::vector<Segment> segments;
+    int votes = 0;
+    for (std::size_t e = 0; e < events.size();) {
+        const long at = events[e].first;
+        while (e < events.size() && events[e].first == at) votes += events[e++].second;
+        if (votes > 0 && e < events.size()) segments.push_back({at, events[e].first - 1, votes});
+    }
+    std::stable_sort(segments.begin(), segments.end(),
+                     [](const Segment& x, const Segment& y) { return x.votes > y.votes; });
+    std::vector<long> centres;
+    for (const Segment& g : segments) {
+        if (static_cast<int>(centres.size()) >= options_.global_index_windows) break;
+        const long c = (g.lo + g.hi) / 2;
+        const bool covered = std::any_of(centres.begin(), centres.end(),
+                                         [&](long p) { return std::abs(p - c) <= 2 * w; });
+        if (!covered) centres.push_back(c);
+    }
+    std::vector<std::pair<long, long>> windows;
+    for (long c : centres) windows.emplace_back(c - w, c + w);
+    if (extra.first <= extra.second) windows.emplace_back(extra.first - w, extra.second + w);
+    std::sort(windows.begin(), windows.end());
+    std::vector<std::pair<long, long>> merged;
+    for (auto [lo, hi] : windows) {
+        lo = std::max(0L, lo);
+        hi = std::min(n_refs - 1, hi);
+        if (hi < lo) continue;
+        if (!merged.empty() && lo <= merged.back().second + 1) {
+            merged.back().second = std::max(merged.back().second, hi);
+        } else {
+            merged.emplace_back(lo, hi);
+        }
+    }
+    return merged;
+}
 
-    // Hypotheses: path slopes [refs / query frame], or odometry scale factors.
-    std::vector<double> hyp(H);
-    const double h_lo = odometry ? 1.0 - options_.odometry_scale_tolerance : options_.velocity_min;
-    const double h_hi = odometry ? 1.0 + options_.odometry_scale_tolerance : options_.velocity_max;
-    for (int h = 0; h < H; ++h)
-        hyp[h] = H == 1 ? 0.5 * (h_lo + h_hi) : h_lo + (h_hi - h_lo) * h / (H - 1);
-
-    // Odometry distance from query frame k back to the newest frame [m].
+std::vector<double> CoarseLocalizer::backDistances(int n_cols) const {
     std::vector<double> back_m(n_cols, 0.0);
     for (int k = 1; k < n_cols; ++k)
         back_m[k] = back_m[k - 1] + columns_[k - 1]->travelled_m.value_or(0);
+    return back_m;
+}
+
+void CoarseLocalizer::scoreWindow(long cand_lo, long cand_hi, bool odometry, int n_cols,
+                                  int stride, const std::vector<double>& hyp,
+                                  const std::vector<double>& back_m, std::size_t& evaluated) {
+    const long n_refs = static_cast<long>(references_->size());
+    const long R = options_.contrast_window_refs;
+    const int H = static_cast<int>(hyp.size());
 
     // With odometry, the reference at query frame k on the path ending at j with scale
     // hypothesis h; -1 when the path leaves the reference. (Without odometry the span below is
@@ -290,7 +370,7 @@ CoarseLocalizer::Search CoarseLocalizer::search(long cand_lo, long cand_hi, bool
         s1.assign(whi - wlo + 2, 0.0);
         s2.assign(whi - wlo + 2, 0.0);
         for (long i = wlo; i <= whi; ++i) {
-            const double v = col.raw[i - col.lo];
+            const double v = col.raw(i);
             s1[i - wlo + 1] = s1[i - wlo] + v;
             s2[i - wlo + 1] = s2[i - wlo] + v * v;
         }
@@ -302,16 +382,14 @@ CoarseLocalizer::Search CoarseLocalizer::search(long cand_lo, long cand_hi, bool
             const double mean = (s1[u - wlo + 1] - s1[l - wlo]) / cnt;
             const double var = std::max(0.0, (s2[u - wlo + 1] - s2[l - wlo]) / cnt - mean * mean);
             const double sd = std::max(kMinLocalStd, std::sqrt(var));
-            enhanced[k][i - a] = static_cast<float>((col.raw[i - col.lo] - mean) / sd);
+            enhanced[k][i - a] = static_cast<float>((col.raw(i) - mean) / sd);
         }
     }
 
     // Path scores, one speed hypothesis and one query frame at a time over all candidates:
     // contiguous adds, and path indices by a walk instead of a search per path point. Sums run
     // over k in the same order as a path-by-path loop, so scores are identical to it.
-    Search s;
     const int k_last = (n_cols - 1) / stride * stride;  // oldest frame scored
-    const int used = (n_cols - 1) / stride + 1;         // frames scored
     const std::size_t n_cand = static_cast<std::size_t>(cand_hi - cand_lo + 1);
     auto& score = scratch_.score;
     auto& slope = scratch_.slope;
@@ -341,32 +419,68 @@ CoarseLocalizer::Search CoarseLocalizer::search(long cand_lo, long cand_hi, bool
             }
         }
     }
-    s.candidates = n_cand;
-    for (long j = std::max(cand_lo, probe_lo); j <= std::min(cand_hi, probe_hi); ++j) {
-        s.probe_score = std::min<double>(s.probe_score, score[j - cand_lo] / used);
+}
+
+CoarseLocalizer::Search CoarseLocalizer::search(const std::vector<std::pair<long, long>>& windows,
+                                                bool odometry, int n_cols, int stride,
+                                                std::size_t& evaluated, long probe_lo,
+                                                long probe_hi) {
+    const int H = odometry ? options_.odometry_scale_steps : options_.velocity_steps;
+    // Hypotheses: path slopes [refs / query frame], or odometry scale factors.
+    std::vector<double> hyp(H);
+    const double h_lo = odometry ? 1.0 - options_.odometry_scale_tolerance : options_.velocity_min;
+    const double h_hi = odometry ? 1.0 + options_.odometry_scale_tolerance : options_.velocity_max;
+    for (int h = 0; h < H; ++h)
+        hyp[h] = H == 1 ? 0.5 * (h_lo + h_hi) : h_lo + (h_hi - h_lo) * h / (H - 1);
+    // Odometry distance from query frame k back to the newest frame [m].
+    const std::vector<double> back_m = backDistances(n_cols);
+    const int used = (n_cols - 1) / stride + 1;  // frames scored
+
+    // Scores of every candidate of the (sorted, disjoint) windows, in reference order.
+    auto& all_j = scratch_.all_j;
+    auto& all_score = scratch_.all_score;
+    auto& all_slope = scratch_.all_slope;
+    all_j.clear();
+    all_score.clear();
+    all_slope.clear();
+    for (const auto& [lo, hi] : windows) {
+        if (hi < lo) continue;
+        scoreWindow(lo, hi, odometry, n_cols, stride, hyp, back_m, evaluated);
+        for (long j = lo; j <= hi; ++j) all_j.push_back(j);
+        all_score.insert(all_score.end(), scratch_.score.begin(), scratch_.score.end());
+        all_slope.insert(all_slope.end(), scratch_.slope.begin(), scratch_.slope.end());
+    }
+    const std::size_t n_all = all_j.size();
+
+    Search s;
+    s.candidates = n_all;
+    for (std::size_t c = 0; c < n_all; ++c) {
+        if (all_j[c] >= probe_lo && all_j[c] <= probe_hi) {
+            s.probe_score = std::min<double>(s.probe_score, all_score[c] / used);
+        }
     }
     if (probe_lo <= probe_hi) {
         std::size_t finite = 0, better = 0;
-        for (float v : score) {
+        for (float v : all_score) {
             if (!std::isfinite(v)) continue;
             ++finite;
             better += v / used < s.probe_score;
         }
         s.probe_rank = finite > 0 ? static_cast<double>(better) / finite : 1.0;
     }
-    for (long j = cand_lo; j <= cand_hi; ++j) {
-        if (score[j - cand_lo] < s.best_score) {
-            s.best_score = score[j - cand_lo];
-            s.best = static_cast<std::size_t>(j);
-            s.velocity = slope[j - cand_lo];
+    for (std::size_t c = 0; c < n_all; ++c) {
+        if (all_score[c] < s.best_score) {
+            s.best_score = all_score[c];
+            s.best = static_cast<std::size_t>(all_j[c]);
+            s.velocity = all_slope[c];
             s.valid = true;
         }
     }
     if (!s.valid) return s;
     const long excl = options_.exclusion_half_window_refs;
-    for (long j = cand_lo; j <= cand_hi; ++j) {
-        if (std::abs(j - static_cast<long>(s.best)) > excl) {
-            s.second_score = std::min<double>(s.second_score, score[j - cand_lo]);
+    for (std::size_t c = 0; c < n_all; ++c) {
+        if (std::abs(all_j[c] - static_cast<long>(s.best)) > excl) {
+            s.second_score = std::min<double>(s.second_score, all_score[c]);
         }
     }
     s.best_score /= used;
@@ -426,7 +540,7 @@ bool CoarseLocalizer::confirmGlobal(std::size_t best, std::size_t query_index, s
     return false;
 }
 
-void CoarseLocalizer::auditTrack(CoarseResult& r, long n_refs) {
+void CoarseLocalizer::auditTrack(CoarseResult& r) {
     const double tolerance = odometryTolerance(coasted_m_);
     const long probe_lo = lastAtOrBelow(*references_, track_arc_m_ - tolerance);
     const long probe_hi = lastAtOrBelow(*references_, track_arc_m_ + tolerance) + 1;
@@ -447,8 +561,9 @@ void CoarseLocalizer::auditTrack(CoarseResult& r, long n_refs) {
         // The short span only once the window has been unconfident for a whole sequence: a
         // few unconfident frames are the aliased stretch the track is held through.
         if (i == 1 && static_cast<int>(coast_frames_) < options_.sequence_length) continue;
-        const Search g = search(0, n_refs - 1, true, cols, strideFor(cols), r.evaluated_references,
-                                probe_lo, probe_hi);
+        const int stride = strideFor(cols);
+        const Search g = search(globalWindows(true, cols, stride, {probe_lo, probe_hi}), true, cols,
+                                stride, r.evaluated_references, probe_lo, probe_hi);
         r.searched_candidates += g.candidates;
         // The best of thousands of places beats the track's own path now and then even when
         // the track is right (on the full presets every right track ranked in the best 4 %):
@@ -546,7 +661,7 @@ CoarseResult CoarseLocalizer::processDescriptor(const Descriptor& descriptor, do
         long lo = predicted - w, hi = predicted + w;
         if (lo < 0) hi = std::min(n_refs - 1, hi - lo), lo = 0;
         if (hi > n_refs - 1) lo = std::max(0L, lo - (hi - (n_refs - 1))), hi = n_refs - 1;
-        s = search(lo, hi, odometry, track_cols, 1, r.evaluated_references);
+        s = search({{lo, hi}}, odometry, track_cols, 1, r.evaluated_references);
         r.searched_candidates += s.candidates;
         bool confident = s.valid && s.second_score - s.best_score >= options_.min_confidence;
         const double off_m =
@@ -580,7 +695,7 @@ CoarseResult CoarseLocalizer::processDescriptor(const Descriptor& descriptor, do
             ++coast_frames_;
             if (++frames_since_audit_ >= kAuditEveryFrames && audit) {
                 frames_since_audit_ = 0;
-                auditTrack(r, n_refs);
+                auditTrack(r);
             }
             return r;
         }
@@ -593,8 +708,13 @@ CoarseResult CoarseLocalizer::processDescriptor(const Descriptor& descriptor, do
             std::max(track_cols, std::min(odometry_cols, options_.odometry_sequence_length));
     }
     if (global) {
-        s = search(0, n_refs - 1, odometry, global_cols, strideFor(global_cols),
-                   r.evaluated_references);
+        // After a track, its place is searched too (the index may miss it in a uniform stretch).
+        const long last = static_cast<long>(last_match_);
+        const std::pair<long, long> previous =
+            queries_ > 1 && last < n_refs ? std::make_pair(last, last) : std::make_pair(0L, -1L);
+        const int stride = strideFor(global_cols);
+        s = search(globalWindows(odometry, global_cols, stride, previous), odometry, global_cols,
+                   stride, r.evaluated_references);
         r.searched_candidates += s.candidates;
     }
     r.search_ms = msSince(t0);
@@ -645,7 +765,7 @@ CoarseResult CoarseLocalizer::processDescriptor(const Descriptor& descriptor, do
             frames_since_audit_ = 0;
         } else if (odometry && ++frames_since_audit_ >= kAuditEveryFrames && audit) {
             frames_since_audit_ = 0;
-            auditTrack(r, n_refs);
+            auditTrack(r);
         }
     }
     return r;

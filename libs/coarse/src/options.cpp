@@ -29,6 +29,9 @@ void CoarseOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& sour
                          "exclusion_half_window_refs",
                          "tracking_half_window_refs",
                          "min_confidence",
+                         "global_index_min_references",
+                         "global_index_neighbours",
+                         "global_index_windows",
                          "use_odometry",
                          "odometry_scale_tolerance",
                          "odometry_scale_steps",
@@ -49,6 +52,10 @@ void CoarseOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& sour
     exclusion_half_window_refs = s.getInt("exclusion_half_window_refs", exclusion_half_window_refs);
     tracking_half_window_refs = s.getInt("tracking_half_window_refs", tracking_half_window_refs);
     min_confidence = s.getDouble("min_confidence", min_confidence);
+    global_index_min_references =
+        s.getInt("global_index_min_references", global_index_min_references);
+    global_index_neighbours = s.getInt("global_index_neighbours", global_index_neighbours);
+    global_index_windows = s.getInt("global_index_windows", global_index_windows);
     use_odometry = s.getBool("use_odometry", use_odometry);
     odometry_scale_tolerance = s.getDouble("odometry_scale_tolerance", odometry_scale_tolerance);
     odometry_scale_steps = s.getInt("odometry_scale_steps", odometry_scale_steps);
@@ -78,6 +85,9 @@ void CoarseOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
     c.write(section, "exclusion_half_window_refs", exclusion_half_window_refs);
     c.write(section, "tracking_half_window_refs", tracking_half_window_refs);
     c.write(section, "min_confidence", min_confidence);
+    c.write(section, "global_index_min_references", global_index_min_references);
+    c.write(section, "global_index_neighbours", global_index_neighbours);
+    c.write(section, "global_index_windows", global_index_windows);
     c.write(section, "use_odometry", use_odometry ? "true" : "false");
     c.write(section, "odometry_scale_tolerance", odometry_scale_tolerance);
     c.write(section, "odometry_scale_steps", odometry_scale_steps);
@@ -107,6 +117,9 @@ void CoarseOptions::check() const {
     c.require(tracking_half_window_refs > exclusion_half_window_refs, "tracking_half_window_refs",
               "> exclusion_half_window_refs");
     c.require(min_confidence >= 0, "min_confidence", ">= 0");
+    c.require(global_index_min_references >= 0, "global_index_min_references", ">= 0");
+    c.require(global_index_neighbours >= 1, "global_index_neighbours", ">= 1");
+    c.require(global_index_windows >= 1, "global_index_windows", ">= 1");
     c.require(odometry_scale_tolerance >= 0 && odometry_scale_tolerance < 1,
               "odometry_scale_tolerance", "in [0, 1)");
     c.require(odometry_scale_steps >= 1, "odometry_scale_steps", ">= 1");

@@ -24,6 +24,7 @@
 #include <memory>
 
 #include "lookup/coarse/coarse_source.h"
+#include "lookup/coarse/descriptor_index.h"
 
 namespace lookup::coarse {
 
@@ -58,16 +59,30 @@ class CoarseLocalizer : public CoarseSource {
 
     const CoarseOptions& options() const { return options_; }
     const ReferenceDescriptors& references() const { return *references_; }
+    /// True when global searches go through a DescriptorIndex (global_index_min_references).
+    bool indexed() const { return index_ != nullptr; }
 
   private:
     struct Column;
     struct Search;
     void ensureComputed(Column& column, long lo, long hi, std::size_t& evaluated) const;
     /// Scores paths through the newest `n_cols` buffered frames (every `stride`-th of them)
-    /// ending at the candidates.
+    /// ending at the candidates: every reference of the sorted, disjoint `windows`.
     /// Search::probe_score: the best path score ending in [probe_lo, probe_hi].
-    Search search(long candidate_lo, long candidate_hi, bool odometry, int n_cols, int stride,
-                  std::size_t& evaluated, long probe_lo = -1, long probe_hi = -2);
+    Search search(const std::vector<std::pair<long, long>>& windows, bool odometry, int n_cols,
+                  int stride, std::size_t& evaluated, long probe_lo = -1, long probe_hi = -2);
+    /// Path scores of the candidates lo..hi into scratch_.score / scratch_.slope.
+    void scoreWindow(long lo, long hi, bool odometry, int n_cols, int stride,
+                     const std::vector<double>& hypotheses, const std::vector<double>& back_m,
+                     std::size_t& evaluated);
+    /// Candidate windows of a global search: the whole reference, or with an index, the
+    /// windows around the places it finds for the scored frames (the most voted
+    /// global_index_windows), plus `extra` (a place that must be scored; empty when
+    /// first > second), widened by tracking_half_window_refs.
+    std::vector<std::pair<long, long>> globalWindows(bool odometry, int n_cols, int stride,
+                                                     std::pair<long, long> extra);
+    /// Odometry distance from buffered frame k back to the newest frame [m], k < n_cols.
+    std::vector<double> backDistances(int n_cols) const;
     int strideFor(int frames) const;   ///< stride for a global search over `frames` frames
     std::size_t bufferLength() const;  ///< frames kept: the longest sequence searched
     /// How far a match may lie from where odometry puts it after `travelled_m` [m].
@@ -82,7 +97,7 @@ class CoarseLocalizer : public CoarseSource {
     bool confirmGlobal(std::size_t best, std::size_t query_index, std::string& why);
     /// Global searches with odometry against the track: when many places beat the track's own
     /// path, the track is dropped (`r` becomes lost) and a global search follows.
-    void auditTrack(CoarseResult& r, long n_refs);
+    void auditTrack(CoarseResult& r);
 
     /// Buffers of search(), kept between frames: a global search over a long reference needs
     /// megabytes, and fresh allocations each frame cost page faults.
@@ -91,11 +106,15 @@ class CoarseLocalizer : public CoarseSource {
         std::vector<double> s1, s2;
         std::vector<float> score, slope, sum;
         std::vector<long> index;
+        std::vector<long> all_j;
+        std::vector<float> all_score, all_slope;
     };
     Scratch scratch_;
 
     std::shared_ptr<const ReferenceDescriptors> references_;
     CoarseOptions options_;
+    /// Null for references shorter than global_index_min_references (searched whole).
+    std::shared_ptr<const DescriptorIndex> index_;
     std::deque<std::shared_ptr<Column>> columns_;  ///< newest first, at most d_s
     std::size_t queries_ = 0;
     bool tracking_ = false;

@@ -24,6 +24,13 @@ struct CoarseRunSummary {
     double median_frame_ms = 0;
     double mean_search_ms = 0;  ///< sequence search only [ms]
     double median_search_ms = 0;
+    /// Search time split by what the frame needed [ms]: a window around the track (tracking,
+    /// odometry; includes their periodic audits) or a search over the whole reference (every
+    /// other searched frame: start-up, lost, unconfirmed).
+    std::size_t tracking_frames = 0, global_frames = 0;
+    double mean_tracking_search_ms = 0, mean_global_search_ms = 0;
+    bool indexed = false;    ///< global searches went through a DescriptorIndex
+    double setup_ms = 0;     ///< building the localiser (and its index) [ms]
     /// With --ref-poses and --query-poses: planar distance between the matched reference
     /// pose and the query's true pose, over every frame with a match [m].
     std::size_t evaluated = 0;

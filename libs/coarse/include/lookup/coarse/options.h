@@ -38,6 +38,16 @@ struct CoarseOptions : public mrpt::config::CLoadableOptions {
     double min_confidence = 0.2;         ///< below this margin (see CoarseResult::confidence) the
                                          ///< match is not trusted: a global search follows
 
+    // --- Global search over a long reference (DescriptorIndex) -------------------------------
+    /// References of at least this many frames are searched through an approximate
+    /// nearest-neighbour index of their descriptors: only windows of
+    /// +/- tracking_half_window_refs around the places the index finds for the buffered query
+    /// frames are scored, so a global search costs about the same on any reference length.
+    /// Shorter references are searched whole (exact, and no dearer than the windows).
+    int global_index_min_references = 500;
+    int global_index_neighbours = 8;  ///< places the index returns per buffered query frame
+    int global_index_windows = 16;    ///< most windows one indexed search scores (the most voted)
+
     // --- Odometry (optional) -------------------------------------------------------------------
     bool use_odometry = true;  ///< use travelled distance when the caller gives it and the
                                ///< references carry positions (replaces the speed range)
