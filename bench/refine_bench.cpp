@@ -378,4 +378,43 @@ BENCHMARK(refinerBench)
     ->Arg(5)
     ->Unit(benchmark::kMillisecond);
 
+// ---------------------------------------------------------------- heat-map point selection
+/// 12 points from a 640x480 heat map (a reference of a heat-map run; every newly loaded
+/// reference pays it): the greedy search with per-tile maxima (heatMapPoints) against the
+/// same greedy search by cv::minMaxLoc over the whole map per point, as it was first written.
+void heatMapSelection(benchmark::State& state, bool whole_map) {
+    cv::Mat small(120, 160, CV_32F), heat;
+    cv::RNG(3).fill(small, cv::RNG::UNIFORM, 0.0, 1.0);
+    cv::GaussianBlur(small, small, cv::Size(0, 0), 2.0);
+    cv::resize(small, heat, cv::Size(640, 480), 0, 0,
+               cv::INTER_LINEAR);  // as the localiser loads it
+    const int count = 12, side = 60, margin = 30;
+    const double ratio = 0.5;
+    std::size_t chosen = 0;
+    for (auto _ : state) {
+        if (!whole_map) {
+            chosen = heatMapPoints(heat, count, ratio, side, margin).size();
+            continue;
+        }
+        if (!cv::checkRange(heat)) continue;
+        cv::Mat map = heat(cv::Rect(margin, margin, 640 - 2 * margin, 480 - 2 * margin)).clone();
+        std::vector<cv::Point> points;
+        for (int i = 0; i < count; ++i) {
+            cv::Point best;
+            double value = 0.0;
+            cv::minMaxLoc(map, nullptr, &value, nullptr, &best);
+            points.push_back(best);
+            map(cv::Rect(best.x - side / 2, best.y - side / 2, side, side) &
+                cv::Rect(0, 0, map.cols, map.rows)) *= ratio;
+            map.at<float>(best) = -1.0f;
+        }
+        chosen = points.size();
+    }
+    state.counters["points"] = double(chosen);
+}
+BENCHMARK_CAPTURE(heatMapSelection, HeatMapPoints_640x480_12pts, false)
+    ->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(heatMapSelection, HeatMapPoints_640x480_12pts_wholeMapSearch, true)
+    ->Unit(benchmark::kMicrosecond);
+
 }  // namespace

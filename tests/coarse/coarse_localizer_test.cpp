@@ -149,7 +149,8 @@ TEST(CoarseLocalizer, IndexedGlobalSearchFindsThePlaceAtACostThatDoesNotGrowWith
                     const auto r = loc.process(route.image(x, 8.0, 0.7, 25.0), 1000.0 * leg + t);
                     const bool global = r.status != CoarseStatus::kTracking;
                     if (use_index && global) {
-                        global_candidates[k] = std::max(global_candidates[k], r.searched_candidates);
+                        global_candidates[k] =
+                            std::max(global_candidates[k], r.searched_candidates);
                         global_evaluated[k] = std::max(global_evaluated[k], r.evaluated_references);
                     }
                     if (t < 2 * indexed.sequence_length) continue;  // the old place may still win

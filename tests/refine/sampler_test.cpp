@@ -1,5 +1,10 @@
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <set>
+#include <tuple>
+#include <vector>
+
 #include "lookup/refine/sampler.h"
 
 using namespace lookup::refine;
@@ -33,6 +38,54 @@ TEST(Sampler, HeatMapPicksPeaksThenDampsNeighbourhood) {
     EXPECT_EQ(pts[2], cv::Point2f(52, 52));
     // Deterministic.
     EXPECT_EQ(heatMapPoints(heat, 3, 0.5, 10, 10), pts);
+}
+
+namespace {
+/// The selection as first written: cv::minMaxLoc over the whole map for every point.
+std::vector<cv::Point2f> wholeMapSelection(const cv::Mat& heat, int count, double ratio, int side,
+                                           int margin) {
+    std::vector<cv::Point2f> points;
+    cv::Mat map =
+        heat(cv::Rect(margin, margin, heat.cols - 2 * margin, heat.rows - 2 * margin)).clone();
+    double lo = 0.0;
+    cv::minMaxLoc(map, &lo);
+    if (lo < 0.0) map -= lo;
+    for (int i = 0; i < count; ++i) {
+        cv::Point best;
+        double value = 0.0;
+        cv::minMaxLoc(map, nullptr, &value, nullptr, &best);
+        if (value < 0.0) break;
+        points.emplace_back(float(best.x + margin), float(best.y + margin));
+        map(cv::Rect(best.x - side / 2, best.y - side / 2, side, side) &
+            cv::Rect(0, 0, map.cols, map.rows)) *= ratio;
+        map.at<float>(best) = -1.0f;
+    }
+    return points;
+}
+}  // namespace
+
+TEST(Sampler, HeatMapSelectionEqualsAWholeMapSearchPerPoint) {
+    // Tiles of maxima must pick exactly what a search of the whole map picks, ties included
+    // (values quantised to 8 levels: many equal maxima), on sizes that are not whole tiles,
+    // with negative values, and when more points are asked than pixels exist.
+    cv::RNG rng(5);
+    for (const auto& [size, count, ratio, side, margin] :
+         std::vector<std::tuple<cv::Size, int, double, int, int>>{{{640, 480}, 12, 0.5, 40, 20},
+                                                                  {{203, 151}, 30, 0.8, 25, 7},
+                                                                  {{37, 29}, 20, 0.3, 9, 3},
+                                                                  {{20, 18}, 500, 0.9, 5, 2}}) {
+        cv::Mat heat(size, CV_32F);
+        rng.fill(heat, cv::RNG::UNIFORM, -0.2, 1.0);
+        cv::Mat coarse = heat * 8;
+        for (int y = 0; y < heat.rows; ++y)
+            for (int x = 0; x < heat.cols; ++x)
+                heat.at<float>(y, x) = std::floor(coarse.at<float>(y, x)) / 8.0f;
+        const auto expected = wholeMapSelection(heat, count, ratio, side, margin);
+        EXPECT_EQ(heatMapPoints(heat, count, ratio, side, margin), expected)
+            << size << " " << count << " points";
+        EXPECT_EQ(expected.size(), std::min<std::size_t>(count, (size.width - 2 * margin) *
+                                                                    (size.height - 2 * margin)));
+    }
 }
 
 TEST(Sampler, HeatMapRespectsMarginAndRefusesNaN) {

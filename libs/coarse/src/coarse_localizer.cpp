@@ -115,7 +115,7 @@ struct CoarseLocalizer::Column {
     Descriptor descriptor;
     std::optional<double> travelled_m;  ///< odometry since the previous query frame
     std::vector<std::unique_ptr<float[]>> pages;
-    std::vector<bool> computed;  ///< per block
+    std::vector<bool> computed;                   ///< per block
     std::optional<std::vector<long>> neighbours;  ///< nearest references (DescriptorIndex)
 
     float raw(long i) const { return pages[i / kPageRefs][i % kPageRefs]; }
@@ -227,11 +227,10 @@ void CoarseLocalizer::ensureComputed(Column& column, long lo, long hi,
     hi = std::min(hi, n - 1);
     if (lo > hi) return;
     if (column.computed.empty()) {
-        column.computed.assign(static_cast<std::size_t>((n + Column::kBlockRefs - 1) /
-                                                        Column::kBlockRefs),
-                               false);
-        column.pages.resize(static_cast<std::size_t>((n + Column::kPageRefs - 1) /
-                                                     Column::kPageRefs));
+        column.computed.assign(
+            static_cast<std::size_t>((n + Column::kBlockRefs - 1) / Column::kBlockRefs), false);
+        column.pages.resize(
+            static_cast<std::size_t>((n + Column::kPageRefs - 1) / Column::kPageRefs));
     }
     for (long b = lo / Column::kBlockRefs; b <= hi / Column::kBlockRefs; ++b) {
         if (column.computed[b]) continue;
@@ -273,7 +272,8 @@ std::vector<std::pair<long, long>> CoarseLocalizer::globalWindows(bool odometry,
                 hi = std::min(n_refs - 1, lastAtOrBelow(*references_, arc + tol) + 1);
             } else {
                 lo = r + static_cast<long>(std::floor(options_.velocity_min * k));
-                hi = std::min(n_refs - 1, r + static_cast<long>(std::ceil(options_.velocity_max * k)));
+                hi = std::min(n_refs - 1,
+                              r + static_cast<long>(std::ceil(options_.velocity_max * k)));
                 if (lo > n_refs - 1) continue;
             }
             events.emplace_back(lo, 1);
@@ -329,9 +329,9 @@ std::vector<double> CoarseLocalizer::backDistances(int n_cols) const {
     return back_m;
 }
 
-void CoarseLocalizer::scoreWindow(long cand_lo, long cand_hi, bool odometry, int n_cols,
-                                  int stride, const std::vector<double>& hyp,
-                                  const std::vector<double>& back_m, std::size_t& evaluated) {
+void CoarseLocalizer::scoreWindow(long cand_lo, long cand_hi, bool odometry, int n_cols, int stride,
+                                  const std::vector<double>& hyp, const std::vector<double>& back_m,
+                                  std::size_t& evaluated) {
     const long n_refs = static_cast<long>(references_->size());
     const long R = options_.contrast_window_refs;
     const int H = static_cast<int>(hyp.size());

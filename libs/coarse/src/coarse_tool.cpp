@@ -191,9 +191,9 @@ int CoarseTool::runOrThrow(std::ostream& out, std::ostream& err) {
 
     const auto setup_start = std::chrono::steady_clock::now();
     CoarseLocalizer localizer(refs, options);
-    summary_.setup_ms = std::chrono::duration<double, std::milli>(
-                            std::chrono::steady_clock::now() - setup_start)
-                            .count();
+    summary_.setup_ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - setup_start)
+            .count();
     summary_.indexed = localizer.indexed();
 
     std::optional<mrpt::poses::CPose3DInterpolator> query_truth;
@@ -334,9 +334,9 @@ int CoarseTool::runOrThrow(std::ostream& out, std::ostream& err) {
         << "\ntime per frame [ms]: mean " << summary_.mean_frame_ms << ", median "
         << summary_.median_frame_ms << " (search only: mean " << summary_.mean_search_ms
         << ", median " << summary_.median_search_ms << ")"
-        << "\nsearch time by frame [ms]: tracking mean " << summary_.mean_tracking_search_ms
-        << " (" << summary_.tracking_frames << " frames), global mean "
-        << summary_.mean_global_search_ms << " (" << summary_.global_frames << " frames)\n";
+        << "\nsearch time by frame [ms]: tracking mean " << summary_.mean_tracking_search_ms << " ("
+        << summary_.tracking_frames << " frames), global mean " << summary_.mean_global_search_ms
+        << " (" << summary_.global_frames << " frames)\n";
     if (summary_.evaluated > 0) {
         out << "coarse error [m] over " << summary_.evaluated << " frames: mean "
             << summary_.mean_error_m << ", median " << summary_.median_error_m << ", > 10 m "

@@ -29,8 +29,8 @@ struct CoarseRunSummary {
     /// other searched frame: start-up, lost, unconfirmed).
     std::size_t tracking_frames = 0, global_frames = 0;
     double mean_tracking_search_ms = 0, mean_global_search_ms = 0;
-    bool indexed = false;    ///< global searches went through a DescriptorIndex
-    double setup_ms = 0;     ///< building the localiser (and its index) [ms]
+    bool indexed = false;  ///< global searches went through a DescriptorIndex
+    double setup_ms = 0;   ///< building the localiser (and its index) [ms]
     /// With --ref-poses and --query-poses: planar distance between the matched reference
     /// pose and the query's true pose, over every frame with a match [m].
     std::size_t evaluated = 0;

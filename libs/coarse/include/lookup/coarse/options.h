@@ -44,7 +44,7 @@ struct CoarseOptions : public mrpt::config::CLoadableOptions {
     /// +/- tracking_half_window_refs around the places the index finds for the buffered query
     /// frames are scored, so a global search costs about the same on any reference length.
     /// Shorter references are searched whole (exact, and no dearer than the windows).
-    int global_index_min_references = 500;
+    int global_index_min_references = 1000;
     int global_index_neighbours = 8;  ///< places the index returns per buffered query frame
     int global_index_windows = 16;    ///< most windows one indexed search scores (the most voted)
 
