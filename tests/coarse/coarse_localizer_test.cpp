@@ -170,6 +170,41 @@ TEST(CoarseLocalizer, IndexedGlobalSearchFindsThePlaceAtACostThatDoesNotGrowWith
     EXPECT_LT(global_evaluated[1], 2 * global_evaluated[0]) << global_evaluated[0];
 }
 
+TEST(CoarseLocalizer, UnconfidentIndexedSearchesFallBackToTheWholeReference) {
+    // 3 textures: any single thumbnail matches a third of the places, so the index proposes
+    // look-alikes; every global_index_full_search_every unconfident frames one search scores
+    // the whole reference, which finds the place.
+    SyntheticRoute route(10000, 3, 9);  // without the safety net: right only at frame 93
+    CoarseOptions o = testOptions();
+    o.global_index_min_references = 0;
+    o.global_index_full_search_every = 40;
+    CoarseLocalizer loc(makeReferences(route, 10000, o), o);
+    int whole = 0, since_whole = 0, first_right = -1;
+    for (int t = 0; t < 150; ++t) {
+        const double x = 1234.4 + t;
+        const auto r = loc.process(route.image(x, 8.0, 0.7, 25.0), t);
+        const bool right =
+            r.usable() && std::abs(static_cast<long>(r.reference_index) - std::lround(x)) <= 1;
+        if (right && first_right < 0) first_right = t;
+        if (r.searched_candidates >= 10000) {
+            ++whole;
+            EXPECT_GE(since_whole, o.global_index_full_search_every) << "frame " << t;
+            since_whole = 0;
+        } else {
+            ++since_whole;
+            if (r.status != CoarseStatus::kTracking) {
+                EXPECT_LT(r.searched_candidates, 1500u) << "frame " << t;
+            }
+        }
+        if (r.usable() && t > first_right + 2 && first_right >= 0) {
+            EXPECT_TRUE(right) << "frame " << t;
+        }
+    }
+    EXPECT_GE(whole, 1);
+    ASSERT_GE(first_right, 0);
+    EXPECT_LE(first_right, o.sequence_length + o.global_index_full_search_every + 5);
+}
+
 TEST(CoarseLocalizer, RecoversFromKidnapping) {
     SyntheticRoute route(400, 3, 3);
     const auto o = testOptions();

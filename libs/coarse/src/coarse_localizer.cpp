@@ -161,6 +161,7 @@ CoarseLocalizer::CoarseLocalizer(std::shared_ptr<const ReferenceDescriptors> ref
 
 void CoarseLocalizer::reset() {
     columns_.clear();
+    unconfident_searches_ = 0;
     tracking_ = false;
     coasted_m_ = 0;
     coast_frames_ = 0;
@@ -713,8 +714,12 @@ CoarseResult CoarseLocalizer::processDescriptor(const Descriptor& descriptor, do
         const std::pair<long, long> previous =
             queries_ > 1 && last < n_refs ? std::make_pair(last, last) : std::make_pair(0L, -1L);
         const int stride = strideFor(global_cols);
-        s = search(globalWindows(odometry, global_cols, stride, previous), odometry, global_cols,
-                   stride, r.evaluated_references);
+        const int every = options_.global_index_full_search_every;
+        const bool whole = index_ && every > 0 && unconfident_searches_ >= every;
+        if (whole) unconfident_searches_ = 0;
+        s = search(whole ? std::vector<std::pair<long, long>>{{0, n_refs - 1}}
+                         : globalWindows(odometry, global_cols, stride, previous),
+                   odometry, global_cols, stride, r.evaluated_references);
         r.searched_candidates += s.candidates;
     }
     r.search_ms = msSince(t0);
@@ -733,6 +738,7 @@ CoarseResult CoarseLocalizer::processDescriptor(const Descriptor& descriptor, do
     last_match_ = s.best;
     last_velocity_ = s.velocity;
 
+    if (global && full) ++unconfident_searches_;  // (reset below when it is trusted)
     if (!full) {
         r.status = CoarseStatus::kNotEnoughFrames;
         r.reason = "only " + std::to_string(n_cols) +
@@ -757,6 +763,7 @@ CoarseResult CoarseLocalizer::processDescriptor(const Descriptor& descriptor, do
     } else {
         r.status = global ? CoarseStatus::kGlobal : CoarseStatus::kTracking;
         tracking_ = true;
+        unconfident_searches_ = 0;
         coasted_m_ = 0;
         coast_frames_ = 0;
         if (references_->hasPoses()) track_arc_m_ = references_->arcLength(s.best);

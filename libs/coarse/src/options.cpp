@@ -32,6 +32,7 @@ void CoarseOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& sour
                          "global_index_min_references",
                          "global_index_neighbours",
                          "global_index_windows",
+                         "global_index_full_search_every",
                          "use_odometry",
                          "odometry_scale_tolerance",
                          "odometry_scale_steps",
@@ -56,6 +57,8 @@ void CoarseOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& sour
         s.getInt("global_index_min_references", global_index_min_references);
     global_index_neighbours = s.getInt("global_index_neighbours", global_index_neighbours);
     global_index_windows = s.getInt("global_index_windows", global_index_windows);
+    global_index_full_search_every =
+        s.getInt("global_index_full_search_every", global_index_full_search_every);
     use_odometry = s.getBool("use_odometry", use_odometry);
     odometry_scale_tolerance = s.getDouble("odometry_scale_tolerance", odometry_scale_tolerance);
     odometry_scale_steps = s.getInt("odometry_scale_steps", odometry_scale_steps);
@@ -88,6 +91,7 @@ void CoarseOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
     c.write(section, "global_index_min_references", global_index_min_references);
     c.write(section, "global_index_neighbours", global_index_neighbours);
     c.write(section, "global_index_windows", global_index_windows);
+    c.write(section, "global_index_full_search_every", global_index_full_search_every);
     c.write(section, "use_odometry", use_odometry ? "true" : "false");
     c.write(section, "odometry_scale_tolerance", odometry_scale_tolerance);
     c.write(section, "odometry_scale_steps", odometry_scale_steps);
@@ -120,6 +124,7 @@ void CoarseOptions::check() const {
     c.require(global_index_min_references >= 0, "global_index_min_references", ">= 0");
     c.require(global_index_neighbours >= 1, "global_index_neighbours", ">= 1");
     c.require(global_index_windows >= 1, "global_index_windows", ">= 1");
+    c.require(global_index_full_search_every >= 0, "global_index_full_search_every", ">= 0");
     c.require(odometry_scale_tolerance >= 0 && odometry_scale_tolerance < 1,
               "odometry_scale_tolerance", "in [0, 1)");
     c.require(odometry_scale_steps >= 1, "odometry_scale_steps", ">= 1");

@@ -124,6 +124,7 @@ class CoarseLocalizer : public CoarseSource {
     double track_arc_m_ = 0;        ///< arc length of the tracked place (odometry) [m]
     std::size_t coast_frames_ = 0;  ///< frames held by odometry since the last confident match
     int frames_since_audit_ = 0;    ///< tracking frames since auditTrack() last ran
+    int unconfident_searches_ = 0;  ///< global searches since one was trusted (or scored whole)
 
     /// A confident global match waiting for its confirmation (CoarseOptions::confirm_global).
     struct PendingMatch {

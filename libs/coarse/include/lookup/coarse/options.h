@@ -47,6 +47,10 @@ struct CoarseOptions : public mrpt::config::CLoadableOptions {
     int global_index_min_references = 1000;
     int global_index_neighbours = 8;  ///< places the index returns per buffered query frame
     int global_index_windows = 16;    ///< most windows one indexed search scores (the most voted)
+    /// While indexed global searches stay unconfident, every this many frames one scores the
+    /// whole reference instead (0: never): a safety net where single thumbnails say little
+    /// about the place, at 1/this of a whole-reference search per lost frame.
+    int global_index_full_search_every = 150;
 
     // --- Odometry (optional) -------------------------------------------------------------------
     bool use_odometry = true;  ///< use travelled distance when the caller gives it and the
