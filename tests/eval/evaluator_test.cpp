@@ -98,8 +98,12 @@ TEST(RunIo, RoundTripAndMalformedRowNamesFileAndLine) {
     run.frames[1].reason = "inliers 40%, below N_th";
     writeFramesCsv((dir / "frames.csv").string(), run.frames);
     std::ofstream(dir / "run.ini") << "[run]\nmethod = lookup-fcn12\n";
+    std::ofstream(dir / "timing.json")
+        << R"({"frames_per_s": 120.5, "refine_ms_per_frame": {"match": 1.25, "select": 0.5}})";
     const auto back = loadRun(dir.string());
     EXPECT_EQ(back.method, "lookup-fcn12");
+    EXPECT_DOUBLE_EQ(back.frames_per_s, 120.5);
+    EXPECT_DOUBLE_EQ(back.match_ms_per_frame, 1.25);
     ASSERT_EQ(back.frames.size(), 2u);
     EXPECT_NEAR(back.frames[1].x, run.frames[1].x, 1e-5);
     EXPECT_EQ(back.frames[1].reason, "inliers 40%; below N_th");
@@ -116,12 +120,17 @@ TEST(RunIo, RoundTripAndMalformedRowNamesFileAndLine) {
 TEST(Report, WritesMarkdownJsonAndChart) {
     const auto dir = fs::temp_directory_path() / "lookup_eval_report";
     fs::remove_all(dir);
-    writeReport(evaluate({straightTruth()}, {runWithOffsets({0.1, 0.2}, 1.0)}, {}), dir.string());
+    auto run = runWithOffsets({0.1, 0.2}, 1.0);
+    run.frames_per_s = 99.5;
+    run.match_ms_per_frame = 2.125;  // the matcher's time per frame, a column of its own
+    writeReport(evaluate({straightTruth()}, {run}, {}), dir.string());
     EXPECT_TRUE(fs::exists(dir / "report.md"));
     EXPECT_TRUE(fs::exists(dir / "report.json"));
     std::ifstream md(dir / "report.md");
     std::string text((std::istreambuf_iterator<char>(md)), {});
     EXPECT_NE(text.find("| zigzag | lookup-grid24 | 2 |"), std::string::npos) << text;
+    EXPECT_NE(text.find("| 99.5 | 2.12 |"), std::string::npos) << text;
+    EXPECT_NE(text.find("| frames/s | match ms/frame |"), std::string::npos) << text;
     if (std::system("command -v gnuplot >/dev/null 2>&1") == 0) {
         EXPECT_GT(fs::file_size(dir / "errors.png"), 1000u);
     }

@@ -28,8 +28,8 @@ void writeMarkdown(const Report& r, const std::string& path) {
         << "exceeds " << r.options.coarse_exclusion_m
         << " m are excluded (the paper's rule); `excluded` counts them.\n\n"
         << "| traverse | method | frames | excluded | no pose | mean (m) | median (m) | p95 (m) "
-           "| max (m) | yaw (deg) | accepted | in 95% ellipse | frames/s |\n"
-        << "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
+           "| max (m) | yaw (deg) | accepted | in 95% ellipse | frames/s | match ms/frame |\n"
+        << "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
     for (const auto& m : r.rows) {
         const bool coarse = m.method == "coarse";
         out << "| " << m.traverse << " | " << m.method << " | " << m.frames << " | " << m.excluded
@@ -39,7 +39,9 @@ void writeMarkdown(const Report& r, const std::string& path) {
             << (coarse ? "" : fmt("%.2f", m.yaw_error_mean_deg)) << " | "
             << (coarse ? "" : fmt("%.1f %%", 100 * m.acceptance_share)) << " | "
             << (coarse ? "" : fmt("%.1f %%", 100 * m.inside_95_share)) << " | "
-            << (coarse || m.frames_per_s <= 0 ? "" : fmt("%.1f", m.frames_per_s)) << " |\n";
+            << (coarse || m.frames_per_s <= 0 ? "" : fmt("%.1f", m.frames_per_s)) << " | "
+            << (coarse || m.match_ms_per_frame <= 0 ? "" : fmt("%.2f", m.match_ms_per_frame))
+            << " |\n";
     }
     for (const auto& w : r.warnings) out << "\nWarning: " << w << "\n";
 }
@@ -64,6 +66,7 @@ void writeJson(const Report& r, const std::string& path) {
                              {"acceptance_share", m.acceptance_share},
                              {"inside_95_ellipse_share", m.inside_95_share},
                              {"frames_per_s", m.frames_per_s},
+                             {"match_ms_per_frame", m.match_ms_per_frame},
                              {"frames_dropped", m.frames_dropped}});
     }
     std::ofstream(path) << j.dump(2) << "\n";

@@ -57,6 +57,9 @@ Run loadRun(const std::string& directory) {
         try {
             const auto j = nlohmann::json::parse(in);
             run.frames_per_s = j.value("frames_per_s", 0.0);
+            if (j.contains("refine_ms_per_frame") && j["refine_ms_per_frame"].is_object()) {
+                run.match_ms_per_frame = j["refine_ms_per_frame"].value("match", 0.0);
+            }
             run.frames_dropped = j.value("frames_dropped", 0);
         } catch (const std::exception& e) {
             throw ConfigError(timing + ": malformed JSON: " + e.what());

@@ -50,6 +50,7 @@ struct MethodResult {
     double inside_95_share = 0;   ///< refined frames whose error lies in the reported 95 % ellipse
     double yaw_error_mean_deg = 0;
     double frames_per_s = 0;
+    double match_ms_per_frame = 0;  ///< the SAD matcher's time per frame (0: not recorded)
     int frames_dropped = 0;
 };
 

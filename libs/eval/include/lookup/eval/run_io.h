@@ -27,6 +27,9 @@ struct Run {
     std::string method;
     std::vector<FrameRow> frames;
     double frames_per_s = 0;  ///< 0 when timing.json is absent
+    /// timing.json refine_ms_per_frame.match: the point matcher's time per frame, the cost
+    /// that the sample points decide (0 when absent)
+    double match_ms_per_frame = 0;
     int frames_dropped = 0;
 };
 
