@@ -46,5 +46,19 @@ TEST(DescriptorIndex, RefusesEmptySequencesAndForeignDescriptors) {
     EXPECT_EQ(index.nearest(refs.descriptor(3), 500).size(), 50u);  // k is capped
 }
 
+TEST(DescriptorIndex, IdenticalReferencesStillAnswer) {
+    // A survey that stood still (or a featureless stretch): no variance for the projection,
+    // no split for the kd-trees; the index must still build and answer, not hang.
+    const CoarseOptions o;
+    SyntheticRoute route(10, 3, 4);
+    const Descriptor same = computeDescriptor(route.image(2.0, 0.0), o);
+    ReferenceDescriptors refs(o);
+    for (int i = 0; i < 1500; ++i) refs.add(i, same);
+    const DescriptorIndex index(refs);
+    const auto nearest = index.nearest(same, 8);
+    EXPECT_EQ(nearest.size(), 8u);
+    for (long j : nearest) EXPECT_LT(j, 1500);
+}
+
 }  // namespace
 }  // namespace lookup::coarse
