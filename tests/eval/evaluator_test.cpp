@@ -82,6 +82,49 @@ TEST(Evaluate, ExcludesFramesWithCoarseErrorOverThreshold) {
     EXPECT_DOUBLE_EQ(lookup.acceptance_share, 0.5);
 }
 
+TEST(Evaluate, ConfidentWrongFixesAreFarOffAndOutsideTheirEllipseOverEveryFrame) {
+    // sigma 0.1 m: 0.6 m off is far outside the 99.7 % ellipse (radius 0.34 m); with sigma
+    // 1 m it is inside; 0.3 m off is outside sigma 0.01 m's ellipse but under the 0.5 m floor.
+    auto run = runWithOffsets({0.05, 0.6, 0.6, 0.3, 0.6, 0.6}, 0.0);
+    run.frames[2].cov_xx = run.frames[2].cov_yy = 1.0;
+    run.frames[3].cov_xx = run.frames[3].cov_yy = 1e-4;
+    run.frames[4].coarse_x += 12.0;  // excluded from the accuracy, not from the integrity
+    run.frames[5].cov_xx = run.frames[5].cov_yy = 0;  // a zero covariance claims certainty
+    run.frames[5].status = "fallback";
+    const auto report = evaluate({straightTruth()}, {run}, {});
+    const auto& lookup = report.rows[1];
+    EXPECT_EQ(lookup.excluded, 1u);
+    EXPECT_EQ(lookup.confident_wrong, 3u);
+}
+
+TEST(Evaluate, FirstFixFrameDistanceAndTrackingShare) {
+    // Frames 1 s apart at 1 m/s: the first refined frame (index 3) comes 3 m into the drive.
+    auto run = runWithOffsets({0, 0, 0, 0, 0, 0, 0, 0}, 0.0);
+    for (int i = 0; i < 3; ++i) {
+        run.frames[i].status = "lost";
+        run.frames[i].has_pose = false;
+    }
+    run.frames[6].status = "fallback";
+    for (size_t i = 0; i < run.frames.size(); ++i) run.frames[i].ms = 1.0 + i;
+    const auto report = evaluate({straightTruth()}, {run}, {});
+    const auto& lookup = report.rows[1];
+    EXPECT_EQ(lookup.first_fix_frame, 3);
+    EXPECT_NEAR(lookup.first_fix_s, 3.0, 1e-9);
+    EXPECT_NEAR(lookup.first_fix_distance_m, 3.0, 1e-6);
+    EXPECT_DOUBLE_EQ(lookup.refined_after_first_fix_share, 4.0 / 5.0);
+    EXPECT_DOUBLE_EQ(lookup.acceptance_share, 4.0 / 8.0);
+    EXPECT_NEAR(lookup.frame_ms_p99, 7.93, 1e-9);  // between the 7th and 8th of 1..8 ms
+    EXPECT_EQ(lookup.without_pose, 3u);
+}
+
+TEST(Evaluate, NoFixMeansNoFirstFix) {
+    auto run = runWithOffsets({0, 0}, 0.0);
+    for (auto& f : run.frames) f.status = "fallback";
+    const auto report = evaluate({straightTruth()}, {run}, {});
+    EXPECT_EQ(report.rows[1].first_fix_frame, -1);
+    EXPECT_DOUBLE_EQ(report.rows[1].refined_after_first_fix_share, 0);
+}
+
 TEST(Evaluate, RunOutsideEveryTruthIsReportedNotMatched) {
     auto run = runWithOffsets({0.1}, 0.0);
     run.frames[0].time_s = 1.0;
@@ -131,6 +174,7 @@ TEST(Report, WritesMarkdownJsonAndChart) {
     EXPECT_NE(text.find("| zigzag | lookup-grid24 | 2 |"), std::string::npos) << text;
     EXPECT_NE(text.find("| 99.5 | 2.12 |"), std::string::npos) << text;
     EXPECT_NE(text.find("| frames/s | match ms/frame |"), std::string::npos) << text;
+    EXPECT_NE(text.find("| confident wrong |"), std::string::npos) << text;
     if (std::system("command -v gnuplot >/dev/null 2>&1") == 0) {
         EXPECT_GT(fs::file_size(dir / "errors.png"), 1000u);
     }

@@ -20,16 +20,26 @@ std::string fmt(const char* format, double v) {
     return buf;
 }
 
+std::string firstFix(const MethodResult& m) {
+    if (m.first_fix_frame < 0) return "none";
+    return std::to_string(m.first_fix_frame) + ", " + fmt("%.1f", m.first_fix_distance_m);
+}
+
 void writeMarkdown(const Report& r, const std::string& path) {
     std::ofstream out(path);
     if (!out) throw common::ConfigError(path + ": cannot open for writing");
     out << "# Localisation accuracy\n\n"
         << "Position error of the emitted pose against ground truth. Frames whose coarse error "
         << "exceeds " << r.options.coarse_exclusion_m
-        << " m are excluded (the paper's rule); `excluded` counts them.\n\n"
+        << " m are excluded (the paper's rule); `excluded` counts them. `confident wrong`: poses "
+        << "more than " << r.options.confident_wrong_min_error_m
+        << " m off and outside their reported 99.7 % ellipse, over every frame. `first fix`: "
+           "the first refined frame's index and the metres driven before it.\n\n"
         << "| traverse | method | frames | excluded | no pose | mean (m) | median (m) | p95 (m) "
-           "| max (m) | yaw (deg) | accepted | in 95% ellipse | frames/s | match ms/frame |\n"
-        << "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
+           "| max (m) | yaw (deg) | accepted | after first fix | first fix (frame, m) "
+           "| confident wrong | in 95% ellipse | frames/s | match ms/frame | p99 ms |\n"
+        << "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:"
+           "|---:|\n";
     for (const auto& m : r.rows) {
         const bool coarse = m.method == "coarse";
         out << "| " << m.traverse << " | " << m.method << " | " << m.frames << " | " << m.excluded
@@ -38,9 +48,13 @@ void writeMarkdown(const Report& r, const std::string& path) {
             << fmt("%.3f", m.error.p95_m) << " | " << fmt("%.3f", m.error.max_m) << " | "
             << (coarse ? "" : fmt("%.2f", m.yaw_error_mean_deg)) << " | "
             << (coarse ? "" : fmt("%.1f %%", 100 * m.acceptance_share)) << " | "
+            << (coarse ? "" : fmt("%.1f %%", 100 * m.refined_after_first_fix_share)) << " | "
+            << (coarse ? "" : firstFix(m)) << " | "
+            << (coarse ? "" : std::to_string(m.confident_wrong)) << " | "
             << (coarse ? "" : fmt("%.1f %%", 100 * m.inside_95_share)) << " | "
             << (coarse || m.frames_per_s <= 0 ? "" : fmt("%.1f", m.frames_per_s)) << " | "
             << (coarse || m.match_ms_per_frame <= 0 ? "" : fmt("%.2f", m.match_ms_per_frame))
+            << " | " << (coarse || m.frame_ms_p99 <= 0 ? "" : fmt("%.1f", m.frame_ms_p99))
             << " |\n";
     }
     for (const auto& w : r.warnings) out << "\nWarning: " << w << "\n";
@@ -49,6 +63,7 @@ void writeMarkdown(const Report& r, const std::string& path) {
 void writeJson(const Report& r, const std::string& path) {
     nlohmann::json j;
     j["coarse_exclusion_m"] = r.options.coarse_exclusion_m;
+    j["confident_wrong_min_error_m"] = r.options.confident_wrong_min_error_m;
     j["warnings"] = r.warnings;
     for (const auto& m : r.rows) {
         j["rows"].push_back({{"traverse", m.traverse},
@@ -67,7 +82,13 @@ void writeJson(const Report& r, const std::string& path) {
                              {"inside_95_ellipse_share", m.inside_95_share},
                              {"frames_per_s", m.frames_per_s},
                              {"match_ms_per_frame", m.match_ms_per_frame},
-                             {"frames_dropped", m.frames_dropped}});
+                             {"frames_dropped", m.frames_dropped},
+                             {"first_fix_frame", m.first_fix_frame},
+                             {"first_fix_s", m.first_fix_s},
+                             {"first_fix_distance_m", m.first_fix_distance_m},
+                             {"refined_after_first_fix_share", m.refined_after_first_fix_share},
+                             {"confident_wrong", m.confident_wrong},
+                             {"frame_ms_p99", m.frame_ms_p99}});
     }
     std::ofstream(path) << j.dump(2) << "\n";
 }

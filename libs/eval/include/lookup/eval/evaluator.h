@@ -15,6 +15,9 @@ namespace lookup::eval {
 struct EvalOptions : public mrpt::config::CLoadableOptions {
     double coarse_exclusion_m = 10.0;  ///< frames whose coarse error exceeds this are excluded
     double max_gt_gap_s = 0.5;         ///< no ground truth is interpolated across longer gaps
+    /// A pose counts as a confident wrong fix when its error exceeds this AND it lies outside
+    /// its reported 99.7 % ellipse.
+    double confident_wrong_min_error_m = 0.5;
 
     void loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
                             const std::string& section) override;
@@ -52,6 +55,16 @@ struct MethodResult {
     double frames_per_s = 0;
     double match_ms_per_frame = 0;  ///< the SAD matcher's time per frame (0: not recorded)
     int frames_dropped = 0;
+    /// First refined frame: its index in the run (-1: none), seconds and metres driven (along
+    /// the ground truth) since the run's first frame with ground truth.
+    long first_fix_frame = -1;
+    double first_fix_s = 0, first_fix_distance_m = 0;
+    /// Refined share of the evaluated frames from the first fix on (the tracking share).
+    double refined_after_first_fix_share = 0;
+    /// Poses more than confident_wrong_min_error_m off and outside their reported 99.7 %
+    /// ellipse, over every frame with ground truth (coarse-excluded ones too).
+    size_t confident_wrong = 0;
+    double frame_ms_p99 = 0;  ///< 99th percentile of frames.csv `ms` (dropped frames left out)
 };
 
 struct Report {
@@ -59,6 +72,11 @@ struct Report {
     EvalOptions options;
     std::vector<std::string> warnings;  ///< e.g. a run that matches no ground truth
 };
+
+/// Scores one run against its traverse's truth; `coarse` (optional) receives the coarse
+/// stage's row for the same frames (frames = 0 when the run carries no coarse poses).
+MethodResult scoreRun(const Run& run, const GroundTruth& truth, const EvalOptions& options,
+                      MethodResult* coarse = nullptr);
 
 /// Matches each run to the ground truth covering its time stamps, interpolates the truth at
 /// every frame and computes the statistics. Adds one "coarse" row per traverse (from the first
