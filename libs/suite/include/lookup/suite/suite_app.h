@@ -1,0 +1,38 @@
+#pragma once
+// lookup-suite's command line over runSuite (a thin main calls initialize() then run()).
+//
+//   lookup-suite --suite FILE.ini --out DIR [--seeds 1-5] [-j N]
+
+#include <string>
+#include <vector>
+
+#include "lookup/suite/suite.h"
+
+namespace lookup::suite {
+
+class SuiteApp {
+  public:
+    /// `share_dirs`: where bare file names and presets are looked up (source tree, install).
+    explicit SuiteApp(std::vector<std::string> share_dirs) : share_dirs_(std::move(share_dirs)) {}
+
+    /// Parses the command line and the suite file. Returns false (after printing help or the
+    /// error to stderr) when the program should exit; `exitCode()` then tells how.
+    bool initialize(int argc, const char* const* argv);
+    /// Runs every job, prints one line per finished job and the table. Exit code: 0 when every
+    /// job ran, 2 when some failed (their rows say why), 3 when the report cannot be written.
+    int run();
+
+    int exitCode() const { return exit_code_; }
+    const SuiteOptions& options() const { return options_; }
+    const std::vector<JobResult>& results() const { return results_; }
+
+  private:
+    std::vector<std::string> share_dirs_;
+    SuiteOptions options_;
+    std::string out_dir_;
+    int parallel_ = 1;
+    std::vector<JobResult> results_;
+    int exit_code_ = 0;
+};
+
+}  // namespace lookup::suite

@@ -1,0 +1,106 @@
+#include <mrpt/config/CConfigFile.h>
+
+#include <chrono>
+#include <filesystem>
+#include <stdexcept>
+
+#include "lookup/eval/evaluator.h"
+#include "lookup/localize/localize_app.h"
+#include "lookup/sim/simulator.h"
+#include "lookup/suite/suite.h"
+#include "lookup/survey/survey_app.h"
+#include "suite_internal.h"
+
+namespace lookup::suite {
+namespace fs = std::filesystem;
+
+namespace {
+
+struct QueryTraverse {
+    std::string name, rawlog, ground_truth;
+};
+
+void generate(const SuiteOptions& suite, const Condition& c, std::uint64_t seed,
+              const std::string& data_dir) {
+    sim::Simulator simulator(scenarioFor(c, seed, suite.source, suite.threads_per_job));
+    const auto result = simulator.run(data_dir);
+    if (result.status != sim::SimulationResult::Status::Ok) throw std::runtime_error(result.reason);
+}
+
+/// Laser-derived references, as a mine gets them: the ground truth is not handed over.
+void survey(const std::string& dataset_ini, const std::string& db_dir) {
+    const char* argv[] = {"lookup-survey", "--dataset", dataset_ini.c_str(), "--out",
+                          db_dir.c_str()};
+    survey::SurveyApp app;
+    if (!app.initialize(5, argv)) {
+        throw std::runtime_error("lookup-survey refused its arguments (exit code " +
+                                 std::to_string(app.exitCode()) + ")");
+    }
+    if (app.run() != 0) throw std::runtime_error(app.result().reason);
+}
+
+std::vector<QueryTraverse> queryTraverses(const std::string& dataset_ini) {
+    mrpt::config::CConfigFile ini(dataset_ini);
+    const fs::path dir = fs::path(dataset_ini).parent_path();
+    std::vector<QueryTraverse> queries;
+    std::vector<std::string> sections;
+    ini.getAllSections(sections);
+    for (const auto& section : sections) {
+        if (section.rfind("traverse_", 0) != 0) continue;
+        if (ini.read_string(section, "roles", "", false).find("query") == std::string::npos) {
+            continue;
+        }
+        queries.push_back({ini.read_string(section, "name", section, false),
+                           (dir / ini.read_string(section, "rawlog", "", true)).string(),
+                           (dir / ini.read_string(section, "ground_truth", "", true)).string()});
+    }
+    if (queries.empty()) throw std::runtime_error(dataset_ini + ": no traverse with role query");
+    return queries;
+}
+
+/// Localises one query traverse and scores it; appends the LookUP row and the coarse one.
+void localiseAndScore(const SuiteOptions& suite, const Condition& c, const QueryTraverse& q,
+                      const std::string& db_dir, const std::string& run_dir,
+                      std::vector<eval::MethodResult>& rows) {
+    localize::LocalizeRequest request;
+    request.db_dir = db_dir;
+    request.rawlog = q.rawlog;
+    request.out_dir = run_dir;
+    request.ini_file = c.localize_ini;
+    request.sampling = "grid";
+    request.max_frames = suite.max_frames;
+    request.progress = false;
+    localize::runLocalization(request);
+    eval::MethodResult coarse;
+    const eval::GroundTruth truth = eval::loadGroundTruth(q.ground_truth);
+    rows.push_back(eval::scoreRun(eval::loadRun(run_dir), truth, eval::EvalOptions{}, &coarse));
+    if (coarse.frames > 0) rows.push_back(coarse);
+}
+
+}  // namespace
+
+JobResult runJob(const SuiteOptions& suite, const Condition& c, std::uint64_t seed,
+                 const std::string& job_dir) {
+    const auto t0 = std::chrono::steady_clock::now();
+    JobResult r;
+    r.condition = c.name;
+    r.seed = seed;
+    std::string step = "generate";
+    try {
+        const std::string data = job_dir + "/data", db = job_dir + "/db";
+        generate(suite, c, seed, data);
+        step = "survey";
+        survey(data + "/dataset.ini", db);
+        for (const auto& q : queryTraverses(data + "/dataset.ini")) {
+            step = "localise " + q.name;
+            localiseAndScore(suite, c, q, db, job_dir + "/runs/" + q.name, r.rows);
+        }
+        r.ok = true;
+    } catch (const std::exception& e) {
+        r.reason = step + ": " + e.what();
+    }
+    r.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return r;
+}
+
+}  // namespace lookup::suite

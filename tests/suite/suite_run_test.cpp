@@ -1,0 +1,65 @@
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "lookup/suite/suite.h"
+
+namespace fs = std::filesystem;
+using namespace lookup::suite;
+
+// Two conditions on a 30 m mine, one seed: one runs through every stage, the other fails in
+// the localiser (bad options). The failure is a row with its step and reason; the good row's
+// figures come from real survey, localisation and evaluation.
+TEST(SuiteRun, OneConditionThroughEveryStageAndAFailedOneThatDoesNotStopTheSuite) {
+    const fs::path dir = fs::temp_directory_path() / "lookup_suite_run";
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    std::ofstream(dir / "broken-localize.ini") << "[localizer]\nno_such_key = 1\n";
+    std::ofstream(dir / "quick.ini") << R"([suite]
+name = quick
+seeds = 1
+localize_ini = localize-mine-b.ini
+max_frames = 60
+
+[condition.short-mine]
+preset = mine-b-mini
+world.length_m = 30
+
+[condition.broken-options]
+preset = mine-b-mini
+world.length_m = 30
+localize_ini = broken-localize.ini
+)";
+    auto suite = SuiteOptions::fromFile((dir / "quick.ini").string(), {LOOKUP_SOURCE_SHARE_DIR});
+    suite.threads_per_job = 1;
+    std::ostringstream log;
+    const auto results = runSuite(suite, (dir / "out").string(), 2, log);
+    ASSERT_EQ(results.size(), 2u) << log.str();
+    EXPECT_TRUE(results[0].ok) << results[0].reason;
+    EXPECT_FALSE(results[1].ok);
+    EXPECT_NE(results[1].reason.find("localise zigzag"), std::string::npos) << results[1].reason;
+    EXPECT_NE(results[1].reason.find("no_such_key"), std::string::npos) << results[1].reason;
+
+    const auto summaries = summarizeConditions(suite, results);
+    ASSERT_EQ(summaries.size(), 2u);
+    EXPECT_EQ(summaries[0].runs, 1u);
+    EXPECT_GT(summaries[0].refined_share, 0.3);
+    EXPECT_GE(summaries[0].first_fix_frame_max, 0);
+    EXPECT_LT(summaries[0].mean_m, 0.3);
+    EXPECT_EQ(summaries[0].confident_wrong, 0u);
+    EXPECT_EQ(summaries[1].failed, 1u);
+
+    std::ifstream md(dir / "out" / "suite.md");
+    const std::string text((std::istreambuf_iterator<char>(md)), {});
+    EXPECT_NE(text.find("| short-mine | 1 |"), std::string::npos) << text;
+    EXPECT_NE(text.find("Failed: broken-options seed 1: localise zigzag"), std::string::npos)
+        << text;
+    std::ifstream js(dir / "out" / "suite.json");
+    const auto j = nlohmann::json::parse(js);
+    EXPECT_EQ(j.at("jobs").size(), 2u);
+    EXPECT_EQ(j.at("conditions").at(0).at("condition"), "short-mine");
+    EXPECT_TRUE(fs::exists(dir / "out/jobs/short-mine/seed-1/log.txt"));
+}
