@@ -1,6 +1,6 @@
 #!/bin/sh
 # Builds the Debian package with CPack into WORK, checks its name, its declared dependencies
-# and contents, unpacks it with dpkg-deb -x (no root, nothing installed) and runs every
+# and contents (no test fixture library; the systemd unit, sensors.ini, docs), unpacks it with dpkg-deb -x (no root, nothing installed) and runs every
 # program's --help from the unpacked /usr.
 # Usage: check_deb.sh CPACK BUILD_DIR WORK DEB_FILE_NAME PROGRAM...
 set -u
@@ -24,4 +24,14 @@ if dpkg-deb -c "$deb" | grep -q -e refine_testing -e 'lookup/refine/testing'; th
     echo "FAIL the test fixture library is in the package"; exit 1
 fi
 dpkg-deb -x "$deb" "$work/root" || { echo "FAIL dpkg-deb -x"; exit 1; }
+unit="$work/root/usr/share/lookup/systemd/lookup-localize.service"
+for f in "$unit" "$work/root/usr/share/lookup/sensors/sensors.ini" \
+         "$work/root/usr/share/doc/lookup/vehicle.md"; do
+    [ -f "$f" ] || { echo "FAIL not in the package: ${f#$work/root}"; exit 1; }
+done
+# The unit's syntax, where systemd's checker is installed (not a build dependency).
+if command -v systemd-analyze >/dev/null 2>&1; then
+    systemd-analyze verify "$unit" || { echo "FAIL systemd-analyze verify $unit"; exit 1; }
+    echo "ok   systemd-analyze verify lookup-localize.service"
+fi
 exec sh "$here/run_programs.sh" "$work/root/usr" "$@"
