@@ -11,10 +11,11 @@ function(lookup_add_subdirectories dir)
     endforeach()
 endfunction()
 
-# lookup_add_library(NAME <stage> SOURCES ... PUBLIC_DEPS ... PRIVATE_DEPS ...)
+# lookup_add_library(NAME <stage> SOURCES ... PUBLIC_DEPS ... PRIVATE_DEPS ... [TESTING])
 # Creates target lookup_<stage> (alias lookup::<stage>) with public headers in include/.
+# TESTING: a fixture library for tests and benchmarks, neither installed nor exported.
 function(lookup_add_library)
-    cmake_parse_arguments(ARG "" "NAME" "SOURCES;PUBLIC_DEPS;PRIVATE_DEPS" ${ARGN})
+    cmake_parse_arguments(ARG "TESTING" "NAME" "SOURCES;PUBLIC_DEPS;PRIVATE_DEPS" ${ARGN})
     set(target lookup_${ARG_NAME})
     add_library(${target} ${ARG_SOURCES})
     add_library(lookup::${ARG_NAME} ALIAS ${target})
@@ -23,21 +24,28 @@ function(lookup_add_library)
         $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>)
     target_link_libraries(${target} PUBLIC ${ARG_PUBLIC_DEPS} PRIVATE ${ARG_PRIVATE_DEPS})
     set_target_properties(${target} PROPERTIES EXPORT_NAME ${ARG_NAME})
+    if(ARG_TESTING)
+        return()
+    endif()
     install(TARGETS ${target} EXPORT lookupTargets
             LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}
             ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR})
-    install(DIRECTORY include/ DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
+    # include/lookup/<stage>/testing/ holds the headers of a TESTING library beside it.
+    install(DIRECTORY include/ DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}
+            PATTERN testing EXCLUDE)
 endfunction()
 
 # lookup_add_executable(NAME <program> SOURCES ... DEPS ...)
+# Installed to bin/ with a run path relative to the binary (LOOKUP_INSTALL_RPATH), so the
+# installed tree works from any prefix and after being moved; the program is added to the
+# global property LOOKUP_PROGRAMS (the install tests run each one's --help).
 function(lookup_add_executable)
     cmake_parse_arguments(ARG "" "NAME" "SOURCES;DEPS" ${ARGN})
     add_executable(${ARG_NAME} ${ARG_SOURCES})
     target_link_libraries(${ARG_NAME} PRIVATE ${ARG_DEPS})
-    target_compile_definitions(${ARG_NAME} PRIVATE
-        LOOKUP_SOURCE_SHARE_DIR="${LOOKUP_SOURCE_SHARE_DIR}"
-        LOOKUP_INSTALL_SHARE_DIR="${LOOKUP_INSTALL_SHARE_DIR}")
+    set_target_properties(${ARG_NAME} PROPERTIES INSTALL_RPATH "${LOOKUP_INSTALL_RPATH}")
     install(TARGETS ${ARG_NAME} RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
+    set_property(GLOBAL APPEND PROPERTY LOOKUP_PROGRAMS ${ARG_NAME})
 endfunction()
 
 # lookup_add_test(NAME <unit>_test SOURCES ... DEPS ... [LABELS ...])

@@ -5,6 +5,7 @@ set -euo pipefail
 
 packages=(
     build-essential cmake ninja-build pkg-config
+    dpkg-dev file
     libmrpt-dev mrpt-apps
     libopencv-dev libceres-dev libeigen3-dev
     libtorch-dev

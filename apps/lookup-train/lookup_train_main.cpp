@@ -14,6 +14,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "lookup/common/cli.h"
+#include "lookup/common/share_dirs.h"
 #include "lookup/database/reference_database.h"
 #include "lookup/fcn/heat_maps.h"
 #include "lookup/fcn/model.h"
@@ -32,13 +33,11 @@ std::vector<std::string> splitList(const std::string& s) {
     return out;
 }
 
-// --ini, else share/lookup/train.ini (source tree, then installed), else built-in defaults.
+// --ini, else share/lookup/train.ini (beside the binary, source tree, install prefix), else
+// built-in defaults.
 std::string defaultIni() {
-    for (const char* dir : {LOOKUP_SOURCE_SHARE_DIR, LOOKUP_INSTALL_SHARE_DIR}) {
-        const std::string f = std::string(dir) + "/train.ini";
-        if (std::filesystem::is_regular_file(f)) return f;
-    }
-    return "";
+    const std::string f = lookup::common::findShareFile("train.ini");
+    return std::filesystem::is_regular_file(f) ? f : "";
 }
 
 // The reference's stored heat map (as the localiser loads it) and the points it would sample

@@ -10,8 +10,22 @@
 #include <unistd.h>
 #include <cstdio>
 #include <iostream>
+#include <string>
+#include <vector>
 
 #include "lookup/common/cli.h"
+#include "lookup/common/share_dirs.h"
+
+namespace {
+
+// share/lookup/scenarios of every share folder, best first (lookup/common/share_dirs.h).
+std::vector<std::string> scenarioDirectories() {
+    std::vector<std::string> dirs;
+    for (const auto& d : lookup::common::shareDirectories()) dirs.push_back(d + "/scenarios");
+    return dirs;
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
     TCLAP::CmdLine cmd("lookup-sim: synthetic underground mine with ground truth (MRPT rawlogs)",
@@ -38,11 +52,8 @@ int main(int argc, char** argv) {
     }
     try {
         const std::string path =
-            scenario.isSet()
-                ? scenario.getValue()
-                : lookup::sim::findPreset(preset.getValue(),
-                                          {std::string(LOOKUP_SOURCE_SHARE_DIR) + "/scenarios",
-                                           std::string(LOOKUP_INSTALL_SHARE_DIR) + "/scenarios"});
+            scenario.isSet() ? scenario.getValue()
+                             : lookup::sim::findPreset(preset.getValue(), scenarioDirectories());
         lookup::sim::ScenarioOptions options = lookup::sim::ScenarioOptions::fromFile(path);
         if (seed.isSet()) options.seed = seed.getValue();
         if (threads.isSet()) options.threads = threads.getValue();

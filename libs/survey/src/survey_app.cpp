@@ -10,6 +10,7 @@
 
 #include "lookup/common/cli.h"
 #include "lookup/common/config.h"
+#include "lookup/common/share_dirs.h"
 
 namespace lookup::survey {
 namespace fs = std::filesystem;
@@ -74,11 +75,8 @@ void readDataset(const std::string& path, SurveyInputs& inputs, SurveyOptions& o
 }  // namespace
 
 std::string defaultSurveyIni() {
-    for (const std::string dir : {LOOKUP_SOURCE_SHARE_DIR, LOOKUP_INSTALL_SHARE_DIR}) {
-        const std::string p = dir + "/survey.ini";
-        if (fs::is_regular_file(p)) return p;
-    }
-    return "";
+    const std::string p = common::findShareFile("survey.ini");
+    return fs::is_regular_file(p) ? p : "";
 }
 
 bool SurveyApp::initialize(int argc, const char* const* argv) {
