@@ -135,3 +135,28 @@ TEST(Report, WritesMarkdownJsonAndChart) {
         EXPECT_GT(fs::file_size(dir / "errors.png"), 1000u);
     }
 }
+
+TEST(RunIo, HugeValuesRoundTripThroughFramesCsv) {
+    const auto dir = fs::temp_directory_path() / "lookup_eval_huge";
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    FrameRow r;
+    r.time_s = 1.7e9;
+    r.status = "fallback";
+    r.reason = std::string(300, 'x');
+    r.has_pose = r.has_coarse = true;
+    r.x = 1e300, r.y = -1e300, r.yaw = 1e300;
+    r.cov_xx = r.cov_yy = r.cov_tt = 1e300, r.cov_xy = -1e300;
+    r.coarse_x = r.coarse_y = 1e300;
+    r.ms = 1e300;
+    const std::string row = formatFramesCsvRow(r);
+    EXPECT_GT(row.size(), 256u);  // once cut at a fixed 256-byte buffer
+    writeFramesCsv((dir / "frames.csv").string(), {r, r});
+    const auto back = loadRun(dir.string());
+    ASSERT_EQ(back.frames.size(), 2u);
+    EXPECT_EQ(back.frames[1].x, 1e300);
+    EXPECT_EQ(back.frames[1].cov_xy, -1e300);
+    EXPECT_EQ(back.frames[1].coarse_y, 1e300);
+    EXPECT_EQ(back.frames[1].ms, 1e300);
+    EXPECT_DOUBLE_EQ(back.frames[1].time_s, 1.7e9);
+}

@@ -5,11 +5,15 @@
 #include <gtest/gtest.h>
 #include <mrpt/obs/CObservationOdometry.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <functional>
+#include <limits>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgproc.hpp>
+#include <sstream>
 #include <vector>
 
 #include "lookup/coarse/options.h"
@@ -483,4 +487,99 @@ TEST(Localize, StartUpAcquisitionFixesBeforeTheCoarseSequenceIsFullAndOnlyOnTheR
     ASSERT_EQ(other_rows.size(), 12u);
     EXPECT_EQ(firstRefined(other_rows), -1);
     EXPECT_EQ(other_rows.back().status, "lost");
+}
+
+namespace {
+
+// The planar drive of the first test (20 frames, odometry beside every ceiling frame, coarse
+// poses from a file), with `spoil(i, image, odometry)` free to damage frame i's records.
+using Spoiler =
+    std::function<void(int, mrpt::obs::CObservationImage&, mrpt::obs::CObservationOdometry&)>;
+
+localize::LocalizeRequest planarRun(const fs::path& dir, const Spoiler& spoil, int frames = 20) {
+    Scene scene;
+    writeDatabase(scene, (dir / "db").string(), {{"survey", 65, 100.0}});
+    common::PoseTrack coarse;
+    common::RawlogWriter rawlog((dir / "query.rawlog").string());
+    for (int i = 0; i < frames; ++i) {
+        const double t = kT0 + 0.1 * i;
+        const mrpt::poses::CPose3D vehicle(-5 + 0.3 * i, 0.4, 0, 0.05, 0, 0);
+        coarse.push_back({t, vehicle + mrpt::poses::CPose3D(0.6, -0.4, 0, -0.05, 0, 0)});
+        auto img = scene.image(vehicle, t);
+        mrpt::obs::CObservationOdometry odo;
+        odo.sensorLabel = "ODOMETRY";
+        odo.timestamp = img->timestamp;
+        odo.odometry = mrpt::poses::CPose2D(vehicle.x(), vehicle.y(), vehicle.yaw());
+        spoil(i, *img, odo);
+        rawlog.write(odo);
+        if (!img->image.isEmpty()) {
+            rawlog.writeWithExternalImage(*img, "ceiling_" + std::to_string(i) + ".png");
+        } else {
+            rawlog.write(*img);
+        }
+    }
+    rawlog.close();
+    common::writeTumPoseFile((dir / "coarse.tum").string(), coarse);
+    localize::LocalizeRequest req;
+    req.db_dir = (dir / "db").string();
+    req.rawlog = (dir / "query.rawlog").string();
+    req.out_dir = (dir / "run").string();
+    req.coarse_poses = (dir / "coarse.tum").string();
+    req.sampling = "grid";
+    req.progress = false;
+    return req;
+}
+
+// Every number in every line of `path` (after `skip_lines`) is finite.
+std::size_t nonFiniteLines(const fs::path& path, int skip_lines) {
+    std::ifstream in(path);
+    std::string line;
+    std::size_t bad = 0;
+    for (int k = 0; std::getline(in, line); ++k) {
+        if (k < skip_lines) continue;
+        for (char& c : line) c = c == ',' ? ' ' : c;
+        std::istringstream cells(line);
+        for (std::string cell; cells >> cell;) {
+            char* end = nullptr;
+            const double v = std::strtod(cell.c_str(), &end);
+            if (end != cell.c_str() && !std::isfinite(v)) {
+                ++bad;
+                break;
+            }
+        }
+    }
+    return bad;
+}
+
+}  // namespace
+
+TEST(Localize, NonFiniteOrGarbageObservationsAreSkippedAndCountedNeverPoses) {
+    const auto dir = freshDir("garbage");
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    const auto req = planarRun(
+        dir, [&](int i, mrpt::obs::CObservationImage& img, mrpt::obs::CObservationOdometry& odo) {
+            if (i == 5) odo.odometry.x(nan);
+            if (i == 8) {
+                odo.hasVelocities = true;
+                odo.velocityLocal.vx = std::numeric_limits<double>::infinity();
+            }
+            if (i == 11) odo.odometry.y(1e300);
+            if (i == 14) img.cameraParams.fx(nan);
+            if (i == 16) img.image = mrpt::img::CImage();
+        });
+    const auto timing = localize::runLocalization(req);
+    EXPECT_EQ(timing.frames, 18u);  // two ceiling frames refused
+    EXPECT_EQ(timing.skipped.at("odometry_not_finite"), 3u);
+    EXPECT_EQ(timing.skipped.at("intrinsics_invalid"), 1u);
+    EXPECT_EQ(timing.skipped.at("image_unusable"), 1u);
+    EXPECT_EQ(nonFiniteLines(fs::path(req.out_dir) / "frames.csv", 1), 0u);
+    EXPECT_EQ(nonFiniteLines(fs::path(req.out_dir) / "poses.tum", 0), 0u);
+    std::ifstream in(fs::path(req.out_dir) / "timing.json");
+    const auto j = nlohmann::json::parse(in);
+    EXPECT_EQ(j.at("skipped").at("odometry_not_finite").get<int>(), 3);
+    const auto run = eval::loadRun(req.out_dir);
+    ASSERT_EQ(run.frames.size(), 18u);
+    std::size_t refined = 0;
+    for (const auto& f : run.frames) refined += f.status == "refined";
+    EXPECT_GE(refined, 16u);  // the good frames around the garbage still refine
 }

@@ -2,6 +2,8 @@
 
 #include <mrpt/config/CConfigFile.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -125,30 +127,47 @@ std::string framesCsvHeader() {
     return out;
 }
 
+namespace {
+
+/// `v` in printf `format` (fixed point) while that stays short; beyond 1e12 (no pose of a
+/// mine, but garbage must still round-trip) or non-finite, the shortest exact "%.17g".
+std::string cell(const char* format, double v) {
+    char buf[48];
+    const bool fixed = std::isfinite(v) && std::abs(v) < 1e12;
+    const int n = std::snprintf(buf, sizeof buf, fixed ? format : "%.17g", v);
+    return std::string(buf, static_cast<std::size_t>(std::clamp(n, 0, int(sizeof buf) - 1)));
+}
+
+}  // namespace
+
 std::string formatFramesCsvRow(const FrameRow& r) {
     // The CSV has no quoting: reasons become one comma-free line of bounded length.
     std::string reason = r.reason.substr(0, 240);
     for (char& c : reason) {
         if (c == ',' || c == '\n' || c == '\r') c = ';';
     }
-    char buf[256];
-    std::snprintf(buf, sizeof buf, "%.6f,", r.time_s);
-    std::string out = buf + r.status + "," + reason + ",";
+    std::string out = cell("%.6f", r.time_s) + "," + r.status + "," + reason + ",";
     if (r.has_pose) {
-        std::snprintf(buf, sizeof buf, "%.5f,%.5f,%.6f,%.4e,%.4e,%.4e,%.4e,", r.x, r.y, r.yaw,
-                      r.cov_xx, r.cov_xy, r.cov_yy, r.cov_tt);
-        out += buf;
+        for (const auto& [format, v] : {std::pair{"%.5f", r.x},
+                                        {"%.5f", r.y},
+                                        {"%.6f", r.yaw},
+                                        {"%.4e", r.cov_xx},
+                                        {"%.4e", r.cov_xy},
+                                        {"%.4e", r.cov_yy},
+                                        {"%.4e", r.cov_tt}}) {
+            out += cell(format, v) + ",";
+        }
     } else {
         out += ",,,,,,,";
     }
     if (r.has_coarse) {
-        std::snprintf(buf, sizeof buf, "%.5f,%.5f,%.6f,", r.coarse_x, r.coarse_y, r.coarse_yaw);
-        out += buf;
+        out += cell("%.5f", r.coarse_x) + "," + cell("%.5f", r.coarse_y) + "," +
+               cell("%.6f", r.coarse_yaw) + ",";
     } else {
         out += ",,,";
     }
-    std::snprintf(buf, sizeof buf, "%.4f,%d,%.3f", r.inlier_share, r.references, r.ms);
-    return out + buf;
+    return out + cell("%.4f", r.inlier_share) + "," + std::to_string(r.references) + "," +
+           cell("%.3f", r.ms);
 }
 
 void writeFramesCsv(const std::string& path, const std::vector<FrameRow>& frames) {

@@ -37,7 +37,8 @@ namespace {
 /// time by the replay loop or the live sensors.
 class Session {
   public:
-    explicit Session(const LocalizeRequest& req, const std::string& source_name) : req_(req) {
+    explicit Session(const LocalizeRequest& req, const std::string& source_name)
+        : req_(req), source_(source_name) {
         // Options: defaults, then the ini file, then command-line overrides.
         if (!req.ini_file.empty()) {
             mrpt::config::CConfigFile ini(req.ini_file);
@@ -100,7 +101,9 @@ class Session {
 
     /// Processes one observation. `late_s`: how long after its arrival it is being handled
     /// (real time only). Returns true for a ceiling frame (processed or dropped).
-    bool feed(const mrpt::obs::CObservation::Ptr& obs, double late_s = 0) {
+    /// `record`: its rawlog record index, named in warnings (npos: live).
+    bool feed(const mrpt::obs::CObservation::Ptr& obs, double late_s = 0,
+              std::size_t record = std::string::npos) {
         const bool is_ceiling = obs->sensorLabel == options_.ceiling_camera_label;
         const auto* img = dynamic_cast<const mrpt::obs::CObservationImage*>(obs.get());
         if (is_ceiling && img != nullptr && options_.realtime && late_s > options_.max_latency_s) {
@@ -110,6 +113,7 @@ class Session {
             return true;
         }
         const auto frame = localizer_->process(obs);
+        if (auto rejected = localizer_->takeRejection()) skip(*obs, *rejected, record);
         if (!frame) return false;
         writer_->write(*frame, img);
         if (img != nullptr) img->image.unload();  // keep memory flat on long runs
@@ -142,13 +146,30 @@ class Session {
 
     RunTiming finish() {
         if (req_.progress && isatty(STDERR_FILENO)) std::cerr << "\n";
+        for (const auto& [kind, n] : timing_.skipped) {
+            std::cerr << "lookup-localize: warning: " << source_ << ": " << n
+                      << " observation(s) skipped: " << kind << "\n";
+        }
         timing_.wall_s = wall_.Tac();
         writer_->finish(timing_);
         return timing_;
     }
 
   private:
+    /// Counts a refused observation and names it on stderr (the first few of each kind).
+    void skip(const mrpt::obs::CObservation& obs, const Rejection& why, std::size_t record) {
+        constexpr std::size_t kWarningsPerKind = 5;
+        const std::size_t n = ++timing_.skipped[why.kind];
+        if (n > kWarningsPerKind) return;
+        std::cerr << "lookup-localize: warning: " << source_
+                  << (record == std::string::npos ? " '" + obs.sensorLabel + "'"
+                                                  : ": record " + std::to_string(record))
+                  << ": " << why.detail << ": skipped (" << why.kind << ")"
+                  << (n == kWarningsPerKind ? "; further ones are only counted" : "") << "\n";
+    }
+
     const LocalizeRequest& req_;
+    std::string source_;
     LocalizerOptions options_;
     refine::RefinerOptions refiner_options_;
     coarse::CoarseOptions coarse_options_;
@@ -170,7 +191,7 @@ RunTiming runLocalization(const LocalizeRequest& req) {
         throw common::RawlogError(
             req.rawlog, "no '" + options.ceiling_camera_label + "' images: nothing to localise");
     }
-    double first_stamp = -1, last_ceiling_stamp = -1, pass_shift_s = 0, last_stamp = -1;
+    double first_stamp = -1, pass_shift_s = 0, last_stamp = -1;
     for (int pass = 0; pass < req.repeat && !session.done(); ++pass) {
         // Each pass starts one second after the previous one ended.
         if (pass > 0) pass_shift_s = last_stamp - first_stamp + 1.0;
@@ -184,13 +205,6 @@ RunTiming runLocalization(const LocalizeRequest& req) {
             const double stamp = mrpt::Clock::toDouble(obs->timestamp);
             if (first_stamp < 0) first_stamp = stamp;
             last_stamp = std::max(last_stamp, stamp);
-            if (obs->sensorLabel == options.ceiling_camera_label) {
-                if (stamp <= last_ceiling_stamp) {
-                    throw common::RawlogError(req.rawlog, reader.recordIndex(),
-                                              "ceiling image time stamps go backwards");
-                }
-                last_ceiling_stamp = stamp;
-            }
             double late_s = 0;
             if (options.realtime) {
                 // The observation arrives at its recorded time (relative to the first one).
@@ -202,7 +216,7 @@ RunTiming runLocalization(const LocalizeRequest& req) {
                 late_s = std::max(0.0, now - arrival);
             }
             try {
-                if (!session.feed(obs, late_s)) continue;
+                if (!session.feed(obs, late_s, reader.recordIndex())) continue;
             } catch (const std::exception& e) {
                 throw common::RawlogError(req.rawlog, reader.recordIndex(), e.what());
             }

@@ -167,6 +167,8 @@ void RunWriter::finish(const RunTiming& t) {
                          {"refine", t.refine_ms / n},
                          {"total", t.total_ms / n}};
     for (const auto& [stage, ms] : t.refine_stage_ms) j["refine_ms_per_frame"][stage] = ms / n;
+    j["skipped"] = nlohmann::json::object();
+    for (const auto& [kind, count] : t.skipped) j["skipped"][kind] = count;
     std::ofstream(dir_ + "/timing.json") << j.dump(2) << "\n";
 }
 

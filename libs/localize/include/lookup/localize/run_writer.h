@@ -23,6 +23,11 @@ struct RunTiming {
     double coarse_ms = 0, select_ms = 0, refine_ms = 0, total_ms = 0;
     /// Refiner stage totals by name (e.g. "match" -> ms), summed over frames.
     std::map<std::string, double> refine_stage_ms;
+    /// Observations refused at the localiser's edge, by reason (Rejection::kind).
+    std::map<std::string, std::size_t> skipped;
+
+    /// Frames the localiser processed (not dropped): per-frame times divide by this.
+    std::size_t processed() const { return frames > frames_dropped ? frames - frames_dropped : 0; }
 };
 
 class RunWriter {
