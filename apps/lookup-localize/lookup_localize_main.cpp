@@ -6,17 +6,22 @@
 //                   [--realtime] [--max-frames N] [--repeat N]
 
 #include <mrpt/3rdparty/tclap/CmdLine.h>
-#include <mrpt/core/exceptions.h>
 
 #include <cstdio>
 #include <iostream>
 
 #include "lookup/common/cli.h"
+#include "lookup/common/config.h"
+#include "lookup/common/errors.h"
 #include "lookup/localize/localize_app.h"
 
-int main(int argc, char** argv) {
-    try {
-        TCLAP::CmdLine cmd("lookup-localize: LookUP precise localisation", ' ', "0.1");
+namespace {
+
+int run(int argc, char** argv) {
+    {
+        TCLAP::CmdLine cmd(std::string("lookup-localize: LookUP precise localisation. ") +
+                               lookup::common::kExitCodesHelp,
+                           ' ', "0.1");
         TCLAP::ValueArg<std::string> db("", "db", "reference database folder", true, "", "DB", cmd);
         TCLAP::ValueArg<std::string> rawlog("", "rawlog", "query rawlog to replay", false, "",
                                             "FILE", cmd);
@@ -56,6 +61,7 @@ int main(int argc, char** argv) {
             "", "repeat",
             "replay the rawlog N times, each pass timed after the previous one (long runs)", false,
             1, "N", cmd);
+        TCLAP::SwitchArg verbose("", "verbose", "on errors, print MRPT's full exception dump", cmd);
         if (!cmd.parse(argc, argv)) return lookup::common::parseFailureExitCode(argc, argv);
 
         lookup::localize::LocalizeRequest req;
@@ -73,7 +79,8 @@ int main(int argc, char** argv) {
         req.repeat = repeat.getValue();
 
         if (rawlog.getValue().empty() == live.getValue().empty()) {
-            throw std::invalid_argument("give exactly one of --rawlog FILE or --live FILE.ini");
+            throw lookup::common::ConfigError(
+                "give exactly one of --rawlog FILE or --live FILE.ini");
         }
         lookup::localize::RunTiming t;
         if (!live.getValue().empty()) {
@@ -89,16 +96,18 @@ int main(int argc, char** argv) {
             "lookup-localize: %zu frames (%zu dropped) in %.1f s after %.1f s start-up: "
             "%.1f frames/s; %.2f ms/frame (coarse %.2f, select %.2f, refine %.2f) -> %s\n",
             t.frames, t.frames_dropped, t.wall_s, t.startup_s,
-            t.wall_s > 0 ? (t.frames - t.frames_dropped) / t.wall_s : 0.0,
-            t.total_ms / std::max<std::size_t>(1, t.frames),
-            t.coarse_ms / std::max<std::size_t>(1, t.frames),
-            t.select_ms / std::max<std::size_t>(1, t.frames),
-            t.refine_ms / std::max<std::size_t>(1, t.frames), req.out_dir.c_str());
+            t.wall_s > 0 ? t.processed() / t.wall_s : 0.0,
+            t.total_ms / std::max<std::size_t>(1, t.processed()),
+            t.coarse_ms / std::max<std::size_t>(1, t.processed()),
+            t.select_ms / std::max<std::size_t>(1, t.processed()),
+            t.refine_ms / std::max<std::size_t>(1, t.processed()), req.out_dir.c_str());
         return 0;
-    } catch (const TCLAP::ArgException& e) {
-        std::cerr << "lookup-localize: " << e.error() << " (" << e.argId() << ")\n";
-    } catch (const std::exception& e) {
-        std::cerr << "lookup-localize: " << mrpt::exception_to_str(e) << "\n";
     }
-    return 1;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    return lookup::common::guardedMain("lookup-localize", argc, argv,
+                                       [&] { return run(argc, argv); });
 }

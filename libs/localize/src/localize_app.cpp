@@ -9,15 +9,19 @@
 
 #include <unistd.h>
 #include <chrono>
+#include <exception>
+#include <filesystem>
 #include <iostream>
 #include <thread>
 
 #include "lookup/coarse/coarse_source.h"
 #include "lookup/common/config.h"
+#include "lookup/common/errors.h"
 #include "lookup/common/rawlog_io.h"
 #include "lookup/refine/correspondence_methods.h"
 
 namespace lookup::localize {
+namespace fs = std::filesystem;
 
 namespace {
 
@@ -95,6 +99,21 @@ class Session {
         wall_.Tic();
     }
 
+    /// A run that ends by an exception says where its frames are: the run folder is untouched.
+    ~Session() {
+        if (!writer_ || finished_ || std::uncaught_exceptions() == 0) return;
+        const std::string partial = writer_->stagingDirectory();
+        if (writer_->framesWritten() == 0) {
+            std::error_code ec;
+            writer_.reset();
+            fs::remove_all(partial, ec);
+            return;
+        }
+        std::cerr << "lookup-localize: the run did not finish: its " << writer_->framesWritten()
+                  << " frames are in " << partial << "; " << writer_->directory()
+                  << " is as it was\n";
+    }
+
     const LocalizerOptions& options() const { return options_; }
     const RunTiming& timing() const { return timing_; }
     double elapsed() const { return wall_.Tac(); }
@@ -152,6 +171,7 @@ class Session {
         }
         timing_.wall_s = wall_.Tac();
         writer_->finish(timing_);
+        finished_ = true;
         return timing_;
     }
 
@@ -176,6 +196,7 @@ class Session {
     std::unique_ptr<database::ReferenceDatabase> db_;
     std::unique_ptr<Localizer> localizer_;
     std::unique_ptr<RunWriter> writer_;
+    bool finished_ = false;
     RunTiming timing_;
     mrpt::system::CTicTac wall_;
 };
@@ -183,7 +204,7 @@ class Session {
 }  // namespace
 
 RunTiming runLocalization(const LocalizeRequest& req) {
-    if (req.repeat < 1) throw std::invalid_argument("--repeat must be >= 1");
+    if (req.repeat < 1) throw common::ConfigError("--repeat must be >= 1");
     Session session(req, req.rawlog);
     const auto& options = session.options();
     const std::size_t expected = countFrames(req.rawlog, options.ceiling_camera_label);
@@ -217,6 +238,8 @@ RunTiming runLocalization(const LocalizeRequest& req) {
             }
             try {
                 if (!session.feed(obs, late_s, reader.recordIndex())) continue;
+            } catch (const common::WriteError&) {
+                throw;  // the output's fault, not the rawlog's
             } catch (const std::exception& e) {
                 throw common::RawlogError(req.rawlog, reader.recordIndex(), e.what());
             }
