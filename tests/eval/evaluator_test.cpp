@@ -3,6 +3,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 
 #include "lookup/common/config.h"
 #include "lookup/eval/evaluator.h"
@@ -159,4 +160,27 @@ TEST(RunIo, HugeValuesRoundTripThroughFramesCsv) {
     EXPECT_EQ(back.frames[1].coarse_y, 1e300);
     EXPECT_EQ(back.frames[1].ms, 1e300);
     EXPECT_DOUBLE_EQ(back.frames[1].time_s, 1.7e9);
+}
+
+TEST(RunIo, IncompleteEmptyAndNonFiniteRunsAreNamedProblems) {
+    const auto dir = fs::temp_directory_path() / "lookup_eval_problems";
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    auto run = runWithOffsets({0.1, 0.2, 0.3}, 1.0);
+    writeFramesCsv((dir / "frames.csv").string(), run.frames);
+    EXPECT_NE(runProblem(loadRun(dir.string())).find("no timing.json"), std::string::npos);
+    std::ofstream(dir / "timing.json") << R"({"frames": 3})";
+    EXPECT_EQ(runProblem(loadRun(dir.string())), "");
+    std::ofstream(dir / "timing.json") << R"({"frames": 178})";
+    EXPECT_NE(runProblem(loadRun(dir.string())).find("178"), std::string::npos);
+    writeFramesCsv((dir / "frames.csv").string(), {});
+    EXPECT_NE(runProblem(loadRun(dir.string())).find("no frames"), std::string::npos);
+
+    run.frames[1].x = std::numeric_limits<double>::quiet_NaN();
+    writeFramesCsv((dir / "frames.csv").string(), run.frames);
+    std::ofstream(dir / "timing.json") << R"({"frames": 3})";
+    const auto back = loadRun(dir.string());
+    EXPECT_EQ(back.non_finite_rows, 1u);
+    EXPECT_FALSE(back.frames[1].has_pose);  // never scored as a position
+    EXPECT_NE(runProblem(back).find("non-finite"), std::string::npos);
 }

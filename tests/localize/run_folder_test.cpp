@@ -10,6 +10,7 @@
 
 #include "localize_fixture.h"
 #include "lookup/common/errors.h"
+#include "lookup/common/pose_files.h"
 #include "lookup/common/rawlog_io.h"
 #include "lookup/localize/localize_app.h"
 
@@ -141,4 +142,45 @@ TEST(RunFolder, ATruncatedResultsRawlogIsAWriteErrorNotRenamedIntoPlace) {
     ASSERT_TRUE(WIFEXITED(status));
     EXPECT_EQ(WEXITSTATUS(status), 3);
     EXPECT_FALSE(fs::exists(path));
+}
+
+TEST(RunFolder, EvalRefusesUnfinishedRunsFlagsThemOnRequestAndReportsAFullDisk) {
+    const auto dir = freshDir("eval_runs");
+    auto req = planarRun(dir, [](int, auto&, auto&) {});
+    localize::runLocalization(req);
+    common::PoseTrack truth;
+    for (int i = 0; i < 20; ++i) {
+        truth.push_back({kT0 + 0.1 * i, mrpt::poses::CPose3D(-5 + 0.3 * i, 0.4, 0, 0.05, 0, 0)});
+    }
+    const std::string gt = (dir / "query.rawlog.GT.txt").string();
+    common::writeMrptPoseFile(gt, truth);
+    const auto eval = [&](const std::string& run, const fs::path& out, long limit = 0,
+                          bool partial = false) {
+        std::vector<std::string> args{"--gt", gt, "--runs", run, "--out", out.string()};
+        if (partial) args.push_back("--partial");
+        return runProgram("lookup-eval", args, dir / "eval.log", limit);
+    };
+    ASSERT_EQ(eval(req.out_dir, dir / "report"), 0) << readText(dir / "eval.log");
+
+    // An aborted run: the first 6 frames and no timing.json.
+    const fs::path aborted = dir / "aborted";
+    fs::create_directories(aborted);
+    std::ifstream in(fs::path(req.out_dir) / "frames.csv");
+    std::ofstream cut(aborted / "frames.csv");
+    std::string line;
+    for (int k = 0; k < 7 && std::getline(in, line); ++k) cut << line << "\n";
+    cut.close();
+    EXPECT_EQ(eval(aborted.string(), dir / "report_aborted"), 2);
+    const std::string log = readText(dir / "eval.log");
+    EXPECT_NE(log.find(aborted.string() + ": not scored: no timing.json"), std::string::npos)
+        << log;
+    EXPECT_FALSE(fs::exists(dir / "report_aborted" / "report.json"));
+    EXPECT_EQ(eval(aborted.string(), dir / "report_aborted", 0, true), 0) << log;
+    EXPECT_NE(readText(dir / "report_aborted" / "report.json").find("no timing.json"),
+              std::string::npos);
+
+    // Full disk: no 0-byte report with exit 0.
+    EXPECT_EQ(eval(req.out_dir, dir / "report_full", 200), 3) << readText(dir / "eval.log");
+    EXPECT_NE(readText(dir / "eval.log").find("write error"), std::string::npos);
+    EXPECT_FALSE(fs::exists(dir / "report_full" / "report.md"));
 }

@@ -102,6 +102,7 @@ Report evaluate(const std::vector<GroundTruth>& truths, const std::vector<Run>& 
         m.frames_per_s = run.frames_per_s;
         m.match_ms_per_frame = run.match_ms_per_frame;
         m.frames_dropped = run.frames_dropped;
+        m.flagged = coarse.flagged = run.flagged;
         std::vector<double> errors, coarse_errors, yaw_errors;
         size_t refined = 0, refined_inside = 0, coarse_frames = 0;
 

@@ -5,8 +5,11 @@
 #include <map>
 #include <nlohmann/json.hpp>
 #include <set>
+#include <sstream>
 
 #include "lookup/common/config.h"
+#include "lookup/common/errors.h"
+#include "lookup/common/rawlog_io.h"
 #include "lookup/eval/evaluator.h"
 
 namespace lookup::eval {
@@ -21,15 +24,15 @@ std::string fmt(const char* format, double v) {
 }
 
 void writeMarkdown(const Report& r, const std::string& path) {
-    std::ofstream out(path);
-    if (!out) throw common::ConfigError(path + ": cannot open for writing");
+    std::ostringstream out;
     out << "# Localisation accuracy\n\n"
         << "Position error of the emitted pose against ground truth. Frames whose coarse error "
         << "exceeds " << r.options.coarse_exclusion_m
         << " m are excluded (the paper's rule); `excluded` counts them.\n\n"
         << "| traverse | method | frames | excluded | no pose | mean (m) | median (m) | p95 (m) "
-           "| max (m) | yaw (deg) | accepted | in 95% ellipse | frames/s | match ms/frame |\n"
-        << "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
+           "| max (m) | yaw (deg) | accepted | in 95% ellipse | frames/s | match ms/frame | "
+           "flagged |\n"
+        << "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|\n";
     for (const auto& m : r.rows) {
         const bool coarse = m.method == "coarse";
         out << "| " << m.traverse << " | " << m.method << " | " << m.frames << " | " << m.excluded
@@ -41,9 +44,10 @@ void writeMarkdown(const Report& r, const std::string& path) {
             << (coarse ? "" : fmt("%.1f %%", 100 * m.inside_95_share)) << " | "
             << (coarse || m.frames_per_s <= 0 ? "" : fmt("%.1f", m.frames_per_s)) << " | "
             << (coarse || m.match_ms_per_frame <= 0 ? "" : fmt("%.2f", m.match_ms_per_frame))
-            << " |\n";
+            << " | " << m.flagged << " |\n";
     }
     for (const auto& w : r.warnings) out << "\nWarning: " << w << "\n";
+    common::writeFileAtomically(path, out.str());
 }
 
 void writeJson(const Report& r, const std::string& path) {
@@ -67,9 +71,10 @@ void writeJson(const Report& r, const std::string& path) {
                              {"inside_95_ellipse_share", m.inside_95_share},
                              {"frames_per_s", m.frames_per_s},
                              {"match_ms_per_frame", m.match_ms_per_frame},
-                             {"frames_dropped", m.frames_dropped}});
+                             {"frames_dropped", m.frames_dropped},
+                             {"flagged", m.flagged}});
     }
-    std::ofstream(path) << j.dump(2) << "\n";
+    common::writeFileAtomically(path, j.dump(2) + "\n");
 }
 
 /// Clustered bar chart of the mean error, like the paper's Fig. 8, drawn by gnuplot.
@@ -89,7 +94,7 @@ bool plotMeanErrors(const Report& r, const std::string& out_dir, std::string& wa
     }
     const std::string dat = out_dir + "/errors.dat", gp = out_dir + "/errors.gp";
     {
-        std::ofstream d(dat);
+        std::ostringstream d;
         d << "traverse";
         for (const auto& me : methods) d << " \"" << me << "\"";
         d << "\n";
@@ -101,9 +106,10 @@ bool plotMeanErrors(const Report& r, const std::string& out_dir, std::string& wa
             }
             d << "\n";
         }
+        common::writeFileAtomically(dat, d.str());
     }
     {
-        std::ofstream g(gp);
+        std::ostringstream g;
         g << "set terminal pngcairo size 900,500 noenhanced\n"
           << "set output '" << out_dir << "/errors.png'\n"
           << "set style data histogram\nset style histogram clustered gap 1\n"
@@ -112,6 +118,7 @@ bool plotMeanErrors(const Report& r, const std::string& out_dir, std::string& wa
           << "set key outside right top\nset title 'Mean localisation error per traverse'\n"
           << "plot for [i=2:" << methods.size() + 1 << "] '" << dat
           << "' using i:xtic(1) title columnhead(i)\n";
+        common::writeFileAtomically(gp, g.str());
     }
     if (std::system(("gnuplot '" + gp + "' 2>" + out_dir + "/gnuplot.log").c_str()) != 0) {
         // pngcairo may be missing from a minimal gnuplot; fall back to the plain png terminal.
@@ -121,7 +128,7 @@ bool plotMeanErrors(const Report& r, const std::string& out_dir, std::string& wa
             script.assign(std::istreambuf_iterator<char>(in), {});
         }
         script.replace(script.find("pngcairo"), 8, "png");
-        std::ofstream(gp) << script;
+        common::writeFileAtomically(gp, script);
         if (std::system(("gnuplot '" + gp + "' 2>>" + out_dir + "/gnuplot.log").c_str()) != 0) {
             warning = "gnuplot failed, see " + out_dir + "/gnuplot.log";
             return false;
@@ -135,7 +142,7 @@ bool plotMeanErrors(const Report& r, const std::string& out_dir, std::string& wa
 void writeReport(const Report& report, const std::string& out_dir) {
     std::error_code ec;
     fs::create_directories(out_dir, ec);
-    if (ec) throw common::ConfigError(out_dir + ": cannot create: " + ec.message());
+    if (ec) throw common::WriteError(out_dir, "cannot create: " + ec.message());
     Report r = report;
     std::string warning;
     if (!plotMeanErrors(r, out_dir, warning)) r.warnings.push_back(warning);

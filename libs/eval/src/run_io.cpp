@@ -13,6 +13,7 @@
 #include <sstream>
 
 #include "lookup/common/config.h"
+#include "lookup/common/rawlog_io.h"
 
 namespace lookup::eval {
 namespace fs = std::filesystem;
@@ -63,6 +64,8 @@ Run loadRun(const std::string& directory) {
                 run.match_ms_per_frame = j["refine_ms_per_frame"].value("match", 0.0);
             }
             run.frames_dropped = j.value("frames_dropped", 0);
+            run.timing_frames = j.value("frames", -1L);
+            run.has_timing = true;
         } catch (const std::exception& e) {
             throw ConfigError(timing + ": malformed JSON: " + e.what());
         }
@@ -113,12 +116,33 @@ Run loadRun(const std::string& directory) {
             r.coarse_y = number("coarse_y");
             r.coarse_yaw = number("coarse_yaw");
         }
+        const bool pose_finite =
+            std::isfinite(r.x + r.y + r.yaw + r.cov_xx + r.cov_xy + r.cov_yy + r.cov_tt);
+        const bool coarse_finite = std::isfinite(r.coarse_x + r.coarse_y + r.coarse_yaw);
+        if (!pose_finite || !coarse_finite || !std::isfinite(r.time_s)) ++run.non_finite_rows;
+        if (!pose_finite) r.has_pose = false;
+        if (!coarse_finite) r.has_coarse = false;
         r.inlier_share = cell("inlier_share").empty() ? 0 : number("inlier_share");
         r.references = cell("references").empty() ? 0 : static_cast<int>(number("references"));
         r.ms = cell("ms").empty() ? 0 : number("ms");
         run.frames.push_back(std::move(r));
     }
     return run;
+}
+
+std::string runProblem(const Run& run) {
+    if (!run.has_timing) {
+        return "no timing.json: the run did not finish (it failed, was killed or still runs)";
+    }
+    if (run.frames.empty()) return "frames.csv has no frames";
+    if (run.timing_frames >= 0 && std::size_t(run.timing_frames) != run.frames.size()) {
+        return "timing.json counts " + std::to_string(run.timing_frames) +
+               " frames, frames.csv has " + std::to_string(run.frames.size()) + ": a partial run";
+    }
+    if (run.non_finite_rows > 0) {
+        return std::to_string(run.non_finite_rows) + " frames with non-finite values";
+    }
+    return {};
 }
 
 std::string framesCsvHeader() {
@@ -171,10 +195,9 @@ std::string formatFramesCsvRow(const FrameRow& r) {
 }
 
 void writeFramesCsv(const std::string& path, const std::vector<FrameRow>& frames) {
-    std::ofstream out(path);
-    if (!out) throw ConfigError(path + ": cannot open for writing");
-    out << framesCsvHeader() << "\n";
-    for (const auto& r : frames) out << formatFramesCsvRow(r) << "\n";
+    std::string text = framesCsvHeader() + "\n";
+    for (const auto& r : frames) text += formatFramesCsvRow(r) + "\n";
+    common::writeFileAtomically(path, text);
 }
 
 }  // namespace lookup::eval

@@ -52,6 +52,7 @@ struct MethodResult {
     double frames_per_s = 0;
     double match_ms_per_frame = 0;  ///< the SAD matcher's time per frame (0: not recorded)
     int frames_dropped = 0;
+    std::string flagged;  ///< Run::flagged: why this row scores an incomplete run ("" if not)
 };
 
 struct Report {
@@ -67,7 +68,8 @@ Report evaluate(const std::vector<GroundTruth>& truths, const std::vector<Run>& 
                 const EvalOptions& options);
 
 /// report.md (tables), report.json, and errors.png (mean error per traverse and method, drawn
-/// with gnuplot; skipped with a warning in the report if gnuplot is not installed).
+/// with gnuplot; skipped with a warning in the report if gnuplot is not installed). Each file
+/// is written atomically; a failed write throws common::WriteError naming it.
 void writeReport(const Report& report, const std::string& out_dir);
 
 }  // namespace lookup::eval
