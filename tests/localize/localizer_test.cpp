@@ -442,3 +442,68 @@ TEST(Localize, NonFiniteOrGarbageObservationsAreSkippedAndCountedNeverPoses) {
     for (const auto& f : run.frames) refined += f.status == "refined";
     EXPECT_GE(refined, 16u);  // the good frames around the garbage still refine
 }
+
+namespace {
+
+// runLocalization's error message, or "" when it ran.
+std::string errorOf(const localize::LocalizeRequest& req) {
+    try {
+        localize::runLocalization(req);
+    } catch (const std::exception& e) {
+        return e.what();
+    }
+    return {};
+}
+
+}  // namespace
+
+TEST(Localize, RunsThatCannotWorkAreRefusedAtTheStartWithTheReason) {
+    const auto dir = freshDir("cannot_work");
+    auto req = planarRun(dir, [](int, auto&, auto&) {});
+
+    // Query ceiling images of another size than the references'.
+    const auto half = freshDir("cannot_work_size");
+    auto small = planarRun(half, [](int, mrpt::obs::CObservationImage& img, auto&) {
+        cv::Mat m;
+        cv::resize(img.image.asCvMat<cv::Mat>(mrpt::img::SHALLOW_COPY), m, cv::Size(160, 120));
+        img.image = mrpt::img::CImage(m, mrpt::img::DEEP_COPY);
+    });
+    std::string e = errorOf(small);
+    EXPECT_NE(e.find("ceiling images are 160x120, the database's are 320x240"), std::string::npos)
+        << e;
+
+    // Coarse poses of another drive: no overlap with the query's time span.
+    common::writeTumPoseFile((dir / "other.tum").string(), {{kT0 + 500, mrpt::poses::CPose3D()},
+                                                            {kT0 + 510, mrpt::poses::CPose3D()}});
+    auto other = req;
+    other.coarse_poses = (dir / "other.tum").string();
+    e = errorOf(other);
+    EXPECT_NE(e.find("other.tum covers"), std::string::npos) << e;
+    EXPECT_NE(e.find("no overlap"), std::string::npos) << e;
+
+    // No <name>_Images folder beside the rawlog.
+    fs::rename(dir / "query_Images", dir / "moved_Images");
+    e = errorOf(req);
+    EXPECT_NE(e.find("query_Images does not exist"), std::string::npos) << e;
+    fs::rename(dir / "moved_Images", dir / "query_Images");
+    EXPECT_EQ(errorOf(req), "");
+    EXPECT_FALSE(fs::exists(req.out_dir + ".partial"));  // a refused run leaves nothing behind
+}
+
+TEST(Localize, AForwardCameraLabelWithoutImagesIsRefusedNamingThePresentLabels) {
+    const Scene scene;
+    const auto dir = freshDir("forward_label");
+    writeDatabase(scene, (dir / "db").string(), {{"survey", 65, 100.0, /*forward_seed=*/1}});
+    writeStartUpQuery(scene, dir / "query.rawlog", 8);
+    std::ofstream(dir / "label.ini") << "[localizer]\nforward_camera_label = FRONT_CAM\n";
+    localize::LocalizeRequest req;
+    req.db_dir = (dir / "db").string();
+    req.rawlog = (dir / "query.rawlog").string();
+    req.out_dir = (dir / "run").string();
+    req.ini_file = (dir / "label.ini").string();
+    req.progress = false;
+    const std::string e = errorOf(req);
+    EXPECT_NE(e.find("'FRONT_CAM'"), std::string::npos) << e;
+    EXPECT_NE(e.find("FORWARD_CAM (mrpt::obs::CObservationImage)"), std::string::npos) << e;
+    EXPECT_NE(e.find("forward_camera_label"), std::string::npos) << e;
+}

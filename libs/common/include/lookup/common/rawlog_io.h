@@ -25,6 +25,8 @@ class RawlogError : public std::runtime_error {
   public:
     RawlogError(const std::string& file, std::size_t record, const std::string& reason);
     RawlogError(const std::string& file, const std::string& reason);
+    /// A message that names file and record already (e.g. another RawlogError's, extended).
+    explicit RawlogError(const std::string& message) : std::runtime_error(message) {}
 };
 
 /// A text output file whose every write is checked: a failed write, flush, fsync or close
