@@ -6,99 +6,105 @@
 //                   [--realtime] [--max-frames N] [--repeat N]
 
 #include <mrpt/3rdparty/tclap/CmdLine.h>
-#include <mrpt/core/exceptions.h>
 
 #include <cstdio>
 #include <iostream>
 
 #include "lookup/common/cli.h"
+#include "lookup/common/config.h"
+#include "lookup/common/errors.h"
 #include "lookup/localize/localize_app.h"
 
-int main(int argc, char** argv) {
-    try {
-        TCLAP::CmdLine cmd("lookup-localize: LookUP precise localisation", ' ', "0.1");
-        TCLAP::ValueArg<std::string> db("", "db", "reference database folder", true, "", "DB", cmd);
-        TCLAP::ValueArg<std::string> rawlog("", "rawlog", "query rawlog to replay", false, "",
-                                            "FILE", cmd);
-        TCLAP::ValueArg<std::string> live("", "live",
-                                          "live sensors, rawlog-grabber style .ini (sections "
-                                          "with driver = CCameraSensor, ...)",
-                                          false, "", "FILE", cmd);
-        TCLAP::ValueArg<double> duration("", "duration", "live: stop after this many seconds",
-                                         false, 0, "S", cmd);
-        TCLAP::ValueArg<std::string> out("", "out", "run output folder", true, "", "DIR", cmd);
-        TCLAP::ValueArg<std::string> ini("", "ini", "options: [localizer] [refine.*] [coarse]",
-                                         false, "", "FILE", cmd);
-        TCLAP::ValueArg<std::string> method(
-            "", "method",
-            "method name for the report (default: lookup-grid24, lookup-fcn12, lookup-orb, ... "
-            "from the sampler and matcher used)",
-            false, "", "NAME", cmd);
-        TCLAP::ValueArg<std::string> matches("", "coarse-matches",
-                                             "coarse stage from `query_t reference_t` rows", false,
-                                             "", "FILE", cmd);
-        TCLAP::ValueArg<std::string> poses("", "coarse-poses", "coarse stage from a pose file",
-                                           false, "", "FILE", cmd);
-        TCLAP::ValueArg<std::string> sampling("", "sampling", "grid, heatmap or auto", false, "",
-                                              "MODE", cmd);
-        TCLAP::ValueArg<std::string> matcher(
-            "", "matcher",
-            "correspondences: sad (LookUP), orb or ecc (OpenCV baselines); the method name "
-            "defaults to lookup-orb / lookup-ecc",
-            false, "", "sad|orb|ecc", cmd);
-        TCLAP::SwitchArg realtime("", "realtime",
-                                  "replay at the recorded rate, dropping late "
-                                  "frames",
-                                  cmd);
-        TCLAP::ValueArg<int> max_frames("", "max-frames", "stop after N ceiling frames", false, 0,
-                                        "N", cmd);
-        TCLAP::ValueArg<int> repeat(
-            "", "repeat",
-            "replay the rawlog N times, each pass timed after the previous one (long runs)", false,
-            1, "N", cmd);
-        if (!cmd.parse(argc, argv)) return lookup::common::parseFailureExitCode(argc, argv);
+namespace {
 
-        lookup::localize::LocalizeRequest req;
-        req.db_dir = db.getValue();
-        req.rawlog = rawlog.getValue();
-        req.out_dir = out.getValue();
-        req.ini_file = ini.getValue();
-        req.matcher = matcher.getValue();
-        req.method = method.getValue();
-        req.coarse_matches = matches.getValue();
-        req.coarse_poses = poses.getValue();
-        req.sampling = sampling.getValue();
-        if (realtime.getValue()) req.realtime = 1;
-        req.max_frames = static_cast<std::size_t>(std::max(0, max_frames.getValue()));
-        req.repeat = repeat.getValue();
+int run(int argc, char** argv) {
+    TCLAP::CmdLine cmd(std::string("lookup-localize: LookUP precise localisation. ") +
+                           lookup::common::kExitCodesHelp,
+                       ' ', "0.1");
+    TCLAP::ValueArg<std::string> db("", "db", "reference database folder", true, "", "DB", cmd);
+    TCLAP::ValueArg<std::string> rawlog("", "rawlog", "query rawlog to replay", false, "", "FILE",
+                                        cmd);
+    TCLAP::ValueArg<std::string> live("", "live",
+                                      "live sensors, rawlog-grabber style .ini (sections "
+                                      "with driver = CCameraSensor, ...)",
+                                      false, "", "FILE", cmd);
+    TCLAP::ValueArg<double> duration("", "duration", "live: stop after this many seconds", false, 0,
+                                     "S", cmd);
+    TCLAP::ValueArg<std::string> out("", "out", "run output folder", true, "", "DIR", cmd);
+    TCLAP::ValueArg<std::string> ini("", "ini", "options: [localizer] [refine.*] [coarse]", false,
+                                     "", "FILE", cmd);
+    TCLAP::ValueArg<std::string> method(
+        "", "method",
+        "method name for the report (default: lookup-grid24, lookup-fcn12, lookup-orb, ... "
+        "from the sampler and matcher used)",
+        false, "", "NAME", cmd);
+    TCLAP::ValueArg<std::string> matches("", "coarse-matches",
+                                         "coarse stage from `query_t reference_t` rows", false, "",
+                                         "FILE", cmd);
+    TCLAP::ValueArg<std::string> poses("", "coarse-poses", "coarse stage from a pose file", false,
+                                       "", "FILE", cmd);
+    TCLAP::ValueArg<std::string> sampling("", "sampling", "grid, heatmap or auto", false, "",
+                                          "MODE", cmd);
+    TCLAP::ValueArg<std::string> matcher(
+        "", "matcher",
+        "correspondences: sad (LookUP), orb or ecc (OpenCV baselines); the method name "
+        "defaults to lookup-orb / lookup-ecc",
+        false, "", "sad|orb|ecc", cmd);
+    TCLAP::SwitchArg realtime("", "realtime",
+                              "replay at the recorded rate, dropping late "
+                              "frames",
+                              cmd);
+    TCLAP::ValueArg<int> max_frames("", "max-frames", "stop after N ceiling frames", false, 0, "N",
+                                    cmd);
+    TCLAP::ValueArg<int> repeat(
+        "", "repeat",
+        "replay the rawlog N times, each pass timed after the previous one (long runs)", false, 1,
+        "N", cmd);
+    TCLAP::SwitchArg verbose("", "verbose", "on errors, print MRPT's full exception dump", cmd);
+    if (!cmd.parse(argc, argv)) return lookup::common::parseFailureExitCode(argc, argv);
 
-        if (rawlog.getValue().empty() == live.getValue().empty()) {
-            throw std::invalid_argument("give exactly one of --rawlog FILE or --live FILE.ini");
-        }
-        lookup::localize::RunTiming t;
-        if (!live.getValue().empty()) {
-            lookup::localize::LiveRequest live_req;
-            live_req.base = req;
-            live_req.sensors_ini = live.getValue();
-            live_req.duration_s = duration.getValue();
-            t = lookup::localize::runLiveLocalization(live_req);
-        } else {
-            t = lookup::localize::runLocalization(req);
-        }
-        std::printf(
-            "lookup-localize: %zu frames (%zu dropped) in %.1f s after %.1f s start-up: "
-            "%.1f frames/s; %.2f ms/frame (coarse %.2f, select %.2f, refine %.2f) -> %s\n",
-            t.frames, t.frames_dropped, t.wall_s, t.startup_s,
-            t.wall_s > 0 ? (t.frames - t.frames_dropped) / t.wall_s : 0.0,
-            t.total_ms / std::max<std::size_t>(1, t.frames),
-            t.coarse_ms / std::max<std::size_t>(1, t.frames),
-            t.select_ms / std::max<std::size_t>(1, t.frames),
-            t.refine_ms / std::max<std::size_t>(1, t.frames), req.out_dir.c_str());
-        return 0;
-    } catch (const TCLAP::ArgException& e) {
-        std::cerr << "lookup-localize: " << e.error() << " (" << e.argId() << ")\n";
-    } catch (const std::exception& e) {
-        std::cerr << "lookup-localize: " << mrpt::exception_to_str(e) << "\n";
+    lookup::localize::LocalizeRequest req;
+    req.db_dir = db.getValue();
+    req.rawlog = rawlog.getValue();
+    req.out_dir = out.getValue();
+    req.ini_file = ini.getValue();
+    req.matcher = matcher.getValue();
+    req.method = method.getValue();
+    req.coarse_matches = matches.getValue();
+    req.coarse_poses = poses.getValue();
+    req.sampling = sampling.getValue();
+    if (realtime.getValue()) req.realtime = 1;
+    req.max_frames = static_cast<std::size_t>(std::max(0, max_frames.getValue()));
+    req.repeat = repeat.getValue();
+
+    if (rawlog.getValue().empty() == live.getValue().empty()) {
+        throw lookup::common::ConfigError("give exactly one of --rawlog FILE or --live FILE.ini");
     }
-    return 1;
+    lookup::localize::RunTiming t;
+    if (!live.getValue().empty()) {
+        lookup::localize::LiveRequest live_req;
+        live_req.base = req;
+        live_req.sensors_ini = live.getValue();
+        live_req.duration_s = duration.getValue();
+        t = lookup::localize::runLiveLocalization(live_req);
+    } else {
+        t = lookup::localize::runLocalization(req);
+    }
+    std::printf(
+        "lookup-localize: %zu frames (%zu dropped) in %.1f s after %.1f s start-up: "
+        "%.1f frames/s; %.2f ms/frame (coarse %.2f, select %.2f, refine %.2f) -> %s\n",
+        t.frames, t.frames_dropped, t.wall_s, t.startup_s,
+        t.wall_s > 0 ? t.processed() / t.wall_s : 0.0,
+        t.total_ms / std::max<std::size_t>(1, t.processed()),
+        t.coarse_ms / std::max<std::size_t>(1, t.processed()),
+        t.select_ms / std::max<std::size_t>(1, t.processed()),
+        t.refine_ms / std::max<std::size_t>(1, t.processed()), req.out_dir.c_str());
+    return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    return lookup::common::guardedMain("lookup-localize", argc, argv,
+                                       [&] { return run(argc, argv); });
 }

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 
 #include "lookup/common/config.h"
 #include "lookup/eval/evaluator.h"
@@ -178,4 +179,52 @@ TEST(Report, WritesMarkdownJsonAndChart) {
     if (std::system("command -v gnuplot >/dev/null 2>&1") == 0) {
         EXPECT_GT(fs::file_size(dir / "errors.png"), 1000u);
     }
+}
+
+TEST(RunIo, HugeValuesRoundTripThroughFramesCsv) {
+    const auto dir = fs::temp_directory_path() / "lookup_eval_huge";
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    FrameRow r;
+    r.time_s = 1.7e9;
+    r.status = "fallback";
+    r.reason = std::string(300, 'x');
+    r.has_pose = r.has_coarse = true;
+    r.x = 1e300, r.y = -1e300, r.yaw = 1e300;
+    r.cov_xx = r.cov_yy = r.cov_tt = 1e300, r.cov_xy = -1e300;
+    r.coarse_x = r.coarse_y = 1e300;
+    r.ms = 1e300;
+    const std::string row = formatFramesCsvRow(r);
+    EXPECT_GT(row.size(), 256u);  // once cut at a fixed 256-byte buffer
+    writeFramesCsv((dir / "frames.csv").string(), {r, r});
+    const auto back = loadRun(dir.string());
+    ASSERT_EQ(back.frames.size(), 2u);
+    EXPECT_EQ(back.frames[1].x, 1e300);
+    EXPECT_EQ(back.frames[1].cov_xy, -1e300);
+    EXPECT_EQ(back.frames[1].coarse_y, 1e300);
+    EXPECT_EQ(back.frames[1].ms, 1e300);
+    EXPECT_DOUBLE_EQ(back.frames[1].time_s, 1.7e9);
+}
+
+TEST(RunIo, IncompleteEmptyAndNonFiniteRunsAreNamedProblems) {
+    const auto dir = fs::temp_directory_path() / "lookup_eval_problems";
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    auto run = runWithOffsets({0.1, 0.2, 0.3}, 1.0);
+    writeFramesCsv((dir / "frames.csv").string(), run.frames);
+    EXPECT_NE(runProblem(loadRun(dir.string())).find("no timing.json"), std::string::npos);
+    std::ofstream(dir / "timing.json") << R"({"frames": 3})";
+    EXPECT_EQ(runProblem(loadRun(dir.string())), "");
+    std::ofstream(dir / "timing.json") << R"({"frames": 178})";
+    EXPECT_NE(runProblem(loadRun(dir.string())).find("178"), std::string::npos);
+    writeFramesCsv((dir / "frames.csv").string(), {});
+    EXPECT_NE(runProblem(loadRun(dir.string())).find("no frames"), std::string::npos);
+
+    run.frames[1].x = std::numeric_limits<double>::quiet_NaN();
+    writeFramesCsv((dir / "frames.csv").string(), run.frames);
+    std::ofstream(dir / "timing.json") << R"({"frames": 3})";
+    const auto back = loadRun(dir.string());
+    EXPECT_EQ(back.non_finite_rows, 1u);
+    EXPECT_FALSE(back.frames[1].has_pose);  // never scored as a position
+    EXPECT_NE(runProblem(back).find("non-finite"), std::string::npos);
 }

@@ -5,13 +5,18 @@
 #include <gtest/gtest.h>
 #include <mrpt/obs/CObservationOdometry.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <functional>
+#include <limits>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgproc.hpp>
+#include <sstream>
 #include <vector>
 
+#include "localize_fixture.h"
 #include "lookup/coarse/options.h"
 #include "lookup/common/pose_files.h"
 #include "lookup/common/rawlog_io.h"
@@ -24,87 +29,9 @@
 
 namespace fs = std::filesystem;
 using namespace lookup;
+using namespace lookup::localize_testing;
 
 namespace {
-
-constexpr double kCeilingHeight = 5.0;
-constexpr double kT0 = 1.7e9;
-
-struct Scene {
-    refine::synthetic::SyntheticCeiling ceiling =
-        refine::synthetic::SyntheticCeiling::make(kCeilingHeight, 40.0, 0.01, 7);
-    mrpt::img::TCamera camera = refine::synthetic::makeCamera(320, 240, 160);
-    mrpt::poses::CPose3D mount = refine::synthetic::ceilingCameraOnVehicle();
-
-    mrpt::obs::CObservationImage::Ptr image(const mrpt::poses::CPose3D& vehicle, double t) const {
-        auto obs = mrpt::obs::CObservationImage::Create();
-        obs->sensorLabel = "CEILING_CAM";
-        obs->timestamp = mrpt::Clock::fromDouble(t);
-        obs->cameraParams = camera;
-        obs->cameraPose = mount;
-        obs->image =
-            mrpt::img::CImage(ceiling.render(camera, vehicle + mount), mrpt::img::DEEP_COPY);
-        return obs;
-    }
-};
-
-fs::path freshDir(const std::string& name) {
-    const auto dir = fs::temp_directory_path() / ("lookup_localize_" + name);
-    fs::remove_all(dir);
-    fs::create_directories(dir);
-    return dir;
-}
-
-// A forward view for frame k of a traverse: smooth random texture, distinct per frame and
-// per traverse (seed), as a tunnel seen from a different lateral position would be.
-mrpt::obs::CObservationImage::Ptr forwardView(int traverse_seed, int k, double t) {
-    cv::Mat img(96, 128, CV_8UC1);
-    cv::RNG rng(traverse_seed * 1000 + k);
-    rng.fill(img, cv::RNG::UNIFORM, 0, 255);
-    cv::GaussianBlur(img, img, cv::Size(0, 0), 3.0);
-    auto obs = mrpt::obs::CObservationImage::Create();
-    obs->sensorLabel = "FORWARD_CAM";
-    obs->timestamp = mrpt::Clock::fromDouble(t);
-    obs->image = mrpt::img::CImage(img, mrpt::img::DEEP_COPY);
-    return obs;
-}
-
-// One survey traverse: `references` every 0.25 m along y = 0 from x = -8, 0.1 s apart from
-// t0; with forward views when forward_seed > 0.
-struct SurveyTraverse {
-    const char* name;
-    int references;
-    double t0;
-    int forward_seed = 0;
-    double y_m = 0;  ///< lateral position of the traverse
-};
-
-void writeDatabase(const Scene& scene, const std::string& dir,
-                   const std::vector<SurveyTraverse>& traverses) {
-    database::DatabaseWriter writer(dir);
-    for (const auto& tr : traverses) {
-        for (int k = 0; k < tr.references; ++k) {
-            database::ReferenceInput in;
-            in.traverse = tr.name;
-            in.vehicle_pose = mrpt::poses::CPose3D(-8 + 0.25 * k, tr.y_m, 0, 0, 0, 0);
-            in.vehicle_cov.setIdentity();
-            in.vehicle_cov *= 1e-4;
-            in.ceiling = scene.image(in.vehicle_pose, tr.t0 + 0.1 * k);
-            if (tr.forward_seed > 0) {
-                in.forward = forwardView(tr.forward_seed, k, tr.t0 + 0.1 * k);
-                in.forward_vehicle_pose = in.vehicle_pose;
-            }
-            in.travelled_m = 0.25 * k;
-            writer.add(in);
-        }
-    }
-    database::DatabaseInfo info;
-    info.name = "synthetic";
-    info.ceiling_camera = scene.camera;
-    info.ceiling_height_m = kCeilingHeight;
-    info.pose_source = "test";
-    writer.commit(info);
-}
 
 // Two survey traverses with unrelated forward views (seeds 1 and 2): "long", 60 references,
 // then "short", 45; reference 60 + k is frame k of "short".
@@ -203,7 +130,7 @@ TEST(Localize, RefinesCoarsePosesToCentimetresOnASyntheticCeiling) {
         EXPECT_NEAR(stamps[20] - stamps[19], 1.0, 1e-3);  // one second between passes
         EXPECT_NEAR(stamps[40] - stamps[20], stamps[20] - stamps[0], 1e-3);
         again.repeat = 0;
-        EXPECT_THROW(localize::runLocalization(again), std::invalid_argument);
+        EXPECT_THROW(localize::runLocalization(again), common::ConfigError);
     }
 
     // The same frames from a "live" camera: MRPT's CCameraSensor replaying the rawlog, as
@@ -483,4 +410,100 @@ TEST(Localize, StartUpAcquisitionFixesBeforeTheCoarseSequenceIsFullAndOnlyOnTheR
     ASSERT_EQ(other_rows.size(), 12u);
     EXPECT_EQ(firstRefined(other_rows), -1);
     EXPECT_EQ(other_rows.back().status, "lost");
+}
+
+TEST(Localize, NonFiniteOrGarbageObservationsAreSkippedAndCountedNeverPoses) {
+    const auto dir = freshDir("garbage");
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    const auto req = planarRun(
+        dir, [&](int i, mrpt::obs::CObservationImage& img, mrpt::obs::CObservationOdometry& odo) {
+            if (i == 5) odo.odometry.x(nan);
+            if (i == 8) {
+                odo.hasVelocities = true;
+                odo.velocityLocal.vx = std::numeric_limits<double>::infinity();
+            }
+            if (i == 11) odo.odometry.y(1e300);
+            if (i == 14) img.cameraParams.fx(nan);
+            if (i == 16) img.image = mrpt::img::CImage();
+        });
+    const auto timing = localize::runLocalization(req);
+    EXPECT_EQ(timing.frames, 18u);  // two ceiling frames refused
+    EXPECT_EQ(timing.skipped.at("odometry_not_finite"), 3u);
+    EXPECT_EQ(timing.skipped.at("intrinsics_invalid"), 1u);
+    EXPECT_EQ(timing.skipped.at("image_unusable"), 1u);
+    EXPECT_EQ(nonFiniteLines(fs::path(req.out_dir) / "frames.csv", 1), 0u);
+    EXPECT_EQ(nonFiniteLines(fs::path(req.out_dir) / "poses.tum", 0), 0u);
+    std::ifstream in(fs::path(req.out_dir) / "timing.json");
+    const auto j = nlohmann::json::parse(in);
+    EXPECT_EQ(j.at("skipped").at("odometry_not_finite").get<int>(), 3);
+    const auto run = eval::loadRun(req.out_dir);
+    ASSERT_EQ(run.frames.size(), 18u);
+    std::size_t refined = 0;
+    for (const auto& f : run.frames) refined += f.status == "refined";
+    EXPECT_GE(refined, 16u);  // the good frames around the garbage still refine
+}
+
+namespace {
+
+// runLocalization's error message, or "" when it ran.
+std::string errorOf(const localize::LocalizeRequest& req) {
+    try {
+        localize::runLocalization(req);
+    } catch (const std::exception& e) {
+        return e.what();
+    }
+    return {};
+}
+
+}  // namespace
+
+TEST(Localize, RunsThatCannotWorkAreRefusedAtTheStartWithTheReason) {
+    const auto dir = freshDir("cannot_work");
+    auto req = planarRun(dir, [](int, auto&, auto&) {});
+
+    // Query ceiling images of another size than the references'.
+    const auto half = freshDir("cannot_work_size");
+    auto small = planarRun(half, [](int, mrpt::obs::CObservationImage& img, auto&) {
+        cv::Mat m;
+        cv::resize(img.image.asCvMat<cv::Mat>(mrpt::img::SHALLOW_COPY), m, cv::Size(160, 120));
+        img.image = mrpt::img::CImage(m, mrpt::img::DEEP_COPY);
+    });
+    std::string e = errorOf(small);
+    EXPECT_NE(e.find("ceiling images are 160x120, the database's are 320x240"), std::string::npos)
+        << e;
+
+    // Coarse poses of another drive: no overlap with the query's time span.
+    common::writeTumPoseFile((dir / "other.tum").string(), {{kT0 + 500, mrpt::poses::CPose3D()},
+                                                            {kT0 + 510, mrpt::poses::CPose3D()}});
+    auto other = req;
+    other.coarse_poses = (dir / "other.tum").string();
+    e = errorOf(other);
+    EXPECT_NE(e.find("other.tum covers"), std::string::npos) << e;
+    EXPECT_NE(e.find("no overlap"), std::string::npos) << e;
+
+    // No <name>_Images folder beside the rawlog.
+    fs::rename(dir / "query_Images", dir / "moved_Images");
+    e = errorOf(req);
+    EXPECT_NE(e.find("query_Images does not exist"), std::string::npos) << e;
+    fs::rename(dir / "moved_Images", dir / "query_Images");
+    EXPECT_EQ(errorOf(req), "");
+    EXPECT_FALSE(fs::exists(req.out_dir + ".partial"));  // a refused run leaves nothing behind
+}
+
+TEST(Localize, AForwardCameraLabelWithoutImagesIsRefusedNamingThePresentLabels) {
+    const Scene scene;
+    const auto dir = freshDir("forward_label");
+    writeDatabase(scene, (dir / "db").string(), {{"survey", 65, 100.0, /*forward_seed=*/1}});
+    writeStartUpQuery(scene, dir / "query.rawlog", 8);
+    std::ofstream(dir / "label.ini") << "[localizer]\nforward_camera_label = FRONT_CAM\n";
+    localize::LocalizeRequest req;
+    req.db_dir = (dir / "db").string();
+    req.rawlog = (dir / "query.rawlog").string();
+    req.out_dir = (dir / "run").string();
+    req.ini_file = (dir / "label.ini").string();
+    req.progress = false;
+    const std::string e = errorOf(req);
+    EXPECT_NE(e.find("'FRONT_CAM'"), std::string::npos) << e;
+    EXPECT_NE(e.find("FORWARD_CAM (mrpt::obs::CObservationImage)"), std::string::npos) << e;
+    EXPECT_NE(e.find("forward_camera_label"), std::string::npos) << e;
 }

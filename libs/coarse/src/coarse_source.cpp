@@ -90,4 +90,13 @@ CoarseResult PoseFileSource::locate(const CoarseQuery& query) {
     return r;
 }
 
+std::optional<std::pair<double, double>> MatchFileSource::queryTimeSpan() const {
+    return std::make_pair(rows_.front().first - max_time_gap_s_,
+                          rows_.back().first + max_time_gap_s_);
+}
+
+std::optional<std::pair<double, double>> PoseFileSource::queryTimeSpan() const {
+    return std::make_pair(track_.front().time_s, track_.back().time_s);
+}
+
 }  // namespace lookup::coarse

@@ -3,11 +3,13 @@
 #include <mrpt/math/CQuaternion.h>
 #include <mrpt/system/datetime.h>
 
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <sstream>
 
 #include "lookup/common/config.h"
+#include "lookup/common/rawlog_io.h"
 
 namespace lookup::common {
 
@@ -37,6 +39,14 @@ PoseTrack readPoseFile(const std::string& path) {
             throw ConfigError(path + ":" + std::to_string(line_no) +
                               ": column count changes within the file");
         }
+        for (double value : v) {
+            if (!std::isfinite(value)) {
+                throw ConfigError(path + ":" + std::to_string(line_no) + ": value not finite");
+            }
+        }
+        if (v.size() == 8 && std::hypot(std::hypot(v[4], v[5]), std::hypot(v[6], v[7])) < 1e-6) {
+            throw ConfigError(path + ":" + std::to_string(line_no) + ": zero quaternion");
+        }
         columns_seen = v.size();
         StampedPose p;
         p.time_s = v[0];
@@ -47,8 +57,7 @@ PoseTrack readPoseFile(const std::string& path) {
             p.pose = mrpt::poses::CPose3D(q, v[1], v[2], v[3]);
         }
         if (!track.empty() && p.time_s <= track.back().time_s) {
-            throw ConfigError(path + ":" + std::to_string(line_no) +
-                              ": time stamps must increase");
+            throw ConfigError(path + ":" + std::to_string(line_no) + ": time stamps must increase");
         }
         track.push_back(p);
     }
@@ -56,38 +65,31 @@ PoseTrack readPoseFile(const std::string& path) {
     return track;
 }
 
-namespace {
-std::FILE* openForWrite(const std::string& path) {
-    std::FILE* f = std::fopen(path.c_str(), "w");
-    if (f == nullptr) throw ConfigError(path + ": cannot open for writing");
-    return f;
-}
-}  // namespace
-
 void writeMrptPoseFile(const std::string& path, const PoseTrack& track) {
-    std::FILE* f = openForWrite(path);
+    OutputFile f(path);
     for (const auto& p : track) {
-        std::fprintf(f, "%.6f %.6f %.6f %.6f %.8f %.8f %.8f\n", p.time_s, p.pose.x(), p.pose.y(),
-                     p.pose.z(), p.pose.yaw(), p.pose.pitch(), p.pose.roll());
+        f.printf("%.6f %.6f %.6f %.6f %.8f %.8f %.8f\n", p.time_s, p.pose.x(), p.pose.y(),
+                 p.pose.z(), p.pose.yaw(), p.pose.pitch(), p.pose.roll());
     }
-    std::fclose(f);
+    f.close();
 }
 
 void writeTumPoseFile(const std::string& path, const PoseTrack& track) {
-    std::FILE* f = openForWrite(path);
+    OutputFile f(path);
     for (const auto& p : track) {
         mrpt::math::CQuaternionDouble q;
         p.pose.getAsQuaternion(q);
-        std::fprintf(f, "%.6f %.6f %.6f %.6f %.9f %.9f %.9f %.9f\n", p.time_s, p.pose.x(),
-                     p.pose.y(), p.pose.z(), q.x(), q.y(), q.z(), q.r());
+        f.printf("%.6f %.6f %.6f %.6f %.9f %.9f %.9f %.9f\n", p.time_s, p.pose.x(), p.pose.y(),
+                 p.pose.z(), q.x(), q.y(), q.z(), q.r());
     }
-    std::fclose(f);
+    f.close();
 }
 
 mrpt::poses::CPose3DInterpolator makeInterpolator(const PoseTrack& track, double max_gap_s) {
     mrpt::poses::CPose3DInterpolator interp;
     interp.setInterpolationMethod(mrpt::poses::imLinearSlerp);
-    interp.setMaxTimeInterpolation(std::chrono::microseconds(static_cast<int64_t>(max_gap_s * 1e6)));
+    interp.setMaxTimeInterpolation(
+        std::chrono::microseconds(static_cast<int64_t>(max_gap_s * 1e6)));
     for (const auto& p : track) {
         interp.insert(mrpt::Clock::fromDouble(p.time_s), p.pose.asTPose());
     }

@@ -6,8 +6,16 @@
 #include <mrpt/obs/CSensoryFrame.h>
 #include <mrpt/system/filesystem.h>
 
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstdarg>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
+
+#include "lookup/common/errors.h"
 
 namespace lookup::common {
 namespace fs = std::filesystem;
@@ -18,6 +26,68 @@ RawlogError::RawlogError(const std::string& file, std::size_t record, const std:
 RawlogError::RawlogError(const std::string& file, const std::string& reason)
     : std::runtime_error(file + ": " + reason) {}
 
+OutputFile::OutputFile(std::string path) : path_(std::move(path)) {
+    file_ = std::fopen(path_.c_str(), "w");
+    if (file_ == nullptr) fail("cannot open for writing");
+}
+
+OutputFile::~OutputFile() {
+    if (file_ != nullptr) std::fclose(file_);
+}
+
+void OutputFile::fail(const char* what) const {
+    throw WriteError(path_, std::string(what) + ": " + std::strerror(errno));
+}
+
+void OutputFile::write(const std::string& text) {
+    if (std::fwrite(text.data(), 1, text.size(), file_) != text.size()) fail("cannot write");
+}
+
+void OutputFile::printf(const char* format, ...) {
+    std::va_list args;
+    va_start(args, format);
+    const int n = std::vfprintf(file_, format, args);
+    va_end(args);
+    if (n < 0 || std::ferror(file_)) fail("cannot write");
+}
+
+void OutputFile::flush() {
+    if (std::fflush(file_) != 0 || std::ferror(file_)) fail("cannot write");
+}
+
+void OutputFile::close() {
+    if (file_ == nullptr) return;
+    flush();
+    if (::fsync(fileno(file_)) != 0) fail("cannot sync");
+    std::FILE* f = std::exchange(file_, nullptr);
+    if (std::fclose(f) != 0) fail("cannot close");
+}
+
+void writeFileAtomically(const std::string& path, const std::string& content) {
+    const std::string tmp = path + ".tmp";
+    {
+        OutputFile out(tmp);
+        out.write(content);
+        out.close();
+    }
+    std::error_code ec;
+    fs::rename(tmp, path, ec);
+    if (ec) throw WriteError(path, "cannot rename " + tmp + " into place: " + ec.message());
+    syncDirectory(fs::absolute(path).parent_path().string());
+}
+
+void syncDirectory(const std::string& dir) {
+    const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY);
+    if (fd < 0) throw WriteError(dir, std::string("cannot open folder: ") + std::strerror(errno));
+    const int rc = ::fsync(fd);
+    const int err = errno;
+    ::close(fd);
+    // Some file systems cannot sync folders (EINVAL): nothing more to be had there.
+    if (rc != 0 && err != EINVAL) {
+        throw WriteError(dir, std::string("cannot sync folder: ") + std::strerror(err));
+    }
+}
+
 std::string imagesDirectoryFor(const std::string& rawlog_path) {
     const fs::path p = fs::absolute(rawlog_path);
     return (p.parent_path() / (p.stem().string() + "_Images")).string();
@@ -27,8 +97,9 @@ RawlogReader::RawlogReader(const std::string& path) : path_(path) {
     if (!fs::is_regular_file(path)) throw RawlogError(path, "no such rawlog file");
     std::string error;
     if (!file_.open(path, error)) throw RawlogError(path, "cannot open: " + error);
-    archive_ = std::make_unique<mrpt::serialization::CArchiveStreamBase<
-        mrpt::io::CFileGZInputStream>>(file_);
+    archive_ =
+        std::make_unique<mrpt::serialization::CArchiveStreamBase<mrpt::io::CFileGZInputStream>>(
+            file_);
     images_dir_ = imagesDirectoryFor(path);
     if (!fs::is_directory(images_dir_)) {
         // MRPT's other convention: a sibling folder named "Images".
@@ -66,8 +137,7 @@ bool RawlogReader::next(mrpt::obs::CObservation::Ptr& obs) {
             pending_.push_back(single);
         } else if (auto frame = std::dynamic_pointer_cast<mrpt::obs::CSensoryFrame>(object)) {
             for (const auto& o : *frame) pending_.push_back(o);
-        } else if (auto actions =
-                       std::dynamic_pointer_cast<mrpt::obs::CActionCollection>(object)) {
+        } else if (auto actions = std::dynamic_pointer_cast<mrpt::obs::CActionCollection>(object)) {
             if (auto move = actions->getBestMovementEstimation(); move) {
                 odometry_ = odometry_ + move->rawOdometryIncrementReading;
                 auto odo = mrpt::obs::CObservationOdometry::Create();
@@ -98,16 +168,19 @@ RawlogWriter::RawlogWriter(const std::string& rawlog_path, int compress_level)
     if (!file_.open(path_ + ".tmp", compress_level, error)) {
         throw RawlogError(rawlog_path, "cannot open for writing: " + error);
     }
-    archive_ = std::make_unique<mrpt::serialization::CArchiveStreamBase<
-        mrpt::io::CFileGZOutputStream>>(file_);
+    archive_ =
+        std::make_unique<mrpt::serialization::CArchiveStreamBase<mrpt::io::CFileGZOutputStream>>(
+            file_);
 }
 
 RawlogWriter::~RawlogWriter() {
     if (closed_) return;
+    // Not close(): an unfinished rawlog must not be renamed into place; it stays as .tmp.
     try {
-        close();
+        archive_.reset();
+        file_.close();
     } catch (...) {
-        // Destructors must not throw; the .tmp file is left behind for inspection.
+        // Destructors must not throw.
     }
 }
 
@@ -115,7 +188,8 @@ void RawlogWriter::writeWithExternalImage(mrpt::obs::CObservationImage& obs,
                                           const std::string& file_name) {
     const std::string full = images_dir_ + "/" + file_name;
     if (!obs.image.saveToFile(full)) {
-        throw RawlogError(path_, records_, "cannot write image " + full);
+        throw WriteError(
+            full, "cannot write image (record " + std::to_string(records_) + " of " + path_ + ")");
     }
     obs.image.setExternalStorage(file_name);
     write(obs);
@@ -124,7 +198,12 @@ void RawlogWriter::writeWithExternalImage(mrpt::obs::CObservationImage& obs,
 }
 
 void RawlogWriter::write(const mrpt::obs::CObservation& obs) {
-    (*archive_) << obs;
+    try {
+        (*archive_) << obs;
+    } catch (const std::exception& e) {
+        throw WriteError(path_ + ".tmp",
+                         "record " + std::to_string(records_) + ": " + errorLine(e));
+    }
     ++records_;
 }
 
@@ -133,9 +212,40 @@ void RawlogWriter::close() {
     closed_ = true;
     archive_.reset();
     file_.close();
+    const std::string tmp = path_ + ".tmp";
+    verifyWritten(tmp, records_);
+    const int fd = ::open(tmp.c_str(), O_RDONLY);
+    if (fd < 0 || ::fsync(fd) != 0) {
+        const int err = errno;
+        if (fd >= 0) ::close(fd);
+        throw WriteError(tmp, std::string("cannot sync: ") + std::strerror(err));
+    }
+    ::close(fd);
     std::error_code ec;
-    fs::rename(path_ + ".tmp", path_, ec);
-    if (ec) throw RawlogError(path_, "cannot rename into place: " + ec.message());
+    fs::rename(tmp, path_, ec);
+    if (ec) throw WriteError(path_, "cannot rename into place: " + ec.message());
+}
+
+void RawlogWriter::verifyWritten(const std::string& tmp, std::size_t records) {
+    std::size_t read = 0;
+    try {
+        RawlogReader back(tmp);
+        mrpt::obs::CObservation::Ptr obs;
+        std::size_t last_entry = std::string::npos;
+        while (back.next(obs)) {
+            // Sensory frames hold several observations: count entries, not observations.
+            if (back.recordIndex() != last_entry) ++read;
+            last_entry = back.recordIndex();
+        }
+    } catch (const std::exception& e) {
+        throw WriteError(tmp, "read-back after " + std::to_string(read) + " of " +
+                                  std::to_string(records) +
+                                  " records failed (disk full?): " + errorLine(e));
+    }
+    if (read != records) {
+        throw WriteError(tmp, "read-back found " + std::to_string(read) + " of " +
+                                  std::to_string(records) + " records (disk full?)");
+    }
 }
 
 }  // namespace lookup::common

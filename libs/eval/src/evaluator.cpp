@@ -174,6 +174,7 @@ MethodResult scoreRun(const Run& run, const GroundTruth& gt, const EvalOptions& 
     m.frames_per_s = run.frames_per_s;
     m.match_ms_per_frame = run.match_ms_per_frame;
     m.frames_dropped = run.frames_dropped;
+    m.flagged = run.flagged;
     Tally t;
     double first_time_s = 0;
     for (size_t i = 0; i < run.frames.size(); ++i) {
@@ -202,6 +203,7 @@ MethodResult scoreRun(const Run& run, const GroundTruth& gt, const EvalOptions& 
         coarse->traverse = gt.traverse;
         coarse->method = "coarse";
         coarse->run_directory = run.directory;
+        coarse->flagged = run.flagged;
         coarse->frames = t.coarse_frames > 0 ? m.frames : 0;
         coarse->excluded = m.excluded;
         coarse->error = summarize(t.coarse_errors);

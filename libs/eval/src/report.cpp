@@ -5,8 +5,11 @@
 #include <map>
 #include <nlohmann/json.hpp>
 #include <set>
+#include <sstream>
 
 #include "lookup/common/config.h"
+#include "lookup/common/errors.h"
+#include "lookup/common/rawlog_io.h"
 #include "lookup/eval/evaluator.h"
 
 namespace lookup::eval {
@@ -26,8 +29,7 @@ std::string firstFix(const MethodResult& m) {
 }
 
 void writeMarkdown(const Report& r, const std::string& path) {
-    std::ofstream out(path);
-    if (!out) throw common::ConfigError(path + ": cannot open for writing");
+    std::ostringstream out;
     out << "# Localisation accuracy\n\n"
         << "Position error of the emitted pose against ground truth. Frames whose coarse error "
         << "exceeds " << r.options.coarse_exclusion_m
@@ -37,9 +39,9 @@ void writeMarkdown(const Report& r, const std::string& path) {
            "the first refined frame's index and the metres driven before it.\n\n"
         << "| traverse | method | frames | excluded | no pose | mean (m) | median (m) | p95 (m) "
            "| max (m) | yaw (deg) | accepted | after first fix | first fix (frame, m) "
-           "| confident wrong | in 95% ellipse | frames/s | match ms/frame | p99 ms |\n"
+           "| confident wrong | in 95% ellipse | frames/s | match ms/frame | p99 ms | flagged |\n"
         << "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:"
-           "|---:|\n";
+           "|---:|---|\n";
     for (const auto& m : r.rows) {
         const bool coarse = m.method == "coarse";
         out << "| " << m.traverse << " | " << m.method << " | " << m.frames << " | " << m.excluded
@@ -54,10 +56,11 @@ void writeMarkdown(const Report& r, const std::string& path) {
             << (coarse ? "" : fmt("%.1f %%", 100 * m.inside_95_share)) << " | "
             << (coarse || m.frames_per_s <= 0 ? "" : fmt("%.1f", m.frames_per_s)) << " | "
             << (coarse || m.match_ms_per_frame <= 0 ? "" : fmt("%.2f", m.match_ms_per_frame))
-            << " | " << (coarse || m.frame_ms_p99 <= 0 ? "" : fmt("%.1f", m.frame_ms_p99))
-            << " |\n";
+            << " | " << (coarse || m.frame_ms_p99 <= 0 ? "" : fmt("%.1f", m.frame_ms_p99)) << " | "
+            << m.flagged << " |\n";
     }
     for (const auto& w : r.warnings) out << "\nWarning: " << w << "\n";
+    common::writeFileAtomically(path, out.str());
 }
 
 void writeJson(const Report& r, const std::string& path) {
@@ -88,9 +91,10 @@ void writeJson(const Report& r, const std::string& path) {
                              {"first_fix_distance_m", m.first_fix_distance_m},
                              {"refined_after_first_fix_share", m.refined_after_first_fix_share},
                              {"confident_wrong", m.confident_wrong},
-                             {"frame_ms_p99", m.frame_ms_p99}});
+                             {"frame_ms_p99", m.frame_ms_p99},
+                             {"flagged", m.flagged}});
     }
-    std::ofstream(path) << j.dump(2) << "\n";
+    common::writeFileAtomically(path, j.dump(2) + "\n");
 }
 
 /// Clustered bar chart of the mean error, like the paper's Fig. 8, drawn by gnuplot.
@@ -110,7 +114,7 @@ bool plotMeanErrors(const Report& r, const std::string& out_dir, std::string& wa
     }
     const std::string dat = out_dir + "/errors.dat", gp = out_dir + "/errors.gp";
     {
-        std::ofstream d(dat);
+        std::ostringstream d;
         d << "traverse";
         for (const auto& me : methods) d << " \"" << me << "\"";
         d << "\n";
@@ -122,9 +126,10 @@ bool plotMeanErrors(const Report& r, const std::string& out_dir, std::string& wa
             }
             d << "\n";
         }
+        common::writeFileAtomically(dat, d.str());
     }
     {
-        std::ofstream g(gp);
+        std::ostringstream g;
         g << "set terminal pngcairo size 900,500 noenhanced\n"
           << "set output '" << out_dir << "/errors.png'\n"
           << "set style data histogram\nset style histogram clustered gap 1\n"
@@ -133,6 +138,7 @@ bool plotMeanErrors(const Report& r, const std::string& out_dir, std::string& wa
           << "set key outside right top\nset title 'Mean localisation error per traverse'\n"
           << "plot for [i=2:" << methods.size() + 1 << "] '" << dat
           << "' using i:xtic(1) title columnhead(i)\n";
+        common::writeFileAtomically(gp, g.str());
     }
     if (std::system(("gnuplot '" + gp + "' 2>" + out_dir + "/gnuplot.log").c_str()) != 0) {
         // pngcairo may be missing from a minimal gnuplot; fall back to the plain png terminal.
@@ -142,7 +148,7 @@ bool plotMeanErrors(const Report& r, const std::string& out_dir, std::string& wa
             script.assign(std::istreambuf_iterator<char>(in), {});
         }
         script.replace(script.find("pngcairo"), 8, "png");
-        std::ofstream(gp) << script;
+        common::writeFileAtomically(gp, script);
         if (std::system(("gnuplot '" + gp + "' 2>>" + out_dir + "/gnuplot.log").c_str()) != 0) {
             warning = "gnuplot failed, see " + out_dir + "/gnuplot.log";
             return false;
@@ -156,7 +162,7 @@ bool plotMeanErrors(const Report& r, const std::string& out_dir, std::string& wa
 void writeReport(const Report& report, const std::string& out_dir) {
     std::error_code ec;
     fs::create_directories(out_dir, ec);
-    if (ec) throw common::ConfigError(out_dir + ": cannot create: " + ec.message());
+    if (ec) throw common::WriteError(out_dir, "cannot create: " + ec.message());
     Report r = report;
     std::string warning;
     if (!plotMeanErrors(r, out_dir, warning)) r.warnings.push_back(warning);

@@ -2,6 +2,8 @@
 
 #include <mrpt/config/CConfigFile.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -11,6 +13,7 @@
 #include <sstream>
 
 #include "lookup/common/config.h"
+#include "lookup/common/rawlog_io.h"
 
 namespace lookup::eval {
 namespace fs = std::filesystem;
@@ -61,6 +64,8 @@ Run loadRun(const std::string& directory) {
                 run.match_ms_per_frame = j["refine_ms_per_frame"].value("match", 0.0);
             }
             run.frames_dropped = j.value("frames_dropped", 0);
+            run.timing_frames = j.value("frames", -1L);
+            run.has_timing = true;
         } catch (const std::exception& e) {
             throw ConfigError(timing + ": malformed JSON: " + e.what());
         }
@@ -111,6 +116,12 @@ Run loadRun(const std::string& directory) {
             r.coarse_y = number("coarse_y");
             r.coarse_yaw = number("coarse_yaw");
         }
+        const bool pose_finite =
+            std::isfinite(r.x + r.y + r.yaw + r.cov_xx + r.cov_xy + r.cov_yy + r.cov_tt);
+        const bool coarse_finite = std::isfinite(r.coarse_x + r.coarse_y + r.coarse_yaw);
+        if (!pose_finite || !coarse_finite || !std::isfinite(r.time_s)) ++run.non_finite_rows;
+        if (!pose_finite) r.has_pose = false;
+        if (!coarse_finite) r.has_coarse = false;
         r.inlier_share = cell("inlier_share").empty() ? 0 : number("inlier_share");
         r.references = cell("references").empty() ? 0 : static_cast<int>(number("references"));
         r.ms = cell("ms").empty() ? 0 : number("ms");
@@ -119,11 +130,39 @@ Run loadRun(const std::string& directory) {
     return run;
 }
 
+std::string runProblem(const Run& run) {
+    if (!run.has_timing) {
+        return "no timing.json: the run did not finish (it failed, was killed or still runs)";
+    }
+    if (run.frames.empty()) return "frames.csv has no frames";
+    if (run.timing_frames >= 0 && std::size_t(run.timing_frames) != run.frames.size()) {
+        return "timing.json counts " + std::to_string(run.timing_frames) +
+               " frames, frames.csv has " + std::to_string(run.frames.size()) + ": a partial run";
+    }
+    if (run.non_finite_rows > 0) {
+        return std::to_string(run.non_finite_rows) + " frames with non-finite values";
+    }
+    return {};
+}
+
 std::string framesCsvHeader() {
     std::string out;
     for (const char* name : kColumns) out += std::string(out.empty() ? "" : ",") + name;
     return out;
 }
+
+namespace {
+
+/// `v` in printf `format` (fixed point) while that stays short; beyond 1e12 (no pose of a
+/// mine, but garbage must still round-trip) or non-finite, the shortest exact "%.17g".
+std::string cell(const char* format, double v) {
+    char buf[48];
+    const bool fixed = std::isfinite(v) && std::abs(v) < 1e12;
+    const int n = std::snprintf(buf, sizeof buf, fixed ? format : "%.17g", v);
+    return std::string(buf, static_cast<std::size_t>(std::clamp(n, 0, int(sizeof buf) - 1)));
+}
+
+}  // namespace
 
 std::string formatFramesCsvRow(const FrameRow& r) {
     // The CSV has no quoting: reasons become one comma-free line of bounded length.
@@ -131,31 +170,34 @@ std::string formatFramesCsvRow(const FrameRow& r) {
     for (char& c : reason) {
         if (c == ',' || c == '\n' || c == '\r') c = ';';
     }
-    char buf[256];
-    std::snprintf(buf, sizeof buf, "%.6f,", r.time_s);
-    std::string out = buf + r.status + "," + reason + ",";
+    std::string out = cell("%.6f", r.time_s) + "," + r.status + "," + reason + ",";
     if (r.has_pose) {
-        std::snprintf(buf, sizeof buf, "%.5f,%.5f,%.6f,%.4e,%.4e,%.4e,%.4e,", r.x, r.y, r.yaw,
-                      r.cov_xx, r.cov_xy, r.cov_yy, r.cov_tt);
-        out += buf;
+        for (const auto& [format, v] : {std::pair{"%.5f", r.x},
+                                        {"%.5f", r.y},
+                                        {"%.6f", r.yaw},
+                                        {"%.4e", r.cov_xx},
+                                        {"%.4e", r.cov_xy},
+                                        {"%.4e", r.cov_yy},
+                                        {"%.4e", r.cov_tt}}) {
+            out += cell(format, v) + ",";
+        }
     } else {
         out += ",,,,,,,";
     }
     if (r.has_coarse) {
-        std::snprintf(buf, sizeof buf, "%.5f,%.5f,%.6f,", r.coarse_x, r.coarse_y, r.coarse_yaw);
-        out += buf;
+        out += cell("%.5f", r.coarse_x) + "," + cell("%.5f", r.coarse_y) + "," +
+               cell("%.6f", r.coarse_yaw) + ",";
     } else {
         out += ",,,";
     }
-    std::snprintf(buf, sizeof buf, "%.4f,%d,%.3f", r.inlier_share, r.references, r.ms);
-    return out + buf;
+    return out + cell("%.4f", r.inlier_share) + "," + std::to_string(r.references) + "," +
+           cell("%.3f", r.ms);
 }
 
 void writeFramesCsv(const std::string& path, const std::vector<FrameRow>& frames) {
-    std::ofstream out(path);
-    if (!out) throw ConfigError(path + ": cannot open for writing");
-    out << framesCsvHeader() << "\n";
-    for (const auto& r : frames) out << formatFramesCsvRow(r) << "\n";
+    std::string text = framesCsvHeader() + "\n";
+    for (const auto& r : frames) text += formatFramesCsvRow(r) + "\n";
+    common::writeFileAtomically(path, text);
 }
 
 }  // namespace lookup::eval

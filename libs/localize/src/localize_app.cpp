@@ -9,24 +9,119 @@
 
 #include <unistd.h>
 #include <chrono>
+#include <exception>
+#include <filesystem>
 #include <iostream>
 #include <thread>
 
+#include "lookup/coarse/camera_stream.h"
 #include "lookup/coarse/coarse_source.h"
 #include "lookup/common/config.h"
+#include "lookup/common/errors.h"
 #include "lookup/common/rawlog_io.h"
 #include "lookup/refine/correspondence_methods.h"
 
 namespace lookup::localize {
+namespace fs = std::filesystem;
 
 namespace {
 
-std::size_t countFrames(const std::string& rawlog, const std::string& label) {
+/// The ceiling frames of a query rawlog: how many, and the time span they cover.
+struct QuerySpan {
+    std::size_t ceiling_frames = 0;
+    double first_s = 0, last_s = 0;
+};
+
+QuerySpan scanQuery(const std::string& rawlog, const std::string& ceiling_label) {
     common::RawlogReader reader(rawlog);
     mrpt::obs::CObservation::Ptr obs;
-    std::size_t n = 0;
-    while (reader.next(obs)) n += obs->sensorLabel == label;
-    return n;
+    QuerySpan span;
+    while (reader.next(obs)) {
+        if (obs->sensorLabel != ceiling_label) continue;
+        const double t = mrpt::Clock::toDouble(obs->timestamp);
+        if (span.ceiling_frames++ == 0) span.first_s = t;
+        span.first_s = std::min(span.first_s, t);
+        span.last_s = std::max(span.last_s, t);
+    }
+    return span;
+}
+
+/// The first image of `label`, through lookup-coarse's CameraFrameStream (it refuses a rawlog
+/// without such images, listing the labels present, and an image that cannot be loaded).
+coarse::CameraFrame firstImage(const std::string& rawlog, const std::string& label,
+                               const std::string& why_needed) {
+    coarse::CameraFrameStream stream(rawlog, label, "");
+    coarse::CameraFrame frame;
+    try {
+        stream.next(frame);
+    } catch (const common::RawlogError& e) {
+        const std::string images = common::imagesDirectoryFor(rawlog);
+        throw common::RawlogError(
+            e.what() +
+            std::string(fs::is_directory(images)
+                            ? ""
+                            : " (its images folder " + images + " does not exist)") +
+            ": " + why_needed);
+    }
+    return frame;
+}
+
+void checkSize(const std::string& rawlog, const coarse::CameraFrame& frame, const char* what,
+               int ref_width, int ref_height, const std::string& reference) {
+    const int w = int(frame.observation->image.getWidth());
+    const int h = int(frame.observation->image.getHeight());
+    frame.observation->image.unload();
+    if (ref_width <= 0 || (w == ref_width && h == ref_height)) return;
+    throw common::RawlogError(rawlog, frame.record,
+                              std::string(what) + " images are " + std::to_string(w) + "x" +
+                                  std::to_string(h) + ", the database's are " +
+                                  std::to_string(ref_width) + "x" + std::to_string(ref_height) +
+                                  " (" + reference + ")");
+}
+
+/// A coarse file must cover the query: none of it is an error, a part a warning.
+void checkCoverage(const coarse::CoarseSource& coarse, const std::string& file,
+                   const QuerySpan& query) {
+    const auto span = coarse.queryTimeSpan();
+    if (!span) return;
+    const double overlap =
+        std::min(span->second, query.last_s) - std::max(span->first, query.first_s);
+    const double length = query.last_s - query.first_s;
+    const auto range = [](double a, double b) {
+        return "t = " + std::to_string(a) + " .. " + std::to_string(b) + " s";
+    };
+    const std::string where = file + " covers " + range(span->first, span->second) +
+                              ", the query's ceiling frames " + range(query.first_s, query.last_s);
+    if (overlap < 0 || (overlap == 0 && length > 0)) {
+        throw std::runtime_error(where + ": no overlap (a file of another drive?)");
+    }
+    if (length > 0 && overlap < 0.9 * length) {
+        std::cerr << "lookup-localize: warning: " << where << ": only "
+                  << int(100 * overlap / length) << " % of the query; frames outside are lost\n";
+    }
+}
+
+/// Refuses at the start a run that cannot work: no ceiling images, images that cannot be
+/// loaded (e.g. no `<name>_Images` folder), another image size than the references', no
+/// forward images under the label the coarse stage reads, a coarse file that does not cover
+/// the query. Returns the ceiling frames' span.
+QuerySpan checkQuery(const LocalizeRequest& req, const LocalizerOptions& o,
+                     const database::ReferenceDatabase& db, const coarse::CoarseSource& coarse,
+                     bool coarse_from_images) {
+    const auto& camera = db.info().ceiling_camera;
+    checkSize(req.rawlog, firstImage(req.rawlog, o.ceiling_camera_label, "nothing to localise"),
+              "ceiling", int(camera.ncols), int(camera.nrows), req.db_dir + "/db.ini");
+    if (coarse_from_images && !db.forwardSequence().empty()) {
+        const cv::Mat reference = db.forwardImage(db.forwardSequence().front());
+        checkSize(req.rawlog,
+                  firstImage(req.rawlog, o.forward_camera_label,
+                             "the coarse stage needs forward images (set [localizer] "
+                             "forward_camera_label, or give --coarse-poses or --coarse-matches)"),
+                  "forward", reference.cols, reference.rows, req.db_dir + " forward images");
+    }
+    const QuerySpan span = scanQuery(req.rawlog, o.ceiling_camera_label);
+    checkCoverage(coarse, req.coarse_poses.empty() ? req.coarse_matches : req.coarse_poses, span);
+    return span;
 }
 
 }  // namespace
@@ -37,7 +132,8 @@ namespace {
 /// time by the replay loop or the live sensors.
 class Session {
   public:
-    explicit Session(const LocalizeRequest& req, const std::string& source_name) : req_(req) {
+    explicit Session(const LocalizeRequest& req, const std::string& source_name)
+        : req_(req), source_(source_name) {
         // Options: defaults, then the ini file, then command-line overrides.
         if (!req.ini_file.empty()) {
             mrpt::config::CConfigFile ini(req.ini_file);
@@ -71,6 +167,9 @@ class Session {
             coarse = makeSequenceCoarseSource(*db_, coarse_options_, options_.coarse_traverse);
         }
         const bool coarse_from_files = !req.coarse_matches.empty() || !req.coarse_poses.empty();
+        if (!req.rawlog.empty() && source_name == req.rawlog) {
+            span_ = checkQuery(req, options_, *db_, *coarse, !coarse_from_files);
+        }
         localizer_ = std::make_unique<Localizer>(*db_, options_, refiner_options_,
                                                  std::move(coarse), !coarse_from_files);
 
@@ -94,13 +193,31 @@ class Session {
         wall_.Tic();
     }
 
+    /// A run that ends by an exception says where its frames are: the run folder is untouched.
+    ~Session() {
+        if (!writer_ || finished_ || std::uncaught_exceptions() == 0) return;
+        const std::string partial = writer_->stagingDirectory();
+        if (writer_->framesWritten() == 0) {
+            std::error_code ec;
+            writer_.reset();
+            fs::remove_all(partial, ec);
+            return;
+        }
+        std::cerr << "lookup-localize: the run did not finish: its " << writer_->framesWritten()
+                  << " frames are in " << partial << "; " << writer_->directory()
+                  << " is as it was\n";
+    }
+
     const LocalizerOptions& options() const { return options_; }
     const RunTiming& timing() const { return timing_; }
+    std::size_t expectedFrames() const { return span_.ceiling_frames; }
     double elapsed() const { return wall_.Tac(); }
 
     /// Processes one observation. `late_s`: how long after its arrival it is being handled
     /// (real time only). Returns true for a ceiling frame (processed or dropped).
-    bool feed(const mrpt::obs::CObservation::Ptr& obs, double late_s = 0) {
+    /// `record`: its rawlog record index, named in warnings (npos: live).
+    bool feed(const mrpt::obs::CObservation::Ptr& obs, double late_s = 0,
+              std::size_t record = std::string::npos) {
         const bool is_ceiling = obs->sensorLabel == options_.ceiling_camera_label;
         const auto* img = dynamic_cast<const mrpt::obs::CObservationImage*>(obs.get());
         if (is_ceiling && img != nullptr && options_.realtime && late_s > options_.max_latency_s) {
@@ -110,6 +227,7 @@ class Session {
             return true;
         }
         const auto frame = localizer_->process(obs);
+        if (auto rejected = localizer_->takeRejection()) skip(*obs, *rejected, record);
         if (!frame) return false;
         writer_->write(*frame, img);
         if (img != nullptr) img->image.unload();  // keep memory flat on long runs
@@ -142,19 +260,39 @@ class Session {
 
     RunTiming finish() {
         if (req_.progress && isatty(STDERR_FILENO)) std::cerr << "\n";
+        for (const auto& [kind, n] : timing_.skipped) {
+            std::cerr << "lookup-localize: warning: " << source_ << ": " << n
+                      << " observation(s) skipped: " << kind << "\n";
+        }
         timing_.wall_s = wall_.Tac();
         writer_->finish(timing_);
+        finished_ = true;
         return timing_;
     }
 
   private:
+    /// Counts a refused observation and names it on stderr (the first few of each kind).
+    void skip(const mrpt::obs::CObservation& obs, const Rejection& why, std::size_t record) {
+        constexpr std::size_t kWarningsPerKind = 5;
+        const std::size_t n = ++timing_.skipped[why.kind];
+        if (n > kWarningsPerKind) return;
+        std::cerr << "lookup-localize: warning: " << source_
+                  << (record == std::string::npos ? " '" + obs.sensorLabel + "'"
+                                                  : ": record " + std::to_string(record))
+                  << ": " << why.detail << ": skipped (" << why.kind << ")"
+                  << (n == kWarningsPerKind ? "; further ones are only counted" : "") << "\n";
+    }
+
     const LocalizeRequest& req_;
+    std::string source_;
     LocalizerOptions options_;
     refine::RefinerOptions refiner_options_;
     coarse::CoarseOptions coarse_options_;
     std::unique_ptr<database::ReferenceDatabase> db_;
     std::unique_ptr<Localizer> localizer_;
     std::unique_ptr<RunWriter> writer_;
+    bool finished_ = false;
+    QuerySpan span_;
     RunTiming timing_;
     mrpt::system::CTicTac wall_;
 };
@@ -162,15 +300,11 @@ class Session {
 }  // namespace
 
 RunTiming runLocalization(const LocalizeRequest& req) {
-    if (req.repeat < 1) throw std::invalid_argument("--repeat must be >= 1");
+    if (req.repeat < 1) throw common::ConfigError("--repeat must be >= 1");
     Session session(req, req.rawlog);
     const auto& options = session.options();
-    const std::size_t expected = countFrames(req.rawlog, options.ceiling_camera_label);
-    if (expected == 0) {
-        throw common::RawlogError(
-            req.rawlog, "no '" + options.ceiling_camera_label + "' images: nothing to localise");
-    }
-    double first_stamp = -1, last_ceiling_stamp = -1, pass_shift_s = 0, last_stamp = -1;
+    const std::size_t expected = session.expectedFrames();
+    double first_stamp = -1, pass_shift_s = 0, last_stamp = -1;
     for (int pass = 0; pass < req.repeat && !session.done(); ++pass) {
         // Each pass starts one second after the previous one ended.
         if (pass > 0) pass_shift_s = last_stamp - first_stamp + 1.0;
@@ -184,13 +318,6 @@ RunTiming runLocalization(const LocalizeRequest& req) {
             const double stamp = mrpt::Clock::toDouble(obs->timestamp);
             if (first_stamp < 0) first_stamp = stamp;
             last_stamp = std::max(last_stamp, stamp);
-            if (obs->sensorLabel == options.ceiling_camera_label) {
-                if (stamp <= last_ceiling_stamp) {
-                    throw common::RawlogError(req.rawlog, reader.recordIndex(),
-                                              "ceiling image time stamps go backwards");
-                }
-                last_ceiling_stamp = stamp;
-            }
             double late_s = 0;
             if (options.realtime) {
                 // The observation arrives at its recorded time (relative to the first one).
@@ -202,7 +329,9 @@ RunTiming runLocalization(const LocalizeRequest& req) {
                 late_s = std::max(0.0, now - arrival);
             }
             try {
-                if (!session.feed(obs, late_s)) continue;
+                if (!session.feed(obs, late_s, reader.recordIndex())) continue;
+            } catch (const common::WriteError&) {
+                throw;  // the output's fault, not the rawlog's
             } catch (const std::exception& e) {
                 throw common::RawlogError(req.rawlog, reader.recordIndex(), e.what());
             }

@@ -63,6 +63,7 @@ class DatabaseSequenceSource : public coarse::CoarseSource {
     }
     std::string name() const override { return inner_->name(); }
     void rejectLastMatch() override { inner_->rejectLastMatch(); }
+    void restart() override { inner_->restart(); }
 
   private:
     std::unique_ptr<coarse::CoarseLocalizer> inner_;
@@ -112,6 +113,10 @@ class MultiTraverseSource : public coarse::CoarseSource {
     }
     std::vector<coarse::CoarseResult> otherMatches() const override { return others_; }
     void rejectLastMatch() override { sources_.at(last_source_)->rejectLastMatch(); }
+    void restart() override {
+        for (auto& source : sources_) source->restart();
+        others_.clear();
+    }
     std::string name() const override {
         std::string out;
         for (const auto& s : sources_) out += (out.empty() ? "" : "+") + s->name();
@@ -141,6 +146,106 @@ class MultiTraverseSource : public coarse::CoarseSource {
     std::size_t last_source_ = 0;
     std::vector<coarse::CoarseResult> others_;
 };
+
+// Odometry and mounts beyond this are garbage (a mine spans kilometres; UTM northings 1e7 m).
+constexpr double kMaxCoordinateM = 1e8;
+
+bool isLocalizerSensor(const mrpt::obs::CObservation& obs, const LocalizerOptions& o) {
+    return obs.sensorLabel == o.odometry_label || obs.sensorLabel == o.forward_camera_label ||
+           obs.sensorLabel == o.ceiling_camera_label;
+}
+
+std::string number(double v) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.6g", v);
+    return buf;
+}
+
+/// "x = nan" for the first of `values` (named by `names`) that is not finite or beyond
+/// `limit`, or "" when all are fine.
+std::string badValue(std::initializer_list<std::pair<const char*, double>> values,
+                     double limit = std::numeric_limits<double>::infinity()) {
+    for (const auto& [name, v] : values) {
+        if (!std::isfinite(v) || std::abs(v) > limit) return std::string(name) + " = " + number(v);
+    }
+    return {};
+}
+
+std::optional<Rejection> checkOdometry(const mrpt::obs::CObservation& obs) {
+    const auto* odo = dynamic_cast<const mrpt::obs::CObservationOdometry*>(&obs);
+    if (odo == nullptr) {
+        return Rejection{
+            "odometry_wrong_type",
+            std::string("a ") + obs.GetRuntimeClass()->className + ", not a CObservationOdometry"};
+    }
+    const auto& p = odo->odometry;
+    std::string bad = badValue({{"x", p.x()}, {"y", p.y()}}, kMaxCoordinateM);
+    if (bad.empty()) bad = badValue({{"phi", p.phi()}});
+    if (bad.empty() && odo->hasVelocities) {
+        const auto& v = odo->velocityLocal;
+        bad = badValue({{"vx", v.vx}, {"vy", v.vy}, {"omega", v.omega}});
+    }
+    if (bad.empty()) return std::nullopt;
+    return Rejection{"odometry_not_finite", "odometry " + bad};
+}
+
+/// Loads an external image; "" or why it cannot be used.
+std::string imageProblem(const mrpt::img::CImage& image, int& width, int& height) {
+    try {
+        if (!image.isExternallyStored() && image.isEmpty()) return "image is empty";
+        if (image.isExternallyStored()) image.forceLoad();
+        width = static_cast<int>(image.getWidth());
+        height = static_cast<int>(image.getHeight());
+        if (width <= 0 || height <= 0) return "image is empty";
+        const cv::Mat& m = image.asCvMatRef();
+        if (m.depth() != CV_8U || (m.channels() != 1 && m.channels() != 3)) {
+            return "image has " + std::to_string(m.channels()) + " channels of depth " +
+                   std::to_string(m.depth()) + " (8-bit grey or colour expected)";
+        }
+    } catch (const std::exception& e) {
+        // MRPT's text is "==== MRPT exception ====\nMessage: ...\nLocation: ...": keep the message.
+        std::string what = e.what();
+        if (const auto m = what.find("Message:"); m != std::string::npos) what = what.substr(m + 9);
+        return "cannot load the image: " + what.substr(0, what.find('\n'));
+    }
+    return {};
+}
+
+std::optional<Rejection> checkCeiling(const mrpt::obs::CObservationImage& img,
+                                      const mrpt::img::TCamera& reference_camera) {
+    int w = 0, h = 0;
+    if (auto problem = imageProblem(img.image, w, h); !problem.empty()) {
+        return Rejection{"image_unusable", problem};
+    }
+    if (reference_camera.ncols > 0 &&
+        (w != int(reference_camera.ncols) || h != int(reference_camera.nrows))) {
+        return Rejection{"image_size", "image is " + std::to_string(w) + "x" + std::to_string(h) +
+                                           ", the references are " +
+                                           std::to_string(reference_camera.ncols) + "x" +
+                                           std::to_string(reference_camera.nrows)};
+    }
+    const auto& c = img.cameraParams;
+    std::string bad = badValue({{"fx", c.fx()}, {"fy", c.fy()}, {"cx", c.cx()}, {"cy", c.cy()}});
+    for (std::size_t k = 0; bad.empty() && k < c.dist.size(); ++k) {
+        if (!std::isfinite(c.dist[k]))
+            bad = "dist[" + std::to_string(k) + "] = " + number(c.dist[k]);
+    }
+    if (bad.empty() && (c.fx() <= 0 || c.fy() <= 0))
+        bad = "fx = " + number(c.fx()) + ", fy = " + number(c.fy());
+    if (!bad.empty()) return Rejection{"intrinsics_invalid", "camera intrinsics " + bad};
+    const auto& m = img.cameraPose;
+    bad = badValue({{"x", m.x()}, {"y", m.y()}, {"z", m.z()}}, kMaxCoordinateM);
+    if (bad.empty()) bad = badValue({{"yaw", m.yaw()}, {"pitch", m.pitch()}, {"roll", m.roll()}});
+    if (!bad.empty()) return Rejection{"camera_pose_not_finite", "camera mount " + bad};
+    return std::nullopt;
+}
+
+bool finite(const mrpt::poses::CPosePDFGaussian& p) {
+    bool ok = std::isfinite(p.mean.x()) && std::isfinite(p.mean.y()) && std::isfinite(p.mean.phi());
+    for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) ok = ok && std::isfinite(p.cov(r, c));
+    return ok;
+}
 
 }  // namespace
 
@@ -243,7 +348,12 @@ void Localizer::setInitialPose(double time_s, const mrpt::poses::CPose2D& vehicl
 }
 
 std::optional<FrameResult> Localizer::process(const mrpt::obs::CObservation::Ptr& obs) {
+    rejection_.reset();
     if (!obs) return std::nullopt;
+    if ((rejection_ = check(*obs))) return std::nullopt;
+    if (isLocalizerSensor(*obs, options_)) {
+        last_stamp_[obs->sensorLabel] = mrpt::Clock::toDouble(obs->timestamp);
+    }
     if (obs->sensorLabel == options_.odometry_label) {
         processOdometry(*obs);
         return std::nullopt;
@@ -258,6 +368,34 @@ std::optional<FrameResult> Localizer::process(const mrpt::obs::CObservation::Ptr
     return std::nullopt;
 }
 
+std::optional<Rejection> Localizer::check(const mrpt::obs::CObservation& obs) const {
+    if (!isLocalizerSensor(obs, options_)) return std::nullopt;
+    const double t = mrpt::Clock::toDouble(obs.timestamp);
+    if (obs.timestamp == INVALID_TIMESTAMP || !std::isfinite(t)) {
+        return Rejection{"time_invalid", "no valid time stamp"};
+    }
+    if (const auto last = last_stamp_.find(obs.sensorLabel);
+        last != last_stamp_.end() && t <= last->second) {
+        return Rejection{"time_backwards", "time stamp " + number(t - last->second) +
+                                               " s after the previous '" + obs.sensorLabel + "'"};
+    }
+    if (obs.sensorLabel == options_.odometry_label) return checkOdometry(obs);
+    const auto* image = dynamic_cast<const mrpt::obs::CObservationImage*>(&obs);
+    if (image == nullptr) {
+        return Rejection{"not_an_image", std::string("a ") + obs.GetRuntimeClass()->className +
+                                             ", not a CObservationImage"};
+    }
+    if (obs.sensorLabel == options_.ceiling_camera_label) {
+        return checkCeiling(*image, db_.info().ceiling_camera);
+    }
+    if (!coarse_ || !coarse_uses_images_) return std::nullopt;  // forward images unused
+    int w = 0, h = 0;
+    if (auto problem = imageProblem(image->image, w, h); !problem.empty()) {
+        return Rejection{"forward_image_unusable", problem};
+    }
+    return std::nullopt;
+}
+
 FrameResult Localizer::dropped(const mrpt::obs::CObservationImage& ceiling) const {
     FrameResult r;
     r.time_s = mrpt::Clock::toDouble(ceiling.timestamp);
@@ -266,11 +404,27 @@ FrameResult Localizer::dropped(const mrpt::obs::CObservationImage& ceiling) cons
     return r;
 }
 
+void Localizer::restart() {
+    last_coarse_.reset();
+    coarse_ms_since_frame_ = 0;
+    odometry_.clear();
+    last_odometry_time_ = -1;
+    travelled_since_forward_ = 0;
+    last_forward_odometry_.reset();
+    last_fix_.reset();
+    fine_tracking_ = false;
+    last_startup_seed_ = std::numeric_limits<std::size_t>::max();
+    seed_turn_ = 0;
+    unverified_coarse_frames_ = 0;
+    last_stamp_.clear();
+    if (coarse_) coarse_->restart();
+}
+
 void Localizer::processOdometry(const mrpt::obs::CObservation& obs) {
     const auto* odo = dynamic_cast<const mrpt::obs::CObservationOdometry*>(&obs);
     if (odo == nullptr) return;
     const double t = mrpt::Clock::toDouble(odo->timestamp);
-    if (t <= last_odometry_time_) return;  // out of order: ignore rather than corrupt the track
+    if (t <= last_odometry_time_) return;  // check() refused it already; never corrupt the track
     if (!odometry_.empty()) {
         travelled_since_forward_ += (odo->odometry - odometry_.back().second).translation().norm();
     }
@@ -639,7 +793,6 @@ FrameResult Localizer::processCeiling(const mrpt::obs::CObservationImage& query)
                 for (int c = 0; c < 3; ++c) finite = finite && std::isfinite(survey_cov(r, c));
             if (finite) out.pose.cov += survey_cov;
         }
-        last_fix_ = Fix{out.time_s, out.pose.mean};
     } else {
         out.status = FrameStatus::Fallback;
         out.reason = result ? result->reason : "no references to refine against";
@@ -662,6 +815,20 @@ FrameResult Localizer::processCeiling(const mrpt::obs::CObservationImage& query)
                              : "no coarse match yet";
         }
     }
+    if (out.coarse_pose &&
+        !std::isfinite(out.coarse_pose->x() + out.coarse_pose->y() + out.coarse_pose->phi())) {
+        out.coarse_pose.reset();
+    }
+    if (out.has_pose && !finite(out.pose)) {
+        // Last line of defence: a pose or covariance that is not finite is no pose at all.
+        out.reason = "non-finite " + out.pose_source + " pose or covariance" +
+                     (out.reason.empty() ? "" : " (" + out.reason + ")");
+        out.status = FrameStatus::Lost;
+        out.has_pose = false;
+        out.pose = mrpt::poses::CPosePDFGaussian();
+        out.pose_source.clear();
+    }
+    if (out.status == FrameStatus::Refined) last_fix_ = Fix{out.time_s, out.pose.mean};
     fine_tracking_ = out.status == FrameStatus::Refined;
     out.times.total_ms = 1e3 * total.Tac() + out.times.coarse_ms;
     return out;

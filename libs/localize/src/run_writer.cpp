@@ -4,10 +4,12 @@
 #include <mrpt/poses/CPose3DPDFGaussian.h>
 
 #include <filesystem>
-#include <fstream>
+#include <iostream>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "lookup/common/config.h"
+#include "lookup/common/errors.h"
 #include "lookup/eval/run_io.h"
 #include "lookup/obs/observation_lookup_result.h"
 
@@ -16,16 +18,56 @@ namespace fs = std::filesystem;
 
 namespace {
 
-std::FILE* openOrThrow(const std::string& path) {
-    std::FILE* f = std::fopen(path.c_str(), "w");
-    if (f == nullptr) throw std::runtime_error(path + ": cannot open for writing");
-    return f;
+void writeTumRow(common::OutputFile& f, double t, const mrpt::poses::CPose2D& p) {
+    // Planar pose: rotation about z only.
+    f.printf("%.6f %.5f %.5f 0 0 0 %.9f %.9f\n", t, p.x(), p.y(), std::sin(p.phi() / 2),
+             std::cos(p.phi() / 2));
 }
 
-void writeTumRow(std::FILE* f, double t, const mrpt::poses::CPose2D& p) {
-    // Planar pose: rotation about z only.
-    std::fprintf(f, "%.6f %.5f %.5f 0 0 0 %.9f %.9f\n", t, p.x(), p.y(), std::sin(p.phi() / 2),
-                 std::cos(p.phi() / 2));
+std::string withoutSlash(std::string dir) {
+    while (dir.size() > 1 && dir.back() == '/') dir.pop_back();
+    return dir;
+}
+
+/// What an interrupted run may have left beside `out`: a half-written `.partial` run (removed)
+/// and, after a kill between the two renames of RunWriter::publish, the previous run as
+/// `.old` with nothing at `out` (restored).
+void cleanLeftovers(const std::string& out) {
+    std::error_code ec;
+    const std::string old = out + ".old", partial = out + ".partial";
+    if (fs::exists(old)) {
+        if (!fs::exists(out)) {
+            fs::rename(old, out, ec);
+            if (ec) throw common::WriteError(old, "cannot restore to " + out + ": " + ec.message());
+            std::cerr << "lookup-localize: note: restored " << out << " from " << old
+                      << " (a run was interrupted while replacing it)\n";
+        } else {
+            fs::remove_all(old, ec);
+            std::cerr << "lookup-localize: note: removed " << old
+                      << ", left by an interrupted run\n";
+        }
+    }
+    if (fs::exists(partial)) {
+        std::cerr << "lookup-localize: note: removing " << partial
+                  << ", the unfinished run folder of an earlier start that failed or was killed\n";
+        fs::remove_all(partial, ec);
+        if (ec) throw common::WriteError(partial, "cannot remove: " + ec.message());
+    }
+}
+
+/// `out` may be replaced only when it is absent, empty or a run folder.
+void checkReplaceable(const std::string& out) {
+    if (!fs::exists(out)) return;
+    if (!fs::is_directory(out)) {
+        throw common::ConfigError("--out " + out + ": exists and is not a folder");
+    }
+    if (fs::is_empty(out)) return;
+    for (const char* f : {"frames.csv", "timing.json", "run.ini"}) {
+        if (fs::exists(fs::path(out) / f)) return;
+    }
+    throw common::ConfigError("--out " + out +
+                              ": not a run folder (no frames.csv, timing.json or run.ini) and "
+                              "it would be replaced; give a new or a run folder");
 }
 
 obs::LookupStatus toLookupStatus(FrameStatus s) {
@@ -59,23 +101,27 @@ cv::Mat drawFlowOverlay(const cv::Mat& query_grey, const refine::RefineResult& r
 
 RunWriter::RunWriter(const std::string& out_dir, const std::string& run_ini_text,
                      bool write_debug_images, int debug_image_every)
-    : dir_(out_dir), debug_images_(write_debug_images), debug_every_(debug_image_every) {
+    : final_dir_(withoutSlash(out_dir)),
+      dir_(final_dir_ + ".partial"),
+      debug_images_(write_debug_images),
+      debug_every_(debug_image_every) {
+    cleanLeftovers(final_dir_);
+    checkReplaceable(final_dir_);
     std::error_code ec;
     fs::create_directories(dir_, ec);
-    if (ec) throw std::runtime_error(dir_ + ": cannot create: " + ec.message());
-    std::ofstream(dir_ + "/run.ini") << run_ini_text;
-    frames_csv_ = openOrThrow(dir_ + "/frames.csv");
-    std::fprintf(frames_csv_, "%s\n", eval::framesCsvHeader().c_str());
-    poses_tum_ = openOrThrow(dir_ + "/poses.tum");
-    coarse_tum_ = openOrThrow(dir_ + "/coarse.tum");
+    if (ec) throw common::WriteError(dir_, "cannot create: " + ec.message());
+    common::OutputFile ini(dir_ + "/run.ini");
+    ini.write(run_ini_text);
+    ini.close();
+    frames_csv_ = std::make_unique<common::OutputFile>(dir_ + "/frames.csv");
+    frames_csv_->write(eval::framesCsvHeader() + "\n");
+    frames_csv_->flush();
+    poses_tum_ = std::make_unique<common::OutputFile>(dir_ + "/poses.tum");
+    coarse_tum_ = std::make_unique<common::OutputFile>(dir_ + "/coarse.tum");
     results_ = std::make_unique<common::RawlogWriter>(dir_ + "/results.rawlog");
 }
 
-RunWriter::~RunWriter() {
-    for (std::FILE* f : {frames_csv_, poses_tum_, coarse_tum_}) {
-        if (f != nullptr) std::fclose(f);
-    }
-}
+RunWriter::~RunWriter() = default;
 
 void RunWriter::write(const FrameResult& frame, const mrpt::obs::CObservationImage* query) {
     eval::FrameRow row;
@@ -88,20 +134,20 @@ void RunWriter::write(const FrameResult& frame, const mrpt::obs::CObservationIma
         const auto& c = frame.pose.cov;
         row.x = m.x(), row.y = m.y(), row.yaw = m.phi();
         row.cov_xx = c(0, 0), row.cov_xy = c(0, 1), row.cov_yy = c(1, 1), row.cov_tt = c(2, 2);
-        writeTumRow(poses_tum_, frame.time_s, m);
+        writeTumRow(*poses_tum_, frame.time_s, m);
     }
     if (frame.coarse_pose) {
         row.has_coarse = true;
         row.coarse_x = frame.coarse_pose->x();
         row.coarse_y = frame.coarse_pose->y();
         row.coarse_yaw = frame.coarse_pose->phi();
-        writeTumRow(coarse_tum_, frame.time_s, *frame.coarse_pose);
+        writeTumRow(*coarse_tum_, frame.time_s, *frame.coarse_pose);
     }
     row.inlier_share = frame.inlier_share;
     row.references = static_cast<int>(frame.reference_indices.size());
     row.ms = frame.times.total_ms;
-    std::fprintf(frames_csv_, "%s\n", eval::formatFramesCsvRow(row).c_str());
-    for (std::FILE* f : {frames_csv_, poses_tum_, coarse_tum_}) std::fflush(f);
+    frames_csv_->write(eval::formatFramesCsvRow(row) + "\n");
+    for (auto* f : {frames_csv_.get(), poses_tum_.get(), coarse_tum_.get()}) f->flush();
 
     const auto stamp = mrpt::Clock::fromDouble(frame.time_s);
     if (frame.has_pose) {
@@ -155,19 +201,50 @@ void RunWriter::write(const FrameResult& frame, const mrpt::obs::CObservationIma
 
 void RunWriter::finish(const RunTiming& t) {
     results_->close();
-    const double n = std::max<std::size_t>(t.frames - t.frames_dropped, 1);
+    for (auto* f : {frames_csv_.get(), poses_tum_.get(), coarse_tum_.get()}) f->close();
+    const double n = std::max<std::size_t>(t.processed(), 1);
     nlohmann::json j;
     j["frames"] = t.frames;
     j["frames_dropped"] = t.frames_dropped;
     j["startup_s"] = t.startup_s;
     j["wall_s"] = t.wall_s;
-    j["frames_per_s"] = t.wall_s > 0 ? (t.frames - t.frames_dropped) / t.wall_s : 0.0;
+    j["frames_per_s"] = t.wall_s > 0 ? t.processed() / t.wall_s : 0.0;
     j["ms_per_frame"] = {{"coarse", t.coarse_ms / n},
                          {"select", t.select_ms / n},
                          {"refine", t.refine_ms / n},
                          {"total", t.total_ms / n}};
     for (const auto& [stage, ms] : t.refine_stage_ms) j["refine_ms_per_frame"][stage] = ms / n;
-    std::ofstream(dir_ + "/timing.json") << j.dump(2) << "\n";
+    j["skipped"] = nlohmann::json::object();
+    for (const auto& [kind, count] : t.skipped) j["skipped"][kind] = count;
+    // Last: its presence, with the frame count, marks the run complete (lookup-eval checks).
+    common::writeFileAtomically(dir_ + "/timing.json", j.dump(2) + "\n");
+    common::syncDirectory(dir_);
+    publish();
+}
+
+void RunWriter::publish() {
+    const std::string old = final_dir_ + ".old";
+    std::error_code ec;
+    const bool replacing = fs::exists(final_dir_);
+    if (replacing) {
+        fs::rename(final_dir_, old, ec);
+        if (ec) throw common::WriteError(final_dir_, "cannot move aside: " + ec.message());
+    }
+    fs::rename(dir_, final_dir_, ec);
+    if (ec) {
+        std::error_code back;
+        if (replacing) fs::rename(old, final_dir_, back);
+        throw common::WriteError(final_dir_,
+                                 "cannot rename " + dir_ + " into place: " + ec.message());
+    }
+    common::syncDirectory(fs::absolute(final_dir_).parent_path().string());
+    if (replacing) {
+        fs::remove_all(old, ec);
+        if (ec) {
+            std::cerr << "lookup-localize: warning: " << old
+                      << ": previous run not removed: " << ec.message() << "\n";
+        }
+    }
 }
 
 }  // namespace lookup::localize

@@ -18,8 +18,4 @@ sim::ScenarioOptions scenarioFor(const Condition& condition, std::uint64_t seed,
 nlohmann::json toJson(const JobResult& job);
 JobResult jobFromJson(const nlohmann::json& j);
 
-/// Writes `text` to a temporary beside `path`, flushes it to disk and renames it into place;
-/// throws std::runtime_error naming the file on any write error.
-void writeFileAtomically(const std::string& path, const std::string& text);
-
 }  // namespace lookup::suite

@@ -1,14 +1,10 @@
-#include <fcntl.h>
-#include <unistd.h>
-
 #include <algorithm>
-#include <cerrno>
 #include <cstdio>
-#include <cstring>
 #include <filesystem>
 #include <sstream>
 #include <stdexcept>
 
+#include "lookup/common/rawlog_io.h"
 #include "lookup/suite/suite.h"
 #include "suite_internal.h"
 
@@ -239,31 +235,6 @@ std::vector<ConditionSummary> summarizeConditions(const SuiteOptions& suite,
     return out;
 }
 
-void writeFileAtomically(const std::string& path, const std::string& text) {
-    const std::string tmp = path + ".tmp";
-    const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    if (fd < 0) throw std::runtime_error(tmp + ": cannot create: " + std::strerror(errno));
-    std::size_t done = 0;
-    while (done < text.size()) {
-        const ssize_t n = ::write(fd, text.data() + done, text.size() - done);
-        if (n < 0 && errno == EINTR) continue;
-        if (n <= 0) {
-            const std::string why = std::strerror(errno);
-            ::close(fd);
-            ::unlink(tmp.c_str());
-            throw std::runtime_error(tmp + ": write error: " + why);
-        }
-        done += static_cast<std::size_t>(n);
-    }
-    const bool synced = ::fsync(fd) == 0;
-    const bool closed = ::close(fd) == 0;
-    if (!synced || !closed || std::rename(tmp.c_str(), path.c_str()) != 0) {
-        const std::string why = std::strerror(errno);
-        ::unlink(tmp.c_str());
-        throw std::runtime_error(path + ": write error: " + why);
-    }
-}
-
 void writeSuiteReport(const SuiteOptions& suite, const std::vector<JobResult>& results,
                       const std::string& out_dir) {
     std::error_code ec;
@@ -278,8 +249,8 @@ void writeSuiteReport(const SuiteOptions& suite, const std::vector<JobResult>& r
     for (const auto& s : summaries) j["conditions"].push_back(summaryToJson(s));
     j["jobs"] = nlohmann::json::array();
     for (const auto& r : results) j["jobs"].push_back(toJson(r));
-    writeFileAtomically(out_dir + "/suite.json", j.dump(2) + "\n");
-    writeFileAtomically(out_dir + "/suite.md", markdown(suite, summaries));
+    common::writeFileAtomically(out_dir + "/suite.json", j.dump(2) + "\n");
+    common::writeFileAtomically(out_dir + "/suite.md", markdown(suite, summaries));
 }
 
 }  // namespace lookup::suite

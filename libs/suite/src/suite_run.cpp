@@ -10,6 +10,7 @@
 #include <iostream>
 #include <map>
 
+#include "lookup/common/rawlog_io.h"
 #include "lookup/suite/suite.h"
 #include "suite_internal.h"
 
@@ -36,7 +37,7 @@ struct PendingJob {
     const JobResult r = runJob(suite, suite.conditions[job.condition_index], job.seed, job.dir);
     int code = 0;
     try {
-        writeFileAtomically(job.dir + "/result.json", toJson(r).dump(2) + "\n");
+        common::writeFileAtomically(job.dir + "/result.json", toJson(r).dump(2) + "\n");
     } catch (const std::exception& e) {
         std::cerr << "lookup-suite: " << e.what() << "\n";
         code = 3;

@@ -56,6 +56,8 @@ class CoarseLocalizer : public CoarseSource {
     void reset();
     /// CoarseSource: drops the track (the next search is global), keeps the history.
     void rejectLastMatch() override;
+    /// CoarseSource: reset().
+    void restart() override { reset(); }
 
     const CoarseOptions& options() const { return options_; }
     const ReferenceDescriptors& references() const { return *references_; }

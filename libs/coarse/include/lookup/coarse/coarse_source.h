@@ -12,6 +12,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "lookup/coarse/reference_sequence.h"
@@ -96,6 +97,12 @@ class CoarseSource {
     /// sequence. It learns only that the place is wrong, never the consumer's pose, so its
     /// matches stay independent of the fine stage.
     virtual void rejectLastMatch() {}
+    /// The query jumped (a replay starting again): a source with a query history forgets it,
+    /// so its next frames start up as its first ones did.
+    virtual void restart() {}
+    /// Query times [s] this source has answers for (first, last), when it is a file; nothing
+    /// for a source that matches any frame (a sequence matcher).
+    virtual std::optional<std::pair<double, double>> queryTimeSpan() const { return {}; }
     /// A source combining several sequences: their results for the last query other than the
     /// one locate() returned (more seeds for a verified acquisition). Empty otherwise.
     virtual std::vector<CoarseResult> otherMatches() const { return {}; }
@@ -112,6 +119,7 @@ class MatchFileSource : public CoarseSource {
                     std::shared_ptr<const ReferenceDescriptors> references = nullptr);
     CoarseResult locate(const CoarseQuery& query) override;
     std::string name() const override { return "match-file:" + path_; }
+    std::optional<std::pair<double, double>> queryTimeSpan() const override;
 
   private:
     std::string path_;
@@ -131,6 +139,7 @@ class PoseFileSource : public CoarseSource {
                    std::shared_ptr<const ReferenceDescriptors> references = nullptr);
     CoarseResult locate(const CoarseQuery& query) override;
     std::string name() const override { return "pose-file:" + path_; }
+    std::optional<std::pair<double, double>> queryTimeSpan() const override;
 
   private:
     std::string path_;

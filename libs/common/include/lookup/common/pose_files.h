@@ -21,10 +21,10 @@ using PoseTrack = std::vector<StampedPose>;
 /// ConfigError naming the file and line for a malformed row, mixed forms or decreasing times.
 PoseTrack readPoseFile(const std::string& path);
 
-/// Writes `t x y z yaw pitch roll` rows (MRPT ground-truth form).
+/// Writes `t x y z yaw pitch roll` rows (MRPT ground-truth form). Throws WriteError.
 void writeMrptPoseFile(const std::string& path, const PoseTrack& track);
 
-/// Writes TUM rows `t x y z qx qy qz qw`.
+/// Writes TUM rows `t x y z qx qy qz qw`. Throws WriteError.
 void writeTumPoseFile(const std::string& path, const PoseTrack& track);
 
 /// An MRPT interpolator over the track (linear position, slerp rotation) that refuses to

@@ -12,6 +12,7 @@
 #include <mrpt/serialization/CArchive.h>
 
 #include <cstddef>
+#include <cstdio>
 #include <deque>
 #include <memory>
 #include <stdexcept>
@@ -21,10 +22,44 @@ namespace lookup::common {
 
 /// A rawlog that cannot be read: the message names the file, the record index and the reason.
 class RawlogError : public std::runtime_error {
-public:
+  public:
     RawlogError(const std::string& file, std::size_t record, const std::string& reason);
     RawlogError(const std::string& file, const std::string& reason);
+    /// A message that names file and record already (e.g. another RawlogError's, extended).
+    explicit RawlogError(const std::string& message) : std::runtime_error(message) {}
 };
+
+/// A text output file whose every write is checked: a failed write, flush, fsync or close
+/// (full disk, file size limit, I/O error) throws WriteError naming the file.
+class OutputFile {
+  public:
+    /// Opens (truncates) `path`; throws WriteError when it cannot.
+    explicit OutputFile(std::string path);
+    ~OutputFile();
+    OutputFile(const OutputFile&) = delete;
+    OutputFile& operator=(const OutputFile&) = delete;
+
+    void write(const std::string& text);
+    /// printf-style; throws WriteError on failure.
+    void printf(const char* format, ...) __attribute__((format(printf, 2, 3)));
+    /// Hands what was written to the kernel (a killed program keeps it).
+    void flush();
+    /// Flushes, fsyncs and closes (the data is on the device when this returns).
+    void close();
+    const std::string& path() const { return path_; }
+
+  private:
+    [[noreturn]] void fail(const char* what) const;
+    std::string path_;
+    std::FILE* file_ = nullptr;
+};
+
+/// Writes `content` to `<path>.tmp`, fsyncs it and renames it over `path`: readers see the old
+/// file or the complete new one, never a part. Throws WriteError naming the file.
+void writeFileAtomically(const std::string& path, const std::string& content);
+
+/// fsync of a folder, so renames and new files in it survive a power cut. Throws WriteError.
+void syncDirectory(const std::string& dir);
 
 /// `<dir>/<stem>_Images` for `<dir>/<stem>.rawlog`: where external images live.
 std::string imagesDirectoryFor(const std::string& rawlog_path);
@@ -36,7 +71,7 @@ std::string imagesDirectoryFor(const std::string& rawlog_path);
 /// records, labelled "ODOMETRY", carrying the accumulated odometry pose, so callers see one
 /// kind of record whatever the format.
 class RawlogReader {
-public:
+  public:
     /// Opens `path`; throws RawlogError if it does not exist or cannot be opened.
     explicit RawlogReader(const std::string& path);
 
@@ -49,7 +84,7 @@ public:
     const std::string& path() const { return path_; }
     const std::string& imagesDirectory() const { return images_dir_; }
 
-private:
+  private:
     void resolveImagePaths(mrpt::obs::CObservation& obs) const;
 
     std::string path_;
@@ -67,7 +102,7 @@ private:
 /// `<path>.tmp` and renamed by close(), so an interrupted run never leaves a truncated rawlog
 /// under the final name.
 class RawlogWriter {
-public:
+  public:
     explicit RawlogWriter(const std::string& rawlog_path, int compress_level = 1);
     ~RawlogWriter();
     RawlogWriter(const RawlogWriter&) = delete;
@@ -78,17 +113,22 @@ public:
     /// loaded and re-saved, so the output folder is self-contained.
     void writeWithExternalImage(mrpt::obs::CObservationImage& obs, const std::string& file_name);
 
-    /// Writes any observation as it is (images embedded, if any).
+    /// Writes any observation as it is (images embedded, if any). Throws WriteError.
     void write(const mrpt::obs::CObservation& obs);
 
-    /// Flushes, closes and renames into place. Called by the destructor only if not called
-    /// before; an exception (e.g. a full disk) propagates from here but not from the destructor.
+    /// Flushes, closes, reads the file back (a full disk can cut the compressed stream on
+    /// close, unreported by zlib), fsyncs and renames into place. Called by the destructor
+    /// only if not called before, and then the file is left as `<path>.tmp`; a WriteError
+    /// (e.g. a full disk) propagates from here but not from the destructor.
     void close();
 
     std::size_t recordsWritten() const { return records_; }
     const std::string& imagesDirectory() const { return images_dir_; }
 
-private:
+  private:
+    /// Throws WriteError unless `tmp` reads back as exactly `records` records.
+    static void verifyWritten(const std::string& tmp, std::size_t records);
+
     std::string path_;
     std::string images_dir_;
     mrpt::io::CFileGZOutputStream file_;

@@ -65,6 +65,7 @@ struct MethodResult {
     /// ellipse, over every frame with ground truth (coarse-excluded ones too).
     size_t confident_wrong = 0;
     double frame_ms_p99 = 0;  ///< 99th percentile of frames.csv `ms` (dropped frames left out)
+    std::string flagged;  ///< Run::flagged: why this row scores an incomplete run ("" if not)
 };
 
 struct Report {
@@ -85,7 +86,8 @@ Report evaluate(const std::vector<GroundTruth>& truths, const std::vector<Run>& 
                 const EvalOptions& options);
 
 /// report.md (tables), report.json, and errors.png (mean error per traverse and method, drawn
-/// with gnuplot; skipped with a warning in the report if gnuplot is not installed).
+/// with gnuplot; skipped with a warning in the report if gnuplot is not installed). Each file
+/// is written atomically; a failed write throws common::WriteError naming it.
 void writeReport(const Report& report, const std::string& out_dir);
 
 }  // namespace lookup::eval

@@ -31,11 +31,24 @@ struct Run {
     /// that the sample points decide (0 when absent)
     double match_ms_per_frame = 0;
     int frames_dropped = 0;
+    bool has_timing = false;  ///< timing.json exists: lookup-localize finished the run
+    long timing_frames = -1;  ///< timing.json "frames" (-1: absent)
+    /// Rows whose pose or coarse pose held a non-finite number (loaded without that pose).
+    std::size_t non_finite_rows = 0;
+    /// Why the run must not be scored as it is (runProblem), when scored anyway: the report's
+    /// `flagged` column. Empty: a complete run.
+    std::string flagged;
 };
 
 /// Loads RUN/frames.csv (+ run.ini and timing.json when present). Throws ConfigError naming
-/// the file and line for a missing file, a missing column or a malformed value.
+/// the file and line for a missing file, a missing column or a malformed value. A pose with a
+/// non-finite number is dropped (the frame counts as without pose) and counted.
 Run loadRun(const std::string& directory);
+
+/// Why `run` is not a complete, finite run, or "" when it is: no timing.json (aborted, killed,
+/// still running, or a `.partial` folder), a frame count that differs from timing.json's, no
+/// frames at all, or rows with non-finite values.
+std::string runProblem(const Run& run);
 
 /// The header line of frames.csv (docs/run-format.md), without a newline.
 std::string framesCsvHeader();

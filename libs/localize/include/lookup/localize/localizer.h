@@ -19,6 +19,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "lookup/coarse/coarse_source.h"
@@ -78,6 +79,13 @@ std::unique_ptr<coarse::CoarseSource> makeSequenceCoarseSource(
     const database::ReferenceDatabase& db, const coarse::CoarseOptions& coarse_options,
     const std::string& traverse);
 
+/// Why an observation was refused at the edge of the localiser: it is skipped and counted,
+/// never turned into a pose.
+struct Rejection {
+    std::string kind;    ///< short name counted in timing.json, e.g. "odometry_not_finite"
+    std::string detail;  ///< one line for the warning, e.g. "odometry x = nan"
+};
+
 class Localizer {
   public:
     /// `db` must outlive the localiser. `coarse` may be null (then only tracking from a
@@ -92,6 +100,20 @@ class Localizer {
     /// Feeds one observation (any kind, in time order). Returns a result for every ceiling
     /// camera frame; forward images and odometry only update the internal state.
     std::optional<FrameResult> process(const mrpt::obs::CObservation::Ptr& obs);
+
+    /// Why `obs` cannot be used, or nothing when it can (or is not for the localiser): an
+    /// odometry pose or velocity that is not finite or out of range, an image that cannot be
+    /// loaded, is empty, has other channels or another size than the references, intrinsics
+    /// or a camera mount that are not finite, a time stamp not after the previous one of the
+    /// same sensor. process() refuses such observations; see takeRejection().
+    std::optional<Rejection> check(const mrpt::obs::CObservation& obs) const;
+    /// The reason process() refused its last observation (cleared by the call), if it did.
+    std::optional<Rejection> takeRejection() { return std::exchange(rejection_, std::nullopt); }
+
+    /// Tells the localiser that the vehicle jumped (a replay starting again, a vehicle moved
+    /// while off): fixes, odometry and the coarse stage's query history are forgotten, so the
+    /// next frames start up as the first ones did. Reference views stay cached.
+    void restart();
 
     /// Records a ceiling frame that was skipped because processing fell behind.
     FrameResult dropped(const mrpt::obs::CObservationImage& ceiling) const;
@@ -142,6 +164,9 @@ class Localizer {
     refine::Refiner refiner_;
     std::unique_ptr<coarse::CoarseSource> coarse_;
     bool coarse_uses_images_;
+
+    std::optional<Rejection> rejection_;
+    std::map<std::string, double> last_stamp_;  ///< by sensor label: checks time order
 
     std::optional<coarse::CoarseResult> last_coarse_;
     double coarse_ms_since_frame_ = 0;

@@ -2,7 +2,6 @@
 // Writes a localisation run folder (docs/run-format.md) as frames arrive, flushing each frame,
 // so a run that is interrupted keeps every frame written so far.
 
-#include <cstdio>
 #include <map>
 #include <memory>
 #include <string>
@@ -23,30 +22,51 @@ struct RunTiming {
     double coarse_ms = 0, select_ms = 0, refine_ms = 0, total_ms = 0;
     /// Refiner stage totals by name (e.g. "match" -> ms), summed over frames.
     std::map<std::string, double> refine_stage_ms;
+    /// Observations refused at the localiser's edge, by reason (Rejection::kind).
+    std::map<std::string, std::size_t> skipped;
+
+    /// Frames the localiser processed (not dropped): per-frame times divide by this.
+    std::size_t processed() const { return frames > frames_dropped ? frames - frames_dropped : 0; }
 };
 
+/// A run folder is written as `<out_dir>.partial` and renamed to `out_dir` only when it is
+/// complete (timing.json, written last, names its frame count): readers never see a half
+/// run under the final name, and a run that fails or is killed leaves the previous run at
+/// `out_dir` as it was. Every write is checked: a failure throws common::WriteError naming
+/// the file.
 class RunWriter {
   public:
-    /// Creates `out_dir` and opens its files. `run_ini_text` is copied to run.ini (the method
-    /// name and the options used). Throws std::runtime_error naming the path on failure.
+    /// Cleans what an interrupted run left beside `out_dir` (a `.partial` folder is removed, a
+    /// `.old` one restored when `out_dir` is missing, both said on stderr), then creates the
+    /// staging folder and opens its files. `run_ini_text` is copied to run.ini (the method
+    /// name and the options used). Throws common::ConfigError when `out_dir` exists and is not
+    /// a run folder (it would be replaced), common::WriteError when a file cannot be written.
     RunWriter(const std::string& out_dir, const std::string& run_ini_text, bool write_debug_images,
               int debug_image_every);
+    /// Without finish(): closes the files and leaves the staging folder as it is.
     ~RunWriter();
 
-    /// Appends one frame to frames.csv, poses.tum, coarse.tum and results.rawlog. `query` is
-    /// the ceiling frame (for debug overlays; may be null).
+    /// Appends one frame to frames.csv, poses.tum, coarse.tum and results.rawlog, flushed so
+    /// that a killed run keeps it. `query` is the ceiling frame (for debug overlays; may be
+    /// null).
     void write(const FrameResult& frame, const mrpt::obs::CObservationImage* query);
 
-    /// Writes timing.json and closes results.rawlog.
+    /// Closes and syncs every file, writes timing.json last and replaces `out_dir` with the
+    /// staging folder (`out_dir` -> `.old`, staging -> `out_dir`, `.old` removed).
     void finish(const RunTiming& timing);
 
-    const std::string& directory() const { return dir_; }
+    /// The run folder (`out_dir`).
+    const std::string& directory() const { return final_dir_; }
+    /// Where the frames are written until finish(): `<out_dir>.partial`.
+    const std::string& stagingDirectory() const { return dir_; }
+    std::size_t framesWritten() const { return frame_count_; }
 
   private:
+    void publish();
+
+    std::string final_dir_;
     std::string dir_;
-    std::FILE* frames_csv_ = nullptr;
-    std::FILE* poses_tum_ = nullptr;
-    std::FILE* coarse_tum_ = nullptr;
+    std::unique_ptr<common::OutputFile> frames_csv_, poses_tum_, coarse_tum_;
     std::unique_ptr<common::RawlogWriter> results_;
     bool debug_images_;
     int debug_every_;
