@@ -4,6 +4,7 @@
 //                   [--coarse-matches F | --coarse-poses F] [--sampling grid|heatmap|auto]
 //                   [--matcher sad|orb|ecc]
 //                   [--realtime] [--max-frames N] [--repeat N]
+//                   [--publish udp://HOST:PORT | tcp://HOST:PORT] [--persist-fix FILE]
 
 #include <mrpt/3rdparty/tclap/CmdLine.h>
 #include <mrpt/core/exceptions.h>
@@ -56,6 +57,15 @@ int main(int argc, char** argv) {
             "", "repeat",
             "replay the rawlog N times, each pass timed after the previous one (long runs)", false,
             1, "N", cmd);
+        TCLAP::ValueArg<std::string> publish(
+            "", "publish",
+            "send every frame's pose and a health message per second as JSON: udp://HOST:PORT "
+            "(one datagram each) or tcp://HOST:PORT (a server; one line each)",
+            false, "", "URL", cmd);
+        TCLAP::ValueArg<std::string> persist_fix(
+            "", "persist-fix",
+            "keep the last refined fix in FILE and start from it (the ceiling must confirm it)",
+            false, "", "FILE", cmd);
         if (!cmd.parse(argc, argv)) return lookup::common::parseFailureExitCode(argc, argv);
 
         lookup::localize::LocalizeRequest req;
@@ -71,6 +81,8 @@ int main(int argc, char** argv) {
         if (realtime.getValue()) req.realtime = 1;
         req.max_frames = static_cast<std::size_t>(std::max(0, max_frames.getValue()));
         req.repeat = repeat.getValue();
+        req.publish = publish.getValue();
+        req.persist_fix = persist_fix.getValue();
 
         if (rawlog.getValue().empty() == live.getValue().empty()) {
             throw std::invalid_argument("give exactly one of --rawlog FILE or --live FILE.ini");

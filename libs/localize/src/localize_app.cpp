@@ -15,6 +15,7 @@
 #include "lookup/coarse/coarse_source.h"
 #include "lookup/common/config.h"
 #include "lookup/common/rawlog_io.h"
+#include "lookup/localize/vehicle_link.h"
 #include "lookup/refine/correspondence_methods.h"
 
 namespace lookup::localize {
@@ -56,6 +57,11 @@ class Session {
         }
         options_.check();
         refiner_options_.check();
+        // The stream first: a bad address fails before the database is loaded.
+        link_ = std::make_unique<VehicleLink>(
+            options_, req.publish,
+            req.persist_fix.empty() ? options_.persist_fix_file : req.persist_fix,
+            options_.realtime);
 
         db_ = std::make_unique<database::ReferenceDatabase>(
             database::ReferenceDatabase::load(req.db_dir, options_.image_cache_capacity));
@@ -73,6 +79,7 @@ class Session {
         const bool coarse_from_files = !req.coarse_matches.empty() || !req.coarse_poses.empty();
         localizer_ = std::make_unique<Localizer>(*db_, options_, refiner_options_,
                                                  std::move(coarse), !coarse_from_files);
+        link_->start(*localizer_, *db_, req.publish_wait_s);
 
         mrpt::config::CConfigFileMemory used;
         used.write("run", "method",
@@ -101,10 +108,34 @@ class Session {
     /// Processes one observation. `late_s`: how long after its arrival it is being handled
     /// (real time only). Returns true for a ceiling frame (processed or dropped).
     bool feed(const mrpt::obs::CObservation::Ptr& obs, double late_s = 0) {
+        link_->observation(*obs, wall_.Tac());
+        const double arrival_unix_s = PoseStream::unixTime() - late_s;
+        const bool handled = feedLocalizer(obs, late_s, arrival_unix_s);
+        tick();
+        return handled;
+    }
+
+    /// Health checks and messages; also called while no observation arrives.
+    void tick() { link_->tick(wall_.Tac()); }
+
+    /// Sleeps until `elapsed() >= until_s`, ticking the health checks meanwhile.
+    void sleepUntil(double until_s) {
+        for (double now = elapsed(); now < until_s; now = elapsed()) {
+            std::this_thread::sleep_for(
+                std::chrono::duration<double>(std::min(0.05, until_s - now)));
+            tick();
+        }
+    }
+
+  private:
+    bool feedLocalizer(const mrpt::obs::CObservation::Ptr& obs, double late_s,
+                       double arrival_unix_s) {
         const bool is_ceiling = obs->sensorLabel == options_.ceiling_camera_label;
         const auto* img = dynamic_cast<const mrpt::obs::CObservationImage*>(obs.get());
         if (is_ceiling && img != nullptr && options_.realtime && late_s > options_.max_latency_s) {
-            writer_->write(localizer_->dropped(*img), img);
+            const auto frame = localizer_->dropped(*img);
+            writer_->write(frame, img);
+            link_->frame(frame, timing_.frames, arrival_unix_s, wall_.Tac());
             ++timing_.frames;
             ++timing_.frames_dropped;
             return true;
@@ -112,6 +143,7 @@ class Session {
         const auto frame = localizer_->process(obs);
         if (!frame) return false;
         writer_->write(*frame, img);
+        link_->frame(*frame, timing_.frames, arrival_unix_s, wall_.Tac());
         if (img != nullptr) img->image.unload();  // keep memory flat on long runs
         ++timing_.frames;
         timing_.coarse_ms += frame->times.coarse_ms;
@@ -128,6 +160,7 @@ class Session {
         return true;
     }
 
+  public:
     void progress(std::size_t expected) const {
         if (!req_.progress || !isatty(STDERR_FILENO)) return;
         if (timing_.frames % 10 != 0 && timing_.frames != expected) return;
@@ -144,6 +177,7 @@ class Session {
         if (req_.progress && isatty(STDERR_FILENO)) std::cerr << "\n";
         timing_.wall_s = wall_.Tac();
         writer_->finish(timing_);
+        link_->finish(writer_->directory());
         return timing_;
     }
 
@@ -155,6 +189,7 @@ class Session {
     std::unique_ptr<database::ReferenceDatabase> db_;
     std::unique_ptr<Localizer> localizer_;
     std::unique_ptr<RunWriter> writer_;
+    std::unique_ptr<VehicleLink> link_;
     RunTiming timing_;
     mrpt::system::CTicTac wall_;
 };
@@ -170,7 +205,8 @@ RunTiming runLocalization(const LocalizeRequest& req) {
         throw common::RawlogError(
             req.rawlog, "no '" + options.ceiling_camera_label + "' images: nothing to localise");
     }
-    double first_stamp = -1, last_ceiling_stamp = -1, pass_shift_s = 0, last_stamp = -1;
+    double first_stamp = -1, pass_shift_s = 0, last_stamp = -1;
+    double clock_shift_s = 0, last_arrival = 0;  // realtime replay across clock jumps
     for (int pass = 0; pass < req.repeat && !session.done(); ++pass) {
         // Each pass starts one second after the previous one ended.
         if (pass > 0) pass_shift_s = last_stamp - first_stamp + 1.0;
@@ -184,21 +220,16 @@ RunTiming runLocalization(const LocalizeRequest& req) {
             const double stamp = mrpt::Clock::toDouble(obs->timestamp);
             if (first_stamp < 0) first_stamp = stamp;
             last_stamp = std::max(last_stamp, stamp);
-            if (obs->sensorLabel == options.ceiling_camera_label) {
-                if (stamp <= last_ceiling_stamp) {
-                    throw common::RawlogError(req.rawlog, reader.recordIndex(),
-                                              "ceiling image time stamps go backwards");
-                }
-                last_ceiling_stamp = stamp;
-            }
             double late_s = 0;
             if (options.realtime) {
-                // The observation arrives at its recorded time (relative to the first one).
-                const double arrival = stamp - first_stamp;
+                // The observation arrives at its recorded time (relative to the first one); a
+                // clock that jumps back (reported by the health checks) does not make every
+                // later frame late.
+                const double arrival = std::max(stamp - first_stamp + clock_shift_s, last_arrival);
+                clock_shift_s = arrival - (stamp - first_stamp);
+                last_arrival = arrival;
                 const double now = session.elapsed();
-                if (now < arrival) {
-                    std::this_thread::sleep_for(std::chrono::duration<double>(arrival - now));
-                }
+                session.sleepUntil(arrival);
                 late_s = std::max(0.0, now - arrival);
             }
             try {
@@ -284,6 +315,7 @@ RunTiming runLiveLocalization(const LiveRequest& live) {
         }
         if (arrived.empty()) {
             std::this_thread::sleep_for(std::chrono::milliseconds(1));
+            session.tick();  // a stopped camera is noticed while nothing arrives
             continue;
         }
         last_data_s = now;

@@ -26,6 +26,12 @@ struct LocalizeRequest {
     /// (long-run memory and throughput checks: the vehicle jumps back to the start).
     int repeat = 1;
     bool progress = true;  ///< progress bar on stderr when it is a terminal
+
+    // On the vehicle (docs/run-format.md): pose stream, restarts.
+    std::string publish;      ///< "udp://HOST:PORT" or "tcp://HOST:PORT" (--publish); "" = none
+    std::string persist_fix;  ///< fix file (--persist-fix); "" = [localizer] persist_fix_file
+    /// tcp: wait up to this long for a first client before the first frame (tests) [s].
+    double publish_wait_s = 0;
 };
 
 /// The report's name of a LookUP run without --method: "lookup-grid24", "lookup-fcn12" (heat
