@@ -107,16 +107,17 @@ std::string HealthMonitor::logLine(const nlohmann::json& h) {
     for (const auto& [label, n] : h.at("frames_received").items()) {
         frames += (frames.empty() ? "" : ", ") + label + " " + n.dump();
     }
-    char buf[256];
+    char buf[256], age_text[32] = "never";
     const auto& age = h.at("last_fix_age_s");
-    std::snprintf(
-        buf, sizeof buf,
-        "%.1f s: frames received %s; %zu processed, %zu dropped; last fix %s; status %s; "
-        "camera %s",
-        h.at("t_run").get<double>(), frames.empty() ? "none" : frames.c_str(),
-        h.at("frames_processed").get<std::size_t>(), h.at("frames_dropped").get<std::size_t>(),
-        age.is_null() ? "never" : (std::to_string(age.get<double>()) + " s ago").c_str(),
-        h.at("status").get<std::string>().c_str(), h.at("camera").get<std::string>().c_str());
+    if (!age.is_null()) std::snprintf(age_text, sizeof age_text, "%.2f s ago", age.get<double>());
+    std::snprintf(buf, sizeof buf,
+                  "%.1f s: frames received %s; %zu processed, %zu dropped; last fix %s; status %s; "
+                  "camera %s",
+                  h.at("t_run").get<double>(), frames.empty() ? "none" : frames.c_str(),
+                  h.at("frames_processed").get<std::size_t>(),
+                  h.at("frames_dropped").get<std::size_t>(), age_text,
+                  h.at("status").get<std::string>().c_str(),
+                  h.at("camera").get<std::string>().c_str());
     std::string line = buf;
     if (h.contains("messages_dropped")) {
         line += "; stream dropped " + h.at("messages_dropped").dump();

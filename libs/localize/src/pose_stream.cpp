@@ -306,14 +306,13 @@ void PoseStream::dropClient(std::size_t k, const std::string& why) {
 void PoseStream::logDrops() {
     std::lock_guard<std::mutex> lock(mutex_);
     const std::size_t dropped = stats_.dropped_queue_full + stats_.dropped_slow_client;
-    static thread_local double last_log_s = 0;
-    if (dropped == drops_logged_ || unixTime() - last_log_s < 1.0) return;
+    if (dropped == drops_logged_ || unixTime() - last_drop_log_s_ < 1.0) return;
     std::fprintf(stderr,
                  "lookup-localize: %s: %zu messages dropped so far (%zu queue full, %zu for "
                  "clients not reading)\n",
                  url_.c_str(), dropped, stats_.dropped_queue_full, stats_.dropped_slow_client);
     drops_logged_ = dropped;
-    last_log_s = unixTime();
+    last_drop_log_s_ = unixTime();
 }
 
 }  // namespace lookup::localize

@@ -98,7 +98,8 @@ class PoseStream {
     bool stopping_ = false;
     double drain_until_s_ = 0;
     PoseStreamStats stats_;
-    std::size_t drops_logged_ = 0;
+    std::size_t drops_logged_ = 0;  ///< drops already logged (at most once a second)
+    double last_drop_log_s_ = 0;
     std::vector<Client> clients_;  ///< sender thread only
     std::thread sender_;
 };
