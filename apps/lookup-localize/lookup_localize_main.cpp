@@ -9,13 +9,27 @@
 #include <mrpt/3rdparty/tclap/CmdLine.h>
 #include <mrpt/core/exceptions.h>
 
+#include <csignal>
 #include <cstdio>
 #include <iostream>
 
 #include "lookup/common/cli.h"
 #include "lookup/localize/localize_app.h"
 
+namespace {
+
+// The first SIGINT / SIGTERM (Ctrl-C, systemctl stop) ends the run as at its end (the fix is
+// persisted, the run folder complete); a second one kills at once.
+void onStopSignal(int signal) {
+    lookup::localize::requestStop();
+    std::signal(signal, SIG_DFL);
+}
+
+}  // namespace
+
 int main(int argc, char** argv) {
+    std::signal(SIGINT, onStopSignal);
+    std::signal(SIGTERM, onStopSignal);
     try {
         TCLAP::CmdLine cmd("lookup-localize: LookUP precise localisation", ' ', "0.1");
         TCLAP::ValueArg<std::string> db("", "db", "reference database folder", true, "", "DB", cmd);

@@ -8,6 +8,7 @@
 #include <mrpt/system/progress.h>
 
 #include <unistd.h>
+#include <atomic>
 #include <chrono>
 #include <iostream>
 #include <thread>
@@ -21,6 +22,9 @@
 namespace lookup::localize {
 
 namespace {
+
+std::atomic<bool> stop_requested{false};  // lock-free: set from signal handlers
+static_assert(std::atomic<bool>::is_always_lock_free);
 
 std::size_t countFrames(const std::string& rawlog, const std::string& label) {
     common::RawlogReader reader(rawlog);
@@ -120,7 +124,7 @@ class Session {
 
     /// Sleeps until `elapsed() >= until_s`, ticking the health checks meanwhile.
     void sleepUntil(double until_s) {
-        for (double now = elapsed(); now < until_s; now = elapsed()) {
+        for (double now = elapsed(); now < until_s && !stop_requested; now = elapsed()) {
             std::this_thread::sleep_for(
                 std::chrono::duration<double>(std::min(0.05, until_s - now)));
             tick();
@@ -196,8 +200,11 @@ class Session {
 
 }  // namespace
 
+void requestStop() { stop_requested = true; }
+
 RunTiming runLocalization(const LocalizeRequest& req) {
     if (req.repeat < 1) throw std::invalid_argument("--repeat must be >= 1");
+    stop_requested = false;
     Session session(req, req.rawlog);
     const auto& options = session.options();
     const std::size_t expected = countFrames(req.rawlog, options.ceiling_camera_label);
@@ -207,12 +214,12 @@ RunTiming runLocalization(const LocalizeRequest& req) {
     }
     double first_stamp = -1, pass_shift_s = 0, last_stamp = -1;
     double clock_shift_s = 0, last_arrival = 0;  // realtime replay across clock jumps
-    for (int pass = 0; pass < req.repeat && !session.done(); ++pass) {
+    for (int pass = 0; pass < req.repeat && !session.done() && !stop_requested; ++pass) {
         // Each pass starts one second after the previous one ended.
         if (pass > 0) pass_shift_s = last_stamp - first_stamp + 1.0;
         common::RawlogReader reader(req.rawlog);
         mrpt::obs::CObservation::Ptr obs;
-        while (reader.next(obs)) {
+        while (!stop_requested && reader.next(obs)) {
             if (pass_shift_s > 0) {
                 obs->timestamp =
                     mrpt::Clock::fromDouble(mrpt::Clock::toDouble(obs->timestamp) + pass_shift_s);
@@ -247,6 +254,7 @@ RunTiming runLocalization(const LocalizeRequest& req) {
 RunTiming runLiveLocalization(const LiveRequest& live) {
     LocalizeRequest req = live.base;
     req.realtime = 1;
+    stop_requested = false;
     mrpt::config::CConfigFile ini(live.sensors_ini);
     std::vector<std::string> sections;
     ini.getAllSections(sections);
@@ -289,7 +297,7 @@ RunTiming runLiveLocalization(const LiveRequest& live) {
 
     Session session(req, live.sensors_ini);
     double last_data_s = 0;
-    while (!session.done()) {
+    while (!session.done() && !stop_requested) {
         const double now = session.elapsed();
         if (live.duration_s > 0 && now > live.duration_s) break;
         if (now - last_data_s > live.quiet_timeout_s) break;

@@ -48,6 +48,11 @@ struct LiveRequest {
     double quiet_timeout_s = 5;  ///< stop when no sensor delivered anything for this long
 };
 
+/// Asks a running runLocalization / runLiveLocalization to stop after the current frame and to
+/// finish its run folder as at the end (timing.json, the persisted fix, the stream closed).
+/// Async-signal-safe: lookup-localize calls it on SIGINT and SIGTERM. Each run clears it at start.
+void requestStop();
+
 /// Runs the localiser over a rawlog. Returns the run's timing. Throws std::runtime_error (or
 /// a subclass) naming the file, record and reason for bad input; frames already processed stay
 /// written in the run folder.
