@@ -97,25 +97,30 @@ inline mrpt::poses::CPose3D queryPose(int k) {
     return mrpt::poses::CPose3D(-8 + 0.25 * (k + 10), 0.1, 0, 0, 0, 0);
 }
 
-/// Query frames [first, first + count): forward then ceiling image, 0.1 s apart, stamped
-/// kT0 + time_shift_s + 0.1 k; optionally odometry. `jump_at`/`jump_s`: from frame jump_at on
-/// every stamp is jump_s earlier (a clock that jumps back).
+/// Query frames [first, first + count): forward then ceiling image (period_s / 10 later),
+/// stamped kT0 + time_shift_s + period_s k; optionally odometry. `jump_at`/`jump_s`: from frame
+/// jump_at on every stamp is jump_s earlier (a clock that jumps back).
 struct QuerySpec {
     int first = 0, count = 20;
     double time_shift_s = 0;
     bool odometry = false;
     int jump_at = -1;
     double jump_s = 0;
+    double period_s = 0.1;  ///< between frames (the vehicle still moves 0.25 m per frame)
+
+    double stamp(int k) const {
+        const double t = kT0 + time_shift_s + period_s * k;
+        return jump_at >= 0 && k >= jump_at ? t - jump_s : t;
+    }
 };
 
 inline void writeQuery(const Scene& scene, const fs::path& path, const QuerySpec& q) {
     common::RawlogWriter rawlog(path.string());
     for (int k = q.first; k < q.first + q.count; ++k) {
-        double t = kT0 + q.time_shift_s + 0.1 * k;
-        if (q.jump_at >= 0 && k >= q.jump_at) t -= q.jump_s;
+        const double t = q.stamp(k);
         auto forward = forwardView(k + 10, t);
         rawlog.writeWithExternalImage(*forward, "forward_" + std::to_string(k) + ".png");
-        auto img = scene.image(queryPose(k), t + 0.01);
+        auto img = scene.image(queryPose(k), t + q.period_s / 10);
         rawlog.writeWithExternalImage(*img, "ceiling_" + std::to_string(k) + ".png");
         if (q.odometry) {
             mrpt::obs::CObservationOdometry odo;

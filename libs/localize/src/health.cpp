@@ -68,10 +68,10 @@ void HealthMonitor::event(const std::string& text) {
     events_.push_back(text);
 }
 
-std::optional<nlohmann::json> HealthMonitor::tick(double now_s) {
+std::optional<nlohmann::json> HealthMonitor::tick(double now_s, bool force) {
     checkCamera(now_s);
     const bool periodic = interval_s_ > 0 && now_s >= next_message_s_;
-    if (!periodic && events_.empty()) return std::nullopt;
+    if (!periodic && events_.empty() && !force) return std::nullopt;
     if (periodic) {
         // Catch up without a burst when the clock leapt (recorded time, a long frame).
         next_message_s_ = std::max(next_message_s_ + interval_s_, now_s);

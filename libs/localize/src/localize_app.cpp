@@ -181,7 +181,7 @@ class Session {
         if (req_.progress && isatty(STDERR_FILENO)) std::cerr << "\n";
         timing_.wall_s = wall_.Tac();
         writer_->finish(timing_);
-        link_->finish(writer_->directory());
+        link_->finish(writer_->directory(), wall_.Tac());
         return timing_;
     }
 

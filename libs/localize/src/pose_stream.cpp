@@ -233,12 +233,19 @@ void PoseStream::deliver(const std::string& line) {
         const ssize_t n =
             sendto(fd_, line.data(), line.size(), MSG_DONTWAIT | MSG_NOSIGNAL,
                    reinterpret_cast<const sockaddr*>(udp_dest_.data()), udp_dest_.size());
-        std::lock_guard<std::mutex> lock(mutex_);
-        if (n == static_cast<ssize_t>(line.size())) {
-            ++stats_.sent;
-        } else if (stats_.send_errors++ == 0) {
+        const int error = errno;
+        bool first_error = false;
+        {
+            std::lock_guard<std::mutex> lock(mutex_);
+            if (n == static_cast<ssize_t>(line.size())) {
+                ++stats_.sent;
+            } else {
+                first_error = stats_.send_errors++ == 0;
+            }
+        }
+        if (first_error) {
             std::fprintf(stderr, "lookup-localize: %s: send failed: %s (counted, not retried)\n",
-                         url_.c_str(), std::strerror(errno));
+                         url_.c_str(), std::strerror(error));
         }
         return;
     }
@@ -304,13 +311,18 @@ void PoseStream::dropClient(std::size_t k, const std::string& why) {
 }
 
 void PoseStream::logDrops() {
-    std::lock_guard<std::mutex> lock(mutex_);
-    const std::size_t dropped = stats_.dropped_queue_full + stats_.dropped_slow_client;
+    // Printed outside the lock: a blocked stderr must not block push().
+    PoseStreamStats s;
+    {
+        std::lock_guard<std::mutex> lock(mutex_);
+        s = stats_;
+    }
+    const std::size_t dropped = s.dropped_queue_full + s.dropped_slow_client;
     if (dropped == drops_logged_ || unixTime() - last_drop_log_s_ < 1.0) return;
     std::fprintf(stderr,
                  "lookup-localize: %s: %zu messages dropped so far (%zu queue full, %zu for "
                  "clients not reading)\n",
-                 url_.c_str(), dropped, stats_.dropped_queue_full, stats_.dropped_slow_client);
+                 url_.c_str(), dropped, s.dropped_queue_full, s.dropped_slow_client);
     drops_logged_ = dropped;
     last_drop_log_s_ = unixTime();
 }

@@ -89,8 +89,8 @@ void VehicleLink::frame(const FrameResult& f, std::size_t index, double arrival_
     if (stream_) stream_->push(poseMessage(f, index), arrival_unix_s);
 }
 
-void VehicleLink::tick(double wall_s) {
-    auto health = health_.tick(runTime(wall_s));
+void VehicleLink::tick(double wall_s, bool force) {
+    auto health = health_.tick(runTime(wall_s), force);
     if (!health) return;
     if (stream_) {
         const auto s = stream_->stats();
@@ -101,7 +101,8 @@ void VehicleLink::tick(double wall_s) {
     if (stream_) stream_->push(std::move(*health));
 }
 
-void VehicleLink::finish(const std::string& run_dir) {
+void VehicleLink::finish(const std::string& run_dir, double wall_s) {
+    tick(wall_s, /*force=*/true);  // the run's totals, also for a run shorter than the interval
     nlohmann::json extra;
     if (persister_) {
         persister_->flush();

@@ -33,8 +33,9 @@ class HealthMonitor {
     void frame(const FrameResult& result, double now_s);
 
     /// A health message (type "health") when one is due: every interval_s, and at once after
-    /// an event. Events are also written to stderr as they happen.
-    std::optional<nlohmann::json> tick(double now_s);
+    /// an event; always with `force` (the run's last). Events are also written to stderr as
+    /// they happen.
+    std::optional<nlohmann::json> tick(double now_s, bool force = false);
 
     /// One log line for a health message.
     static std::string logLine(const nlohmann::json& health);

@@ -38,11 +38,11 @@ class VehicleLink {
     /// Frame `index` was computed; `arrival_unix_s`: when it reached the localiser.
     void frame(const FrameResult& frame, std::size_t index, double arrival_unix_s, double wall_s);
     /// Health messages and camera checks; call often (also while no observation arrives).
-    void tick(double wall_s);
+    void tick(double wall_s, bool force = false);
 
-    /// Persists the fix, closes the stream and adds "publish", "health" and "persist_fix"
-    /// to `run_dir`/timing.json.
-    void finish(const std::string& run_dir);
+    /// Sends the last health message, persists the fix, closes the stream and adds "publish",
+    /// "health" and "persist_fix" to `run_dir`/timing.json.
+    void finish(const std::string& run_dir, double wall_s);
 
   private:
     double runTime(double wall_s) const { return realtime_ ? wall_s : data_time_s_; }
