@@ -111,6 +111,13 @@ TEST(PoseStream, LiveRunPublishesEveryFrameOverTcpAsInFramesCsvAndReportsTheStop
         refined += m.at("status") == "refined";
     }
     EXPECT_GE(refined, 15);
+    double latency_ms = 0, processing_ms = 0;
+    for (const auto& m : poses) {
+        latency_ms += m.at("latency_ms").get<double>() / double(poses.size());
+        processing_ms += m.at("processing_ms").get<double>() / double(poses.size());
+    }
+    std::printf("pose latency on loopback: mean %.2f ms, of which processing %.2f ms\n", latency_ms,
+                processing_ms);
 
     // Health: once a second, and at once when the camera stops (the rawlog's end).
     const auto health = ofType(messages, "health");

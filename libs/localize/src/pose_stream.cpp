@@ -73,11 +73,18 @@ PoseStream::PoseStream(const std::string& url, std::size_t queue_capacity)
     const ParsedUrl p = parseUrl(url);
     tcp_ = p.tcp;
     addrinfo hints{};
-    hints.ai_family = AF_UNSPEC;
     hints.ai_socktype = tcp_ ? SOCK_STREAM : SOCK_DGRAM;
     hints.ai_flags = tcp_ ? AI_PASSIVE : 0;
     addrinfo* found = nullptr;
-    if (const int rc = getaddrinfo(p.host.c_str(), p.port.c_str(), &hints, &found); rc != 0) {
+    // A name's IPv4 address first ("localhost" may list ::1 first, where a consumer on
+    // 127.0.0.1 would hear nothing); IPv6 for names and literals that have only that.
+    hints.ai_family = AF_INET;
+    int rc = getaddrinfo(p.host.c_str(), p.port.c_str(), &hints, &found);
+    if (rc != 0) {
+        hints.ai_family = AF_UNSPEC;
+        rc = getaddrinfo(p.host.c_str(), p.port.c_str(), &hints, &found);
+    }
+    if (rc != 0) {
         throw std::runtime_error("--publish " + url + ": cannot resolve '" + p.host +
                                  "': " + gai_strerror(rc));
     }
