@@ -11,6 +11,7 @@
 #include <atomic>
 #include <chrono>
 #include <iostream>
+#include <map>
 #include <thread>
 
 #include "lookup/coarse/coarse_source.h"
@@ -213,7 +214,8 @@ RunTiming runLocalization(const LocalizeRequest& req) {
             req.rawlog, "no '" + options.ceiling_camera_label + "' images: nothing to localise");
     }
     double first_stamp = -1, pass_shift_s = 0, last_stamp = -1;
-    double clock_shift_s = 0, last_arrival = 0;  // realtime replay across clock jumps
+    double clock_shift_s = 0;                       // realtime replay across clock jumps
+    std::map<std::string, double> last_arrival_of;  // per sensor
     for (int pass = 0; pass < req.repeat && !session.done() && !stop_requested; ++pass) {
         // Each pass starts one second after the previous one ended.
         if (pass > 0) pass_shift_s = last_stamp - first_stamp + 1.0;
@@ -230,11 +232,15 @@ RunTiming runLocalization(const LocalizeRequest& req) {
             double late_s = 0;
             if (options.realtime) {
                 // The observation arrives at its recorded time (relative to the first one); a
-                // clock that jumps back (reported by the health checks) does not make every
-                // later frame late.
-                const double arrival = std::max(stamp - first_stamp + clock_shift_s, last_arrival);
-                clock_shift_s = arrival - (stamp - first_stamp);
-                last_arrival = arrival;
+                // sensor clock that jumps back (reported by the health checks) shifts the
+                // replay clock by the jump, so later frames are not all late.
+                double arrival = stamp - first_stamp + clock_shift_s;
+                auto& previous = last_arrival_of[obs->sensorLabel];
+                if (arrival < previous) {
+                    clock_shift_s += previous - arrival;
+                    arrival = previous;
+                }
+                previous = arrival;
                 const double now = session.elapsed();
                 session.sleepUntil(arrival);
                 late_s = std::max(0.0, now - arrival);
