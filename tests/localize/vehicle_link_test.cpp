@@ -440,3 +440,31 @@ TEST(Health, RealTimeUnderLoadDropsFramesInsteadOfLaggingAndSaysHowMany) {
     EXPECT_LT(timing.wall_s, q.count * q.period_s + 0.02 + longest_frame_s + 0.1);
     EXPECT_EQ(last_health_dropped, timing.frames_dropped);  // the last health message says so
 }
+
+TEST(PoseStream, AClientThatLeavesOrNeverReadsDoesNotStopTheRun) {
+    CoarseFileRun run("clients");
+    const int port = freePort();
+    run.req.publish = "tcp://127.0.0.1:" + std::to_string(port);
+    run.req.publish_wait_s = 20;
+    run.req.realtime = 1;  // 2 s: the clients come and go while frames are sent
+    auto clients = std::async(std::launch::async, [port] {
+        const int idle = connectLoopback(port);  // connects and never reads
+        const int leaver = connectLoopback(port);
+        char buf[256];
+        const ssize_t got = recv(leaver, buf, sizeof buf, 0);  // the first message, then away
+        close(leaver);
+        std::this_thread::sleep_for(std::chrono::seconds(3));
+        close(idle);
+        return got;
+    });
+    testing::internal::CaptureStderr();
+    const auto timing = localize::runLocalization(run.req);
+    const std::string log = testing::internal::GetCapturedStderr();
+    EXPECT_GT(clients.get(), 0);
+    EXPECT_EQ(timing.frames, 20u);
+    EXPECT_EQ(readFramesCsv(run.req.out_dir).size(), 20u);
+    EXPECT_NE(log.find("disconnected"), std::string::npos) << log;
+    const auto t = readTiming(run.req.out_dir);
+    EXPECT_EQ(t["publish"]["clients_connected"], 2);
+    EXPECT_GE(t["publish"]["clients_disconnected"], 1);
+}

@@ -230,7 +230,7 @@ void PoseStream::pollClients() {
         if (n == 0) {
             dropClient(k, "disconnected");
         } else if (n < 0 && errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR) {
-            dropClient(k, std::string("connection lost: ") + std::strerror(errno));
+            dropClient(k, std::string("disconnected: ") + std::strerror(errno));
         }
     }
 }
