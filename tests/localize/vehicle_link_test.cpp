@@ -314,6 +314,24 @@ TEST(Restart, APersistedFixRefinesTheFirstFrameAndABadOneIsIgnored) {
     ASSERT_EQ(cold.size(), 12u);
     EXPECT_NE(cold[0].status, "refined");
 
+    // A fix from elsewhere (the vehicle was moved while off): the ceiling does not confirm it;
+    // the run starts as without it and every fix is on the truth, none at the old place.
+    const std::string moved = (s.dir / "moved.json").string();
+    {
+        std::ifstream in(fix);
+        auto j = nlohmann::json::parse(in);
+        j["x"] = 5.0;
+        std::ofstream(moved) << j.dump();
+    }
+    const auto elsewhere = s.run("after.rawlog", "moved", moved);
+    ASSERT_EQ(elsewhere.size(), 12u);
+    EXPECT_NE(elsewhere[0].status, "refined");
+    EXPECT_EQ(elsewhere.back().status, "refined");
+    for (std::size_t k = 0; k < elsewhere.size(); ++k) {
+        if (elsewhere[k].status != "refined") continue;
+        EXPECT_NEAR(elsewhere[k].x, queryPose(15 + int(k)).x(), 0.03) << "frame " << k;
+    }
+
     // A corrupt file, one from another database, a missing one: logged, ignored, run as cold.
     const std::string corrupt = (s.dir / "corrupt.json").string();
     std::ofstream(corrupt) << "{\"format\": \"lookup-fix\", \"x\": 1.0, \"y\":";
