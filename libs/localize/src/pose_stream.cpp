@@ -191,7 +191,7 @@ void PoseStream::senderLoop() {
         while (unixTime() < drain_until_s_) {
             std::vector<pollfd> fds;
             for (const auto& c : clients_) {
-                if (!c.pending.empty()) fds.push_back({c.fd, POLLOUT, 0});
+                if (c.fd >= 0 && !c.pending.empty()) fds.push_back({c.fd, POLLOUT, 0});
             }
             if (fds.empty()) break;
             poll(fds.data(), fds.size(), 10);
