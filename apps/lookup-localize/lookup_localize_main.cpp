@@ -4,9 +4,11 @@
 //                   [--coarse-matches F | --coarse-poses F] [--sampling grid|heatmap|auto]
 //                   [--matcher sad|orb|ecc]
 //                   [--realtime] [--max-frames N] [--repeat N]
+//                   [--publish udp://HOST:PORT | tcp://HOST:PORT] [--persist-fix FILE]
 
 #include <mrpt/3rdparty/tclap/CmdLine.h>
 
+#include <csignal>
 #include <cstdio>
 #include <iostream>
 
@@ -16,6 +18,13 @@
 #include "lookup/localize/localize_app.h"
 
 namespace {
+
+// The first SIGINT / SIGTERM (Ctrl-C, systemctl stop) ends the run as at its end (the fix is
+// persisted, the run folder complete); a second one kills at once.
+void onStopSignal(int signal) {
+    lookup::localize::requestStop();
+    std::signal(signal, SIG_DFL);
+}
 
 int run(int argc, char** argv) {
     TCLAP::CmdLine cmd(std::string("lookup-localize: LookUP precise localisation. ") +
@@ -60,6 +69,15 @@ int run(int argc, char** argv) {
         "", "repeat",
         "replay the rawlog N times, each pass timed after the previous one (long runs)", false, 1,
         "N", cmd);
+    TCLAP::ValueArg<std::string> publish(
+        "", "publish",
+        "send every frame's pose and a health message per second as JSON: udp://HOST:PORT "
+        "(one datagram each) or tcp://HOST:PORT (a server; one line each)",
+        false, "", "URL", cmd);
+    TCLAP::ValueArg<std::string> persist_fix(
+        "", "persist-fix",
+        "keep the last refined fix in FILE and start from it (the ceiling must confirm it)", false,
+        "", "FILE", cmd);
     TCLAP::SwitchArg verbose("", "verbose", "on errors, print MRPT's full exception dump", cmd);
     if (!cmd.parse(argc, argv)) return lookup::common::parseFailureExitCode(argc, argv);
 
@@ -76,6 +94,8 @@ int run(int argc, char** argv) {
     if (realtime.getValue()) req.realtime = 1;
     req.max_frames = static_cast<std::size_t>(std::max(0, max_frames.getValue()));
     req.repeat = repeat.getValue();
+    req.publish = publish.getValue();
+    req.persist_fix = persist_fix.getValue();
 
     if (rawlog.getValue().empty() == live.getValue().empty()) {
         throw lookup::common::ConfigError("give exactly one of --rawlog FILE or --live FILE.ini");
@@ -105,6 +125,8 @@ int run(int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
+    std::signal(SIGINT, onStopSignal);
+    std::signal(SIGTERM, onStopSignal);
     return lookup::common::guardedMain("lookup-localize", argc, argv,
                                        [&] { return run(argc, argv); });
 }

@@ -8,10 +8,12 @@
 #include <mrpt/system/progress.h>
 
 #include <unistd.h>
+#include <atomic>
 #include <chrono>
 #include <exception>
 #include <filesystem>
 #include <iostream>
+#include <map>
 #include <thread>
 
 #include "lookup/coarse/camera_stream.h"
@@ -19,12 +21,16 @@
 #include "lookup/common/config.h"
 #include "lookup/common/errors.h"
 #include "lookup/common/rawlog_io.h"
+#include "lookup/localize/vehicle_link.h"
 #include "lookup/refine/correspondence_methods.h"
 
 namespace lookup::localize {
 namespace fs = std::filesystem;
 
 namespace {
+
+std::atomic<bool> stop_requested{false};  // lock-free: set from signal handlers
+static_assert(std::atomic<bool>::is_always_lock_free);
 
 /// The ceiling frames of a query rawlog: how many, and the time span they cover.
 struct QuerySpan {
@@ -152,6 +158,11 @@ class Session {
         }
         options_.check();
         refiner_options_.check();
+        // The stream first: a bad address fails before the database is loaded.
+        link_ = std::make_unique<VehicleLink>(
+            options_, req.publish,
+            req.persist_fix.empty() ? options_.persist_fix_file : req.persist_fix,
+            options_.realtime);
 
         db_ = std::make_unique<database::ReferenceDatabase>(
             database::ReferenceDatabase::load(req.db_dir, options_.image_cache_capacity));
@@ -172,6 +183,7 @@ class Session {
         }
         localizer_ = std::make_unique<Localizer>(*db_, options_, refiner_options_,
                                                  std::move(coarse), !coarse_from_files);
+        link_->start(*localizer_, *db_, req.publish_wait_s);
 
         mrpt::config::CConfigFileMemory used;
         used.write("run", "method",
@@ -218,10 +230,34 @@ class Session {
     /// `record`: its rawlog record index, named in warnings (npos: live).
     bool feed(const mrpt::obs::CObservation::Ptr& obs, double late_s = 0,
               std::size_t record = std::string::npos) {
+        link_->observation(*obs, wall_.Tac());
+        const double arrival_unix_s = PoseStream::unixTime() - late_s;
+        const bool handled = feedLocalizer(obs, late_s, arrival_unix_s, record);
+        tick();
+        return handled;
+    }
+
+    /// Health checks and messages; also called while no observation arrives.
+    void tick() { link_->tick(wall_.Tac()); }
+
+    /// Sleeps until `elapsed() >= until_s`, ticking the health checks meanwhile.
+    void sleepUntil(double until_s) {
+        for (double now = elapsed(); now < until_s && !stop_requested; now = elapsed()) {
+            std::this_thread::sleep_for(
+                std::chrono::duration<double>(std::min(0.05, until_s - now)));
+            tick();
+        }
+    }
+
+  private:
+    bool feedLocalizer(const mrpt::obs::CObservation::Ptr& obs, double late_s,
+                       double arrival_unix_s, std::size_t record) {
         const bool is_ceiling = obs->sensorLabel == options_.ceiling_camera_label;
         const auto* img = dynamic_cast<const mrpt::obs::CObservationImage*>(obs.get());
         if (is_ceiling && img != nullptr && options_.realtime && late_s > options_.max_latency_s) {
-            writer_->write(localizer_->dropped(*img), img);
+            const auto frame = localizer_->dropped(*img);
+            writer_->write(frame, img);
+            link_->frame(frame, timing_.frames, arrival_unix_s, wall_.Tac());
             ++timing_.frames;
             ++timing_.frames_dropped;
             return true;
@@ -230,6 +266,7 @@ class Session {
         if (auto rejected = localizer_->takeRejection()) skip(*obs, *rejected, record);
         if (!frame) return false;
         writer_->write(*frame, img);
+        link_->frame(*frame, timing_.frames, arrival_unix_s, wall_.Tac());
         if (img != nullptr) img->image.unload();  // keep memory flat on long runs
         ++timing_.frames;
         timing_.coarse_ms += frame->times.coarse_ms;
@@ -246,6 +283,7 @@ class Session {
         return true;
     }
 
+  public:
     void progress(std::size_t expected) const {
         if (!req_.progress || !isatty(STDERR_FILENO)) return;
         if (timing_.frames % 10 != 0 && timing_.frames != expected) return;
@@ -266,6 +304,7 @@ class Session {
         }
         timing_.wall_s = wall_.Tac();
         writer_->finish(timing_);
+        link_->finish(writer_->directory(), wall_.Tac());
         finished_ = true;
         return timing_;
     }
@@ -293,24 +332,30 @@ class Session {
     std::unique_ptr<RunWriter> writer_;
     bool finished_ = false;
     QuerySpan span_;
+    std::unique_ptr<VehicleLink> link_;
     RunTiming timing_;
     mrpt::system::CTicTac wall_;
 };
 
 }  // namespace
 
+void requestStop() { stop_requested = true; }
+
 RunTiming runLocalization(const LocalizeRequest& req) {
     if (req.repeat < 1) throw common::ConfigError("--repeat must be >= 1");
+    stop_requested = false;
     Session session(req, req.rawlog);
     const auto& options = session.options();
     const std::size_t expected = session.expectedFrames();
     double first_stamp = -1, pass_shift_s = 0, last_stamp = -1;
-    for (int pass = 0; pass < req.repeat && !session.done(); ++pass) {
+    double clock_shift_s = 0;                       // realtime replay across clock jumps
+    std::map<std::string, double> last_arrival_of;  // per sensor
+    for (int pass = 0; pass < req.repeat && !session.done() && !stop_requested; ++pass) {
         // Each pass starts one second after the previous one ended.
         if (pass > 0) pass_shift_s = last_stamp - first_stamp + 1.0;
         common::RawlogReader reader(req.rawlog);
         mrpt::obs::CObservation::Ptr obs;
-        while (reader.next(obs)) {
+        while (!stop_requested && reader.next(obs)) {
             if (pass_shift_s > 0) {
                 obs->timestamp =
                     mrpt::Clock::fromDouble(mrpt::Clock::toDouble(obs->timestamp) + pass_shift_s);
@@ -320,12 +365,18 @@ RunTiming runLocalization(const LocalizeRequest& req) {
             last_stamp = std::max(last_stamp, stamp);
             double late_s = 0;
             if (options.realtime) {
-                // The observation arrives at its recorded time (relative to the first one).
-                const double arrival = stamp - first_stamp;
-                const double now = session.elapsed();
-                if (now < arrival) {
-                    std::this_thread::sleep_for(std::chrono::duration<double>(arrival - now));
+                // The observation arrives at its recorded time (relative to the first one); a
+                // sensor clock that jumps back (reported by the health checks) shifts the
+                // replay clock by the jump, so later frames are not all late.
+                double arrival = stamp - first_stamp + clock_shift_s;
+                auto& previous = last_arrival_of[obs->sensorLabel];
+                if (arrival < previous) {
+                    clock_shift_s += previous - arrival;
+                    arrival = previous;
                 }
+                previous = arrival;
+                const double now = session.elapsed();
+                session.sleepUntil(arrival);
                 late_s = std::max(0.0, now - arrival);
             }
             try {
@@ -345,6 +396,7 @@ RunTiming runLocalization(const LocalizeRequest& req) {
 RunTiming runLiveLocalization(const LiveRequest& live) {
     LocalizeRequest req = live.base;
     req.realtime = 1;
+    stop_requested = false;
     mrpt::config::CConfigFile ini(live.sensors_ini);
     std::vector<std::string> sections;
     ini.getAllSections(sections);
@@ -387,7 +439,7 @@ RunTiming runLiveLocalization(const LiveRequest& live) {
 
     Session session(req, live.sensors_ini);
     double last_data_s = 0;
-    while (!session.done()) {
+    while (!session.done() && !stop_requested) {
         const double now = session.elapsed();
         if (live.duration_s > 0 && now > live.duration_s) break;
         if (now - last_data_s > live.quiet_timeout_s) break;
@@ -413,6 +465,7 @@ RunTiming runLiveLocalization(const LiveRequest& live) {
         }
         if (arrived.empty()) {
             std::this_thread::sleep_for(std::chrono::milliseconds(1));
+            session.tick();  // a stopped camera is noticed while nothing arrives
             continue;
         }
         last_data_s = now;

@@ -347,6 +347,26 @@ void Localizer::setInitialPose(double time_s, const mrpt::poses::CPose2D& vehicl
     last_fix_ = Fix{time_s, vehicle_pose};
 }
 
+void Localizer::offerHypothesis(const mrpt::poses::CPosePDFGaussian& pose) {
+    hypothesis_ = pose;
+    hypothesis_frames_ = 0;
+}
+
+std::shared_ptr<const refine::RefineResult> Localizer::tryHypothesis(
+    const mrpt::obs::CObservationImage& query, FrameResult& out) {
+    auto result = acquire(query, hypothesis_->mean, nullptr, out);
+    if (result && result->accepted()) {
+        hypothesis_.reset();
+        return result;
+    }
+    // Not here (yet): the frame goes on as without a hypothesis.
+    out.refinement.reset();
+    out.reference_indices.clear();
+    out.inlier_share = 0;
+    if (++hypothesis_frames_ >= kHypothesisFrames) hypothesis_.reset();
+    return nullptr;
+}
+
 std::optional<FrameResult> Localizer::process(const mrpt::obs::CObservation::Ptr& obs) {
     rejection_.reset();
     if (!obs) return std::nullopt;
@@ -717,6 +737,8 @@ FrameResult Localizer::processCeiling(const mrpt::obs::CObservationImage& query)
     if (prediction) {
         result = refineAgainst(query, referencesNear(prediction->pose), prediction->pose, out);
     }
+    if (hypothesis_ && last_fix_) hypothesis_.reset();  // a fix supersedes it
+    if (hypothesis_ && !prediction) result = tryHypothesis(query, out);
     if ((!result || !result->accepted()) && coarse_fix) {
         result = refineAgainst(query, coarse_fix->references, coarse_fix->pose, out);
         // Acquisition searches around the coarse match only when not tracking: with a recent

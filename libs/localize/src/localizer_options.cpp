@@ -26,7 +26,11 @@ void LocalizerOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& s
                          "max_latency_s",
                          "write_debug_images",
                          "debug_image_every",
-                         "image_cache_capacity"});
+                         "image_cache_capacity",
+                         "health_interval_s",
+                         "camera_timeout_s",
+                         "persist_fix_file",
+                         "persist_interval_s"});
     ceiling_camera_label = s.getString("ceiling_camera_label", ceiling_camera_label);
     forward_camera_label = s.getString("forward_camera_label", forward_camera_label);
     odometry_label = s.getString("odometry_label", odometry_label);
@@ -51,6 +55,10 @@ void LocalizerOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& s
     debug_image_every = s.getInt("debug_image_every", debug_image_every);
     image_cache_capacity = static_cast<std::size_t>(
         s.getInt("image_cache_capacity", static_cast<int>(image_cache_capacity)));
+    health_interval_s = s.getDouble("health_interval_s", health_interval_s);
+    camera_timeout_s = s.getDouble("camera_timeout_s", camera_timeout_s);
+    persist_fix_file = s.getString("persist_fix_file", persist_fix_file);
+    persist_interval_s = s.getDouble("persist_interval_s", persist_interval_s);
     check();
 }
 
@@ -76,6 +84,10 @@ void LocalizerOptions::saveToConfigFile(mrpt::config::CConfigFileBase& target,
     target.write(section, "write_debug_images", write_debug_images);
     target.write(section, "debug_image_every", debug_image_every);
     target.write(section, "image_cache_capacity", static_cast<int>(image_cache_capacity));
+    target.write(section, "health_interval_s", health_interval_s);
+    target.write(section, "camera_timeout_s", camera_timeout_s);
+    target.write(section, "persist_fix_file", persist_fix_file);
+    target.write(section, "persist_interval_s", persist_interval_s);
 }
 
 void LocalizerOptions::check() const {
@@ -97,6 +109,9 @@ void LocalizerOptions::check() const {
     c.require(debug_image_every >= 1, "debug_image_every", ">= 1");
     c.require(image_cache_capacity >= static_cast<std::size_t>(references_per_query),
               "image_cache_capacity", ">= references_per_query");
+    c.require(health_interval_s >= 0, "health_interval_s", ">= 0");
+    c.require(camera_timeout_s >= 0, "camera_timeout_s", ">= 0");
+    c.require(persist_interval_s > 0, "persist_interval_s", "> 0");
     c.throwIfFailed();
 }
 

@@ -26,6 +26,12 @@ struct LocalizeRequest {
     /// (long-run memory and throughput checks: the vehicle jumps back to the start).
     int repeat = 1;
     bool progress = true;  ///< progress bar on stderr when it is a terminal
+
+    // On the vehicle (docs/run-format.md): pose stream, restarts.
+    std::string publish;      ///< "udp://HOST:PORT" or "tcp://HOST:PORT" (--publish); "" = none
+    std::string persist_fix;  ///< fix file (--persist-fix); "" = [localizer] persist_fix_file
+    /// tcp: wait up to this long for a first client before the first frame (tests) [s].
+    double publish_wait_s = 0;
 };
 
 /// The report's name of a LookUP run without --method: "lookup-grid24", "lookup-fcn12" (heat
@@ -41,6 +47,11 @@ struct LiveRequest {
     double duration_s = 0;       ///< stop after this long (0 = until the sensors go quiet)
     double quiet_timeout_s = 5;  ///< stop when no sensor delivered anything for this long
 };
+
+/// Asks a running runLocalization / runLiveLocalization to stop after the current frame and to
+/// finish its run folder as at the end (timing.json, the persisted fix, the stream closed).
+/// Async-signal-safe: lookup-localize calls it on SIGINT and SIGTERM. Each run clears it at start.
+void requestStop();
 
 /// Runs the localiser over a rawlog. Returns the run's timing. Throws std::runtime_error (or
 /// a subclass) naming the file, record and reason for bad input; frames already processed stay

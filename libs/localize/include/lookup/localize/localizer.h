@@ -121,6 +121,13 @@ class Localizer {
     /// Optional known start pose (e.g. from the vehicle's last parked fix).
     void setInitialPose(double time_s, const mrpt::poses::CPose2D& vehicle_pose);
 
+    /// A start-up hypothesis (e.g. the fix persisted before a restart): until the first fix,
+    /// and for at most kHypothesisFrames ceiling frames, an acquisition around `pose` is
+    /// tried first (candidates within acquisition_radius_m, ambiguity check, confirmation).
+    /// Only a ceiling match makes it a fix; a wrong hypothesis costs those acquisitions.
+    void offerHypothesis(const mrpt::poses::CPosePDFGaussian& pose);
+    static constexpr int kHypothesisFrames = 10;
+
     const LocalizerOptions& options() const { return options_; }
 
     /// References an acquisition around `pose` refines against, one by one: those within
@@ -180,6 +187,10 @@ class Localizer {
         mrpt::poses::CPose2D pose;
     };
     std::optional<Fix> last_fix_;
+    std::optional<mrpt::poses::CPosePDFGaussian> hypothesis_;  ///< see offerHypothesis
+    int hypothesis_frames_ = 0;                                ///< frames it was tried on
+    std::shared_ptr<const refine::RefineResult> tryHypothesis(
+        const mrpt::obs::CObservationImage& query, FrameResult& out);
     bool fine_tracking_ = false;  ///< the last ceiling frame was refined
     /// Coarse query index of the last start-up seed tried against the ceiling.
     std::size_t last_startup_seed_ = std::numeric_limits<std::size_t>::max();

@@ -63,6 +63,16 @@ struct LocalizerOptions : public mrpt::config::CLoadableOptions {
 
     std::size_t image_cache_capacity = 64;  ///< reference images kept in memory
 
+    // On the vehicle (docs/run-format.md: pose stream, health messages, persisted fix).
+    double health_interval_s = 1.0;  ///< health message and log line every so often; 0 = none
+    /// Live and real-time runs: no ceiling frame for this long reports the camera stopped
+    /// (0 = never) [s].
+    double camera_timeout_s = 1.0;
+    /// The last refined fix is kept in this file (--persist-fix overrides) and offered as a
+    /// start-up hypothesis when the run starts; "" = none.
+    std::string persist_fix_file;
+    double persist_interval_s = 1.0;  ///< how often the fix file is rewritten while it changes
+
     void loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
                             const std::string& section) override;
     void saveToConfigFile(mrpt::config::CConfigFileBase& target,
