@@ -153,6 +153,59 @@ TEST(Localize, RefinesCoarsePosesToCentimetresOnASyntheticCeiling) {
                        {eval::loadRun(live.base.out_dir)}, {});
     ASSERT_EQ(live_report.rows.size(), 2u);
     EXPECT_LT(live_report.rows[1].error.mean_m, 0.03);
+
+    // camera_params_file gives a live camera its calibration (MRPT's grabbers deliver none):
+    // the recorded intrinsics reproduce the run, wrong ones change it, a missing file is
+    // refused naming the sensors file, section and key.
+    mrpt::img::TCamera recorded;
+    {
+        common::RawlogReader reader((dir / "query.rawlog").string());
+        mrpt::obs::CObservation::Ptr obs;
+        while (reader.next(obs)) {
+            const auto* img = dynamic_cast<const mrpt::obs::CObservationImage*>(obs.get());
+            if (img == nullptr || obs->sensorLabel != "CEILING_CAM") continue;
+            recorded = img->cameraParams;
+            break;
+        }
+    }
+    const auto calibrated = [&](const std::string& name, double fx_scale) {
+        std::ofstream(dir / (name + "-calib.ini"))
+            << "[CAMERA_PARAMS]\nresolution = [" << recorded.ncols << " " << recorded.nrows
+            << "]\ncx = " << recorded.cx() << "\ncy = " << recorded.cy()
+            << "\nfx = " << recorded.fx() * fx_scale << "\nfy = " << recorded.fy() * fx_scale
+            << "\ndist = [" << recorded.k1() << " " << recorded.k2() << " " << recorded.p1() << " "
+            << recorded.p2() << " " << recorded.k3() << "]\ndistortion_model = plumb_bob\n";
+        std::ifstream base(dir / "sensors.ini");
+        std::ofstream(dir / (name + "-sensors.ini"))
+            << base.rdbuf() << "camera_params_file = " << name << "-calib.ini\n";
+        localize::LiveRequest l = live;
+        l.base.out_dir = (dir / name).string();
+        l.sensors_ini = (dir / (name + "-sensors.ini")).string();
+        return l;
+    };
+    const auto meanErrorOf = [&](const localize::LiveRequest& l) {
+        const auto r =
+            eval::evaluate({eval::loadGroundTruth((dir / "query.rawlog.GT.txt").string())},
+                           {eval::loadRun(l.base.out_dir)}, {});
+        return r.rows.size() == 2 ? r.rows[1].error.mean_m : 1e9;
+    };
+    const auto same = calibrated("calib-same", 1.0);
+    EXPECT_EQ(localize::runLiveLocalization(same).frames, 20u);
+    EXPECT_LT(meanErrorOf(same), 0.03);
+    // A focal length 1.5 times too long scales every offset by 1/1.5: metres off, not cm.
+    const auto wrong = calibrated("calib-wrong", 1.5);
+    localize::runLiveLocalization(wrong);
+    EXPECT_GT(meanErrorOf(wrong), 3 * meanErrorOf(same));
+    auto missing = calibrated("calib-missing", 1.0);
+    fs::remove(dir / "calib-missing-calib.ini");
+    try {
+        localize::runLiveLocalization(missing);
+        ADD_FAILURE() << "a missing calibration file was accepted";
+    } catch (const common::ConfigError& e) {
+        EXPECT_NE(std::string(e.what()).find("camera_params_file"), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find("calib-missing-sensors.ini"), std::string::npos)
+            << e.what();
+    }
 }
 
 TEST(Localize, RunsAreNamedAfterTheirSamplerAndMatcher) {

@@ -14,10 +14,12 @@
 #include <filesystem>
 #include <iostream>
 #include <map>
+#include <optional>
 #include <thread>
 
 #include "lookup/coarse/camera_stream.h"
 #include "lookup/coarse/coarse_source.h"
+#include "lookup/common/camera_params.h"
 #include "lookup/common/config.h"
 #include "lookup/common/errors.h"
 #include "lookup/common/rawlog_io.h"
@@ -403,6 +405,7 @@ RunTiming runLiveLocalization(const LiveRequest& live) {
     struct Sensor {
         std::string section;
         mrpt::hwdrivers::CGenericSensor::Ptr driver;
+        std::optional<mrpt::img::TCamera> camera;  ///< camera_params_file: live calibration
         double period_s = 0.01;
         double next_s = 0;
     };
@@ -419,6 +422,7 @@ RunTiming runLiveLocalization(const LiveRequest& live) {
         }
         try {
             s.driver->loadConfig(ini, section);
+            s.camera = common::sensorCameraParams(ini, section, live.sensors_ini);
             s.driver->initialize();
             const std::string recorded = ini.read_string(section, "rawlog_file", "", false);
             if (ini.read_string(section, "grabber_type", "", false) == "rawlog" &&
@@ -461,6 +465,10 @@ RunTiming runLiveLocalization(const LiveRequest& live) {
             }
             mrpt::hwdrivers::CGenericSensor::TListObservations got;
             s.driver->getObservations(got);
+            for (auto& [stamp, object] : got) {
+                auto obs = std::dynamic_pointer_cast<mrpt::obs::CObservation>(object);
+                if (s.camera && obs) common::applyCameraParams(*s.camera, *obs);
+            }
             arrived.insert(got.begin(), got.end());
         }
         if (arrived.empty()) {
