@@ -337,4 +337,45 @@ TEST(Operations, AnotherDayLooksDifferentOnTheSameRoute) {
     EXPECT_GT(fx[1], fx[0] * 1.1) << "the narrower camera has the longer focal length";
 }
 
+/// Every file under `root` by relative path (scenario.ini left out: it records `threads`).
+std::map<std::string, std::string> datasetFiles(const fs::path& root) {
+    std::map<std::string, std::string> files;
+    for (const auto& e : fs::recursive_directory_iterator(root)) {
+        if (!e.is_regular_file() || e.path().filename() == "scenario.ini") continue;
+        std::ifstream f(e.path(), std::ios::binary);
+        files[fs::relative(e.path(), root).string()] =
+            std::string(std::istreambuf_iterator<char>(f), {});
+    }
+    return files;
+}
+
+TEST(Operations, RealisticEffectsStayDeterministicWhateverTheThreadCount) {
+    ScenarioOptions sc = ScenarioOptions::fromFile(lookup::sim::findPreset(
+        "mine-b-real-mini", {std::string(LOOKUP_SOURCE_SHARE_DIR) + "/scenarios"}));
+    sc.world.length_m = 20;
+    // The other-day query (every override) and the drive against the survey, cameras slowed.
+    sc.traverses = {sc.traverses.at(3), sc.traverses.at(4)};
+    sc.ceiling_camera.rate_hz = 3;
+    sc.forward_camera.rate_hz = 2;
+    sc.traverses[0].ceiling_camera->rate_hz = 3;
+    for (auto* cam : {&sc.ceiling_camera, &*sc.traverses[0].ceiling_camera}) {
+        cam->width_px = 96;
+        cam->height_px = 72;
+    }
+    sc.forward_camera.width_px = 48;
+    sc.forward_camera.height_px = 36;
+    const fs::path a = tempDir("real_t1"), b = tempDir("real_t2");
+    sc.threads = 1;
+    runOk(sc, a);
+    sc.threads = 2;
+    runOk(sc, b);
+    const auto fa = datasetFiles(a), fb = datasetFiles(b);
+    EXPECT_GT(fa.size(), 20u);
+    ASSERT_EQ(fa.size(), fb.size());
+    for (const auto& [name, bytes] : fa) {
+        ASSERT_TRUE(fb.count(name)) << name;
+        EXPECT_TRUE(fb.at(name) == bytes) << name << " differs";
+    }
+}
+
 }  // namespace

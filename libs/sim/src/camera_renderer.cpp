@@ -61,6 +61,34 @@ double distanceToBox(const Vector3d& p, const Vector3d& lo, const Vector3d& hi) 
     return (p.cwiseMax(lo).cwiseMin(hi) - p).norm();
 }
 
+/// Dust: the scene attenuated along the ray, the haze lit by the vehicle light added.
+void addHaze(cv::Mat& radiance, const std::vector<float>& depth, const CameraOptions& opt,
+             const std::vector<double>& beam) {
+    float* r = radiance.ptr<float>();
+    for (std::size_t i = 0; i < depth.size(); ++i) {
+        const double tr =
+            std::isfinite(depth[i]) ? std::exp(-opt.haze_extinction_per_m * depth[i]) : 0.0;
+        r[i] =
+            static_cast<float>(r[i] * tr + opt.haze_airlight * opt.light_gain * beam[i] * (1 - tr));
+    }
+}
+
+/// Motion blur: average of shifted copies along the image motion during the exposure.
+void motionBlur(cv::Mat& radiance, const FrameConditions& frame) {
+    const double blur = std::hypot(frame.blur_u_px, frame.blur_v_px);
+    if (blur < 0.5) return;
+    const int samples = std::min(16, static_cast<int>(std::ceil(blur)) + 1);
+    cv::Mat acc = cv::Mat::zeros(radiance.size(), CV_32F), shifted;
+    for (int k = 0; k < samples; ++k) {
+        const double a = (k + 0.5) / samples - 0.5;
+        const cv::Matx23d M(1, 0, a * frame.blur_u_px, 0, 1, a * frame.blur_v_px);
+        cv::warpAffine(radiance, shifted, M, radiance.size(), cv::INTER_LINEAR,
+                       cv::BORDER_REPLICATE);
+        acc += shifted;
+    }
+    radiance = acc / samples;
+}
+
 }  // namespace
 
 CameraRenderer::CameraRenderer(const TunnelWorld& world, const CameraOptions& camera, Kind kind,
@@ -448,31 +476,8 @@ mrpt::img::CImage CameraRenderer::develop(std::vector<float>& radiance_px,
     const int W = opt_.width_px, H = opt_.height_px;
     const int count = W * H;
     cv::Mat radiance(H, W, CV_32F, radiance_px.data());
-    if (opt_.haze_extinction_per_m > 0) {
-        // Dust: the scene attenuated along the ray, the haze lit by the vehicle light added.
-        float* r = radiance.ptr<float>();
-        for (int i = 0; i < count; ++i) {
-            const double tr =
-                std::isfinite(depth[i]) ? std::exp(-opt_.haze_extinction_per_m * depth[i]) : 0.0;
-            r[i] = static_cast<float>(r[i] * tr +
-                                      opt_.haze_airlight * opt_.light_gain * beam_[i] * (1 - tr));
-        }
-    }
-
-    // Motion blur: average of shifted copies along the image motion during the exposure.
-    const double blur = std::hypot(frame.blur_u_px, frame.blur_v_px);
-    if (blur >= 0.5) {
-        const int samples = std::min(16, static_cast<int>(std::ceil(blur)) + 1);
-        cv::Mat acc = cv::Mat::zeros(radiance.size(), CV_32F), shifted;
-        for (int k = 0; k < samples; ++k) {
-            const double a = (k + 0.5) / samples - 0.5;
-            const cv::Matx23d M(1, 0, a * frame.blur_u_px, 0, 1, a * frame.blur_v_px);
-            cv::warpAffine(radiance, shifted, M, radiance.size(), cv::INTER_LINEAR,
-                           cv::BORDER_REPLICATE);
-            acc += shifted;
-        }
-        radiance = acc / samples;
-    }
+    if (opt_.haze_extinction_per_m > 0) addHaze(radiance, depth, opt_, beam_);
+    motionBlur(radiance, frame);
     if (!drops_.empty()) {
         cv::Mat defocused;
         const double sigma = std::max(2.0, opt_.drop_radius_px / 2);

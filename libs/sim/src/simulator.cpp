@@ -254,6 +254,52 @@ std::vector<Event> scheduleEvents(const CameraOptions& ceiling, const CameraOpti
     return events;
 }
 
+TraverseSummary startSummary(const TraverseOptions& tr, const common::PoseTrack& track) {
+    TraverseSummary sum;
+    sum.name = tr.name;
+    sum.roles = tr.roles;
+    sum.duration_s = track.back().time_s - track.front().time_s;
+    sum.start_time_s = track.front().time_s;
+    sum.ground_truth_rows = track.size();
+    for (std::size_t i = 1; i < track.size(); ++i) {
+        sum.length_m += std::hypot(track[i].pose.x() - track[i - 1].pose.x(),
+                                   track[i].pose.y() - track[i - 1].pose.y());
+    }
+    return sum;
+}
+
+/// Drives `legs` from route position `s` into `track` (which gets the start pose too):
+/// `pose(s, s_limit, facing_back)` places the vehicle, `speed(s, from, to)` is the leg's speed.
+template <typename PoseFn, typename SpeedFn>
+void drivePlan(const std::vector<PlanLeg>& legs, double s, double length, double start_time_s,
+               const PoseFn& pose, const SpeedFn& speed, common::PoseTrack* track) {
+    bool facing_back = false;
+    for (const PlanLeg& leg : legs) {  // the first motion fixes the facing (checked constant)
+        if (leg.kind == PlanLeg::Kind::Stop || leg.value == s) continue;
+        facing_back = (leg.value < s) == (leg.kind == PlanLeg::Kind::Drive);
+        break;
+    }
+    double t = 0;
+    track->push_back({start_time_s + t, pose(s, length, facing_back)});
+    for (const PlanLeg& leg : legs) {
+        if (leg.kind == PlanLeg::Kind::Stop) {
+            for (long k = std::lround(leg.value / kTrackDt); k > 0; --k) {
+                t += kTrackDt;
+                track->push_back({start_time_s + t, pose(s, length, facing_back)});
+            }
+            continue;
+        }
+        const double from = s, to = std::clamp(leg.value, 0.0, length);
+        const double sign = to > from ? 1 : -1;
+        while (s != to) {
+            const double v = speed(s + 0.5 * sign * speed(s, from, to) * kTrackDt, from, to);
+            s = sign > 0 ? std::min(s + v * kTrackDt, to) : std::max(s - v * kTrackDt, to);
+            t += kTrackDt;
+            track->push_back({start_time_s + t, pose(s, length, facing_back)});
+        }
+    }
+}
+
 void writeDatasetIni(const std::string& path, const ScenarioOptions& sc) {
     std::ofstream f(path);
     f << "# Written by lookup-sim; see docs/dataset-format.md\n"
@@ -412,30 +458,7 @@ common::PoseTrack vehicleTrack(const TunnelWorld& world, const TraverseOptions& 
     } else {
         legs = parsePlan(tr.plan);
     }
-    bool facing_back = false;
-    for (const PlanLeg& leg : legs) {  // the first motion fixes the facing (checked constant)
-        if (leg.kind == PlanLeg::Kind::Stop || leg.value == s) continue;
-        facing_back = (leg.value < s) == (leg.kind == PlanLeg::Kind::Drive);
-        break;
-    }
-    track.push_back({start_time_s + t, poseAtS(s, length, facing_back)});
-    for (const PlanLeg& leg : legs) {
-        if (leg.kind == PlanLeg::Kind::Stop) {
-            for (long k = std::lround(leg.value / kTrackDt); k > 0; --k) {
-                t += kTrackDt;
-                track.push_back({start_time_s + t, poseAtS(s, length, facing_back)});
-            }
-            continue;
-        }
-        const double from = s, to = std::clamp(leg.value, 0.0, length);
-        const double sign = to > from ? 1 : -1;
-        while (s != to) {
-            const double v = legSpeed(s + 0.5 * sign * legSpeed(s, from, to) * kTrackDt, from, to);
-            s = sign > 0 ? std::min(s + v * kTrackDt, to) : std::max(s - v * kTrackDt, to);
-            t += kTrackDt;
-            track.push_back({start_time_s + t, poseAtS(s, length, facing_back)});
-        }
-    }
+    drivePlan(legs, s, length, start_time_s, poseAtS, legSpeed, &track);
     return track;
 }
 
@@ -533,16 +556,7 @@ TraverseSummary Simulator::runTraverse(std::size_t index, const std::string& out
     const uint32_t seed =
         hash3(static_cast<uint32_t>(scenario_.seed), static_cast<uint32_t>(scenario_.seed >> 32),
               static_cast<uint32_t>(index) + 1);
-    TraverseSummary sum;
-    sum.name = tr.name;
-    sum.roles = tr.roles;
-    sum.duration_s = duration;
-    sum.start_time_s = t0;
-    sum.ground_truth_rows = track.size();
-    for (std::size_t i = 1; i < track.size(); ++i) {
-        sum.length_m += std::hypot(track[i].pose.x() - track[i - 1].pose.x(),
-                                   track[i].pose.y() - track[i - 1].pose.y());
-    }
+    TraverseSummary sum = startSummary(tr, track);
 
     const std::string stem = out_dir + "/" + tr.name;
     std::error_code ec;
