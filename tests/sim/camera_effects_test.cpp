@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 #include <lookup/common/config.h>
 #include <lookup/sim/camera_renderer.h>
+#include <lookup/sim/simulator.h>
 #include <lookup/sim/world.h>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core.hpp>
@@ -129,6 +130,20 @@ TEST(CameraEffects, DistortionThatFoldsInsideTheImageIsRefused) {
     const TunnelWorld world(straightTunnel(true), 1);
     EXPECT_THROW(CameraRenderer renderer(world, cam, CameraRenderer::Kind::Ceiling, 1),
                  lookup::common::ConfigError);
+    ScenarioOptions sc;
+    sc.traverses.resize(1);
+    sc.traverses[0].name = "t";
+    sc.traverses[0].roles = "reference";
+    sc.world.length_m = 20;
+    sc.traverses[0].ceiling_camera = cam;
+    try {
+        lookup::sim::Simulator sim(sc);
+        ADD_FAILURE() << "accepted";
+    } catch (const lookup::common::ConfigError& e) {
+        EXPECT_NE(std::string(e.what()).find("[traverse_0.ceiling_camera] distortion"),
+                  std::string::npos)
+            << e.what();
+    }
 }
 
 TEST(CameraEffects, RollingShutterSkewsALineBySpeedTimesReadout) {

@@ -466,6 +466,7 @@ Simulator::Simulator(ScenarioOptions scenario) : scenario_(std::move(scenario)) 
     scenario_.check();
     world_ = std::make_unique<TunnelWorld>(scenario_.world, scenario_.seed);
     checkPlansOnRoute();
+    checkLenses();
     double next = scenario_.start_time_s;
     for (std::size_t i = 0; i < scenario_.traverses.size(); ++i) {
         const double t0 = std::max(scenario_.start_time_s + i * scenario_.traverse_gap_s, next);
@@ -477,6 +478,26 @@ Simulator::Simulator(ScenarioOptions scenario) : scenario_(std::move(scenario)) 
             scenario_.traverses[i].world
                 ? std::make_unique<TunnelWorld>(*scenario_.traverses[i].world, scenario_.seed)
                 : nullptr);
+    }
+}
+
+void Simulator::checkLenses() const {
+    auto probe = [&](const CameraOptions& cam, const std::string& section) {
+        if (cam.distortion == "none") return;
+        try {
+            const CameraRenderer renderer(*world_, cam, CameraRenderer::Kind::Ceiling, 1);
+        } catch (const std::exception& e) {
+            throw common::ConfigError(scenario_.source_name + " [" + section +
+                                      "] distortion: " + e.what());
+        }
+    };
+    probe(scenario_.ceiling_camera, "ceiling_camera");
+    probe(scenario_.forward_camera, "forward_camera");
+    for (std::size_t i = 0; i < scenario_.traverses.size(); ++i) {
+        const TraverseOptions& t = scenario_.traverses[i];
+        const std::string p = "traverse_" + std::to_string(i) + ".";
+        if (t.ceiling_camera) probe(*t.ceiling_camera, p + "ceiling_camera");
+        if (t.forward_camera) probe(*t.forward_camera, p + "forward_camera");
     }
 }
 

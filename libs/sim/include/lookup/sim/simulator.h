@@ -96,6 +96,8 @@ class Simulator {
 
     /// Plan targets beyond the route's end: ConfigError naming the file, traverse and leg.
     void checkPlansOnRoute() const;
+    /// A lens distortion that leaves some pixel without a ray: ConfigError naming the section.
+    void checkLenses() const;
 
     ScenarioOptions scenario_;
     std::unique_ptr<TunnelWorld> world_;
