@@ -18,8 +18,8 @@ int main(int argc, char** argv) {
                        ' ', "0.1");
     TCLAP::ValueArg<std::string> preset(
         "p", "preset",
-        "built-in scenario: mine-a, mine-b, mine-a-mini, mine-b-mini, mine-a-real-mini, "
-        "mine-b-real-mini, lhd-cycle-mini",
+        "built-in scenario: mine-a, mine-b, mine-a-mini, mine-b-mini, mine-a-real, mine-b-real, "
+        "mine-a-real-mini, mine-b-real-mini, lhd-cycle-mini",
         false, "", "NAME", cmd);
     TCLAP::ValueArg<std::string> scenario("s", "scenario", "scenario .ini file", false, "",
                                           "FILE.ini", cmd);
