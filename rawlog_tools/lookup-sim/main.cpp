@@ -31,8 +31,10 @@ int main(int argc, char** argv) {
     TCLAP::CmdLine cmd("lookup-sim: synthetic underground mine with ground truth (MRPT rawlogs)",
                        ' ', "0.1");
     TCLAP::ValueArg<std::string> preset(
-        "p", "preset", "built-in scenario: mine-a, mine-b, mine-a-mini, mine-b-mini", false, "",
-        "NAME", cmd);
+        "p", "preset",
+        "built-in scenario: mine-a, mine-b, mine-a-mini, mine-b-mini, mine-a-real, mine-b-real, "
+        "mine-a-real-mini, mine-b-real-mini, lhd-cycle-mini",
+        false, "", "NAME", cmd);
     TCLAP::ValueArg<std::string> scenario("s", "scenario", "scenario .ini file", false, "",
                                           "FILE.ini", cmd);
     TCLAP::ValueArg<std::string> out("o", "out", "output dataset folder", true, "", "DIR", cmd);

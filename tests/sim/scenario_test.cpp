@@ -15,7 +15,9 @@ namespace {
 using lookup::common::ConfigError;
 using lookup::sim::ScenarioOptions;
 
-const char* kPresets[] = {"mine-a", "mine-b", "mine-a-mini", "mine-b-mini"};
+const char* kPresets[] = {"mine-a",      "mine-b",           "mine-a-mini",
+                          "mine-b-mini", "lhd-cycle-mini",   "mine-a-real",
+                          "mine-b-real", "mine-a-real-mini", "mine-b-real-mini"};
 
 std::string presetPath(const std::string& name) {
     return lookup::sim::findPreset(name, {std::string(LOOKUP_SOURCE_SHARE_DIR) + "/scenarios"});
@@ -119,6 +121,77 @@ TEST(Scenario, UnknownSectionAndMissingTraverseAreRefused) {
     EXPECT_NE(refusal("missing.ini", "").find("[scenario]"), std::string::npos);
     EXPECT_THROW(ScenarioOptions::fromFile("/nonexistent/x.ini"), ConfigError);
     EXPECT_THROW(lookup::sim::findPreset("no-such-mine", {LOOKUP_SOURCE_SHARE_DIR}), ConfigError);
+}
+
+/// mine-b-mini with `extra` appended to section `[section]` (inserted after its header).
+std::string withKeys(const std::string& section, const std::string& extra) {
+    std::string text = readFile(presetPath("mine-b-mini"));
+    const std::string header = "[" + section + "]\n";
+    const auto at = text.find(header);
+    if (at == std::string::npos) return text + "\n" + header + extra + "\n";
+    text.insert(at + header.size(), extra + "\n");
+    return text;
+}
+
+TEST(Scenario, PhysicallyImpossibleSensorValuesAreRefusedNamingTheKey) {
+    const struct {
+        const char* section;
+        const char* keys;
+        const char* field;
+    } cases[] = {
+        {"ceiling_camera", "readout_ms = 80", "ceiling_camera.readout_ms"},  // 14 Hz: 71 ms
+        {"lidar", "latency_ms = 1500", "lidar.latency_ms"},
+        {"forward_camera", "latency_ms = -1200", "forward_camera.latency_ms"},
+        {"odometry", "drop_rate = 1", "odometry.drop_rate"},
+        {"lidar", "drop_rate = -0.1", "lidar.drop_rate"},
+        {"lidar", "dust_rate = -0.1", "lidar.dust_rate"},
+        {"odometry", "slip_fraction = -0.2", "odometry.slip_fraction"},
+        {"ceiling_camera", "distortion = barrel", "ceiling_camera.distortion"},
+        {"ceiling_camera", "stamp_row = last", "ceiling_camera.stamp_row"},
+        {"ceiling_camera", "jitter_ms = 50", "ceiling_camera.jitter_ms"},
+        {"lidar", "sweep_ms = 150", "lidar.sweep_ms"},
+        {"traverse_3", "direction = sideways", "traverse_3.direction"},
+        {"traverse_3", "plan = drive 30, drive 10", "traverse_3.plan leg 2"},
+        {"traverse_3", "plan = drive 30, stop -5", "traverse_3.plan"},
+    };
+    for (const auto& c : cases) {
+        SCOPED_TRACE(c.keys);
+        const std::string msg = refusal("impossible.ini", withKeys(c.section, c.keys));
+        EXPECT_NE(msg.find("impossible.ini"), std::string::npos) << msg;
+        EXPECT_NE(msg.find(c.field), std::string::npos) << msg;
+    }
+    std::string text = readFile(presetPath("mine-b-mini"));
+    text.replace(text.find("rate_hz = 50"), 12, "rate_hz = -50");
+    EXPECT_NE(refusal("negative.ini", text).find("odometry.rate_hz"), std::string::npos);
+}
+
+TEST(Scenario, PerTraverseOverridesLoadRoundTripAndStayInTheirLane) {
+    const std::string text =
+        withKeys("traverse_3.ceiling_camera", "hfov_deg = 80\npose_z_m = 2.9\nexposure_ms = 8") +
+        "\n[traverse_3.world]\nmesh_fraction = 0.9\nlight_spacing_m = 0\n";
+    const ScenarioOptions s = ScenarioOptions::fromFile(writeTemp("later.ini", text));
+    ASSERT_TRUE(s.traverses[3].ceiling_camera.has_value());
+    EXPECT_EQ(s.ceilingCameraFor(3).hfov_deg, 80);
+    EXPECT_EQ(s.ceilingCameraFor(3).mount.z_m, 2.9);
+    EXPECT_EQ(s.ceilingCameraFor(3).rate_hz, 14) << "keys not overridden come from the scenario";
+    EXPECT_EQ(s.ceilingCameraFor(0).hfov_deg, 95);
+    EXPECT_EQ(s.worldFor(3).mesh_fraction, 0.9);
+    EXPECT_EQ(s.worldFor(3).length_m, s.world.length_m);
+    EXPECT_FALSE(s.traverses[2].world.has_value());
+    const ScenarioOptions back =
+        ScenarioOptions::fromFile(writeTemp("later-resolved.ini", s.toIniText()));
+    EXPECT_EQ(back.toIniText(), s.toIniText());
+    // The mine's shape is one for all traverses; the labels are the dataset's.
+    std::string msg = refusal("shape.ini", text + "\n[traverse_2.world]\nlength_m = 30\n");
+    EXPECT_NE(msg.find("[traverse_2.world]"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("length_m"), std::string::npos) << msg;
+    msg = refusal("label.ini", withKeys("traverse_1.forward_camera", "label = OTHER"));
+    EXPECT_NE(msg.find("traverse_1.forward_camera.label"), std::string::npos) << msg;
+    msg = refusal("late.ini", withKeys("traverse_1.ceiling_camera", "readout_ms = 90"));
+    EXPECT_NE(msg.find("traverse_1.ceiling_camera.readout_ms"), std::string::npos) << msg;
+    EXPECT_NE(refusal("nine.ini", text + "\n[traverse_9.world]\nmesh_fraction = 1\n")
+                  .find("[traverse_9.world]"),
+              std::string::npos);
 }
 
 }  // namespace

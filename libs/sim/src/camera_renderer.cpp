@@ -5,8 +5,14 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include <lookup/common/config.h>
+
 #include <algorithm>
 #include <cmath>
+#include <functional>
+#include <limits>
+#include <stdexcept>
+#include <string>
 #include <thread>
 
 namespace lookup::sim {
@@ -55,36 +61,192 @@ double distanceToBox(const Vector3d& p, const Vector3d& lo, const Vector3d& hi) 
     return (p.cwiseMax(lo).cwiseMin(hi) - p).norm();
 }
 
+/// Dust: the scene attenuated along the ray, the haze lit by the vehicle light added.
+void addHaze(cv::Mat& radiance, const std::vector<float>& depth, const CameraOptions& opt,
+             const std::vector<double>& beam) {
+    float* r = radiance.ptr<float>();
+    for (std::size_t i = 0; i < depth.size(); ++i) {
+        const double tr =
+            std::isfinite(depth[i]) ? std::exp(-opt.haze_extinction_per_m * depth[i]) : 0.0;
+        r[i] =
+            static_cast<float>(r[i] * tr + opt.haze_airlight * opt.light_gain * beam[i] * (1 - tr));
+    }
+}
+
+/// Motion blur: average of shifted copies along the image motion during the exposure.
+void motionBlur(cv::Mat& radiance, const FrameConditions& frame) {
+    const double blur = std::hypot(frame.blur_u_px, frame.blur_v_px);
+    if (blur < 0.5) return;
+    const int samples = std::min(16, static_cast<int>(std::ceil(blur)) + 1);
+    cv::Mat acc = cv::Mat::zeros(radiance.size(), CV_32F), shifted;
+    for (int k = 0; k < samples; ++k) {
+        const double a = (k + 0.5) / samples - 0.5;
+        const cv::Matx23d M(1, 0, a * frame.blur_u_px, 0, 1, a * frame.blur_v_px);
+        cv::warpAffine(radiance, shifted, M, radiance.size(), cv::INTER_LINEAR,
+                       cv::BORDER_REPLICATE);
+        acc += shifted;
+    }
+    radiance = acc / samples;
+}
+
 }  // namespace
 
 CameraRenderer::CameraRenderer(const TunnelWorld& world, const CameraOptions& camera, Kind kind,
                                int threads)
     : world_(world), opt_(camera), kind_(kind) {
     threads_ = threads > 0 ? threads : std::max(1u, std::thread::hardware_concurrency());
-    const double f = (opt_.width_px / 2.0) / std::tan(opt_.hfov_deg * M_PI / 360.0);
+    const bool fisheye = opt_.distortion == "kannala_brandt";
+    // A fisheye's field of view is equidistant (r = f theta), a pinhole's perspective.
+    const double half = opt_.hfov_deg * M_PI / 360.0;
+    const double f = (opt_.width_px / 2.0) / (fisheye ? half : std::tan(half));
     const double cx = (opt_.width_px - 1) / 2.0, cy = (opt_.height_px - 1) / 2.0;
     camera_.ncols = opt_.width_px;
     camera_.nrows = opt_.height_px;
     camera_.setIntrinsicParamsFromValues(f, f, cx, cy);
-    camera_.setDistortionPlumbBob(0, 0, 0, 0, 0);
+    if (fisheye) {
+        camera_.setDistortionKannalaBrandt(opt_.dist_k1, opt_.dist_k2, opt_.dist_k3, opt_.dist_k4);
+    } else if (opt_.distortion == "plumb_bob") {
+        camera_.setDistortionPlumbBob(opt_.dist_k1, opt_.dist_k2, opt_.dist_p1, opt_.dist_p2,
+                                      opt_.dist_k3);
+    } else {
+        camera_.setDistortionPlumbBob(0, 0, 0, 0, 0);
+    }
     camera_.cameraName = opt_.label;
     camera_.focalLengthMeters = 0.004;
-    rays_.resize(static_cast<std::size_t>(opt_.width_px) * opt_.height_px);
-    for (int v = 0; v < opt_.height_px; ++v) {
-        for (int u = 0; u < opt_.width_px; ++u) {
-            rays_[v * opt_.width_px + u] = Vector3d((u - cx) / f, (v - cy) / f, 1).normalized();
-        }
-    }
+    buildRays();
     beam_.resize(rays_.size());
     for (std::size_t i = 0; i < rays_.size(); ++i) {
         beam_[i] = std::pow(std::max(rays_[i].z(), 0.0), opt_.light_falloff_exp);
     }
-    half_diag_fov_ = std::atan(std::hypot(cx + 0.5, cy + 0.5) / f);
+    half_diag_fov_ = 0;
+    for (const Vector3d& r : rays_) half_diag_fov_ = std::max(half_diag_fov_, std::acos(r.z()));
+    if (opt_.distortion == "none") half_diag_fov_ = std::atan(std::hypot(cx + 0.5, cy + 0.5) / f);
+    uint32_t label_hash = 0x811c9dc5U;  // FNV-1a: the same on every platform
+    for (unsigned char ch : opt_.label) label_hash = (label_hash ^ ch) * 0x01000193U;
+    lens_seed_ = hash3(world_.seed(), label_hash, 0x1e45U);
+    buildLensMasks();
 }
 
-double CameraRenderer::shadePixel(int index, const Eigen::Matrix3d& R, const Vector3d& o,
-                                  const std::vector<ObjectInView>& cylinders,
-                                  const std::vector<int>& lamps) const {
+void CameraRenderer::buildRays() {
+    const int W = opt_.width_px, H = opt_.height_px;
+    const double f = camera_.fx(), cx = camera_.cx(), cy = camera_.cy();
+    rays_.resize(static_cast<std::size_t>(W) * H);
+    pin_u_.resize(rays_.size());
+    pin_v_.resize(rays_.size());
+    const bool distorted = opt_.distortion != "none";
+    pin_lo_u_ = pin_lo_v_ = 1e300;
+    pin_hi_u_ = pin_hi_v_ = -1e300;
+    for (int v = 0; v < H; ++v) {
+        for (int u = 0; u < W; ++u) {
+            const std::size_t i = static_cast<std::size_t>(v) * W + u;
+            double x = (u - cx) / f, y = (v - cy) / f;
+            if (distorted && !undistortPixel(camera_, u, v, &x, &y)) {
+                throw common::ConfigError(opt_.label + " distortion: pixel (" + std::to_string(u) +
+                                          ", " + std::to_string(v) +
+                                          ") has no ray (the model folds inside the image)");
+            }
+            rays_[i] = Vector3d(x, y, 1).normalized();
+            pin_u_[i] = static_cast<float>(distorted ? cx + f * x : u);
+            pin_v_[i] = static_cast<float>(distorted ? cy + f * y : v);
+            pin_lo_u_ = std::min(pin_lo_u_, double(pin_u_[i]));
+            pin_hi_u_ = std::max(pin_hi_u_, double(pin_u_[i]));
+            pin_lo_v_ = std::min(pin_lo_v_, double(pin_v_[i]));
+            pin_hi_v_ = std::max(pin_hi_v_, double(pin_v_[i]));
+            // Rays near 90 deg off-axis have no useful pinhole coordinates to cull with.
+            if (rays_[i].z() < 0.1) cull_ = false;
+        }
+    }
+}
+
+bool CameraRenderer::undistortPixel(const mrpt::img::TCamera& K, double u, double v, double* x,
+                                    double* y) {
+    // Gauss-Newton on distortPoint() with a numerical Jacobian, from the distorted point.
+    double X = (u - K.cx()) / K.fx(), Y = (v - K.cy()) / K.fy();
+    for (int it = 0; it < 60; ++it) {
+        double pu, pv;
+        distortPoint(K, X, Y, &pu, &pv);
+        const double eu = pu - u, ev = pv - v;
+        if (std::hypot(eu, ev) < 1e-12 * std::max(1.0, K.fx())) break;
+        const double h = 1e-7 * std::max(1.0, std::hypot(X, Y));
+        double ux, vx, uy, vy;
+        distortPoint(K, X + h, Y, &ux, &vx);
+        distortPoint(K, X, Y + h, &uy, &vy);
+        const double a = (ux - pu) / h, c = (vx - pv) / h, b = (uy - pu) / h, d = (vy - pv) / h;
+        const double det = a * d - b * c;
+        if (!(std::abs(det) > 1e-12)) return false;
+        X -= (d * eu - b * ev) / det;
+        Y -= (-c * eu + a * ev) / det;
+    }
+    double pu, pv;
+    distortPoint(K, X, Y, &pu, &pv);
+    *x = X;
+    *y = Y;
+    return std::hypot(pu - u, pv - v) < 1e-6;
+}
+
+void CameraRenderer::distortPoint(const mrpt::img::TCamera& K, double x, double y, double* u,
+                                  double* v) {
+    double xd = x, yd = y;
+    if (K.distortion == mrpt::img::DistortionModel::kannala_brandt) {
+        // OpenCV's fisheye model: theta_d = theta (1 + k1 theta^2 + ... + k4 theta^8).
+        const double r = std::hypot(x, y);
+        if (r > 1e-12) {
+            const double th = std::atan(r), t2 = th * th;
+            const double thd =
+                th * (1 + t2 * (K.k1() + t2 * (K.k2() + t2 * (K.k3() + t2 * K.k4()))));
+            xd = x * thd / r;
+            yd = y * thd / r;
+        }
+    } else if (K.distortion == mrpt::img::DistortionModel::plumb_bob) {
+        const double r2 = x * x + y * y;
+        const double radial = 1 + r2 * (K.k1() + r2 * (K.k2() + r2 * K.k3()));
+        xd = x * radial + 2 * K.p1() * x * y + K.p2() * (r2 + 2 * x * x);
+        yd = y * radial + K.p1() * (r2 + 2 * y * y) + 2 * K.p2() * x * y;
+    }
+    *u = K.cx() + K.fx() * xd;
+    *v = K.cy() + K.fy() * yd;
+}
+
+void CameraRenderer::buildLensMasks() {
+    const int W = opt_.width_px, H = opt_.height_px;
+    auto rnd = [this](uint32_t k, uint32_t c) { return unit(hash3(lens_seed_, k, c)); };
+    if (opt_.dirt_spots > 0) {
+        // Out-of-focus dirt: soft dark blotches, 4-14 % of the width across.
+        dirt_.assign(static_cast<std::size_t>(W) * H, 1.0f);
+        for (int k = 0; k < opt_.dirt_spots; ++k) {
+            const double cu = rnd(k, 1) * W, cv = rnd(k, 2) * H;
+            const double r = (0.04 + 0.1 * rnd(k, 3)) * W;
+            const double op = opt_.dirt_opacity * (0.5 + 0.5 * rnd(k, 4));
+            for (int v = 0; v < H; ++v) {
+                for (int u = 0; u < W; ++u) {
+                    const double d2 = ((u - cu) * (u - cu) + (v - cv) * (v - cv)) / (r * r);
+                    if (d2 < 9) dirt_[v * W + u] *= static_cast<float>(1 - op * std::exp(-d2));
+                }
+            }
+        }
+    }
+    if (opt_.water_drops > 0) {
+        // Drops: discs through which the scene is defocused, a soft 2 px rim.
+        drops_.assign(static_cast<std::size_t>(W) * H, 0.0f);
+        for (int k = 0; k < opt_.water_drops; ++k) {
+            const double cu = rnd(k, 11) * W, cv = rnd(k, 12) * H;
+            const double r = opt_.drop_radius_px * (0.6 + 0.8 * rnd(k, 13));
+            for (int v = 0; v < H; ++v) {
+                for (int u = 0; u < W; ++u) {
+                    const double d = std::hypot(u - cu, v - cv);
+                    float& c = drops_[v * W + u];
+                    c = std::max(c, static_cast<float>(smoothstep(r, r - 2, d)));
+                }
+            }
+        }
+    }
+}
+
+double CameraRenderer::shadePixel(int index, const View& view, double* depth) const {
+    const Eigen::Matrix3d& R = view.R;
+    const Vector3d& o = view.o;
+    const std::vector<ObjectInView>& cylinders = view.cylinders;
+    const std::vector<int>& lamps = view.lamps;
     const WorldOptions& w = world_.options();
     const Vector3d& ray = rays_[index];
     const Vector3d d = R * ray;
@@ -158,7 +320,7 @@ double CameraRenderer::shadePixel(int index, const Eigen::Matrix3d& R, const Vec
     double t_best = hit.t;
     Vector3d n_obj;
     int obj = -1;
-    const int pu = index % opt_.width_px, pv = index / opt_.width_px;
+    const float pu = pin_u_[index], pv = pin_v_[index];
     for (const ObjectInView& c : cylinders) {
         if (pu < c.u0 || pu > c.u1 || pv < c.v0 || pv > c.v1) continue;
         double t;
@@ -172,8 +334,12 @@ double CameraRenderer::shadePixel(int index, const Eigen::Matrix3d& R, const Vec
     for (int li : lamps) {
         double t;
         const Lamp& l = world_.lamps()[li];
-        if (intersectSphere(l.centre, l.radius, o, d, &t) && t < t_best) return 6.0;  // saturates
+        if (intersectSphere(l.centre, l.radius, o, d, &t) && t < t_best) {
+            *depth = t;
+            return 6.0;  // saturates
+        }
     }
+    *depth = t_best;
     if (!std::isfinite(t_best) || t_best > opt_.max_range_m) return 0.0;
 
     const Vector3d p = o + t_best * d;
@@ -211,22 +377,25 @@ double CameraRenderer::shadePixel(int index, const Eigen::Matrix3d& R, const Vec
     return albedo * (e + kAmbient);
 }
 
-void CameraRenderer::renderRows(const Eigen::Matrix3d& R, const Vector3d& o,
-                                const std::vector<ObjectInView>& cylinders,
-                                const std::vector<int>& lamps, int first, int step,
-                                float* out) const {
+void CameraRenderer::renderRows(const std::vector<View>& views, int first, int step, float* out,
+                                float* depth) const {
     for (int v = first; v < opt_.height_px; v += step) {
+        const View& view = views.size() == 1 ? views[0] : views[v];
         for (int u = 0; u < opt_.width_px; ++u) {
             const int i = v * opt_.width_px + u;
-            out[i] = static_cast<float>(shadePixel(i, R, o, cylinders, lamps));
+            double t = 0;
+            out[i] = static_cast<float>(shadePixel(i, view, &t));
+            depth[i] = static_cast<float>(t);
         }
     }
 }
 
-mrpt::img::CImage CameraRenderer::render(const mrpt::poses::CPose3D& camera_in_map,
-                                         const FrameConditions& frame) const {
-    const Eigen::Matrix3d R = camera_in_map.getRotationMatrix().asEigen();
-    const Vector3d o(camera_in_map.x(), camera_in_map.y(), camera_in_map.z());
+CameraRenderer::View CameraRenderer::makeView(const mrpt::poses::CPose3D& camera_in_map) const {
+    View view;
+    view.R = camera_in_map.getRotationMatrix().asEigen();
+    view.o = Vector3d(camera_in_map.x(), camera_in_map.y(), camera_in_map.z());
+    const Eigen::Matrix3d& R = view.R;
+    const Vector3d& o = view.o;
     const WorldOptions& w = world_.options();
 
     // Only furniture that can be in view is tested per pixel.
@@ -236,15 +405,21 @@ mrpt::img::CImage CameraRenderer::render(const mrpt::poses::CPose3D& camera_in_m
                                         std::cos(std::min(half_diag_fov_, 1.4)) +
                                     1.0);
     }
-    std::vector<ObjectInView> cylinders;
-    std::vector<int> lamps;
     const Eigen::Matrix3d Rt = R.transpose();
     const double f = camera_.fx(), cx = camera_.cx(), cy = camera_.cy();
     for (int i = 0; i < static_cast<int>(world_.cylinders().size()); ++i) {
         const Cylinder& c = world_.cylinders()[i];
         if (distanceToBox(o, c.lo, c.hi) > reach) continue;
-        // Image rectangle that holds the cylinder: its axis clipped to the front of the camera,
-        // projected, widened by the radius at the nearest end (conservative).
+        ObjectInView v;
+        v.index = i;
+        if (!cull_) {
+            v.u0 = v.v0 = std::numeric_limits<int>::min();
+            v.u1 = v.v1 = std::numeric_limits<int>::max();
+            view.cylinders.push_back(v);
+            continue;
+        }
+        // Image rectangle (undistorted coordinates) that holds the cylinder: its axis clipped
+        // to the front of the camera, projected, widened by the radius at the nearest end.
         Vector3d a = Rt * (c.a - o), b = Rt * (c.a + c.length * c.axis - o);
         constexpr double kNear = 0.05;
         if (a.z() < kNear && b.z() < kNear) continue;
@@ -253,62 +428,100 @@ mrpt::img::CImage CameraRenderer::render(const mrpt::poses::CPose3D& camera_in_m
         const double grow = c.radius * f / std::min(a.z(), b.z()) + 2;
         const double ua = cx + f * a.x() / a.z(), va = cy + f * a.y() / a.z();
         const double ub = cx + f * b.x() / b.z(), vb = cy + f * b.y() / b.z();
-        auto clampPx = [](double x, int hi) {
-            return static_cast<int>(std::clamp(x, -1.0, static_cast<double>(hi)));
+        auto clampPx = [](double x, double lo, double hi) {
+            return static_cast<int>(std::clamp(x, std::floor(lo) - 1.0, std::ceil(hi) + 1.0));
         };
-        ObjectInView v;
-        v.index = i;
-        v.u0 = clampPx(std::floor(std::min(ua, ub) - grow), opt_.width_px);
-        v.u1 = clampPx(std::ceil(std::max(ua, ub) + grow), opt_.width_px);
-        v.v0 = clampPx(std::floor(std::min(va, vb) - grow), opt_.height_px);
-        v.v1 = clampPx(std::ceil(std::max(va, vb) + grow), opt_.height_px);
-        if (v.u1 < 0 || v.v1 < 0 || v.u0 >= opt_.width_px || v.v0 >= opt_.height_px) continue;
-        cylinders.push_back(v);
+        v.u0 = clampPx(std::floor(std::min(ua, ub) - grow), pin_lo_u_, pin_hi_u_);
+        v.u1 = clampPx(std::ceil(std::max(ua, ub) + grow), pin_lo_u_, pin_hi_u_);
+        v.v0 = clampPx(std::floor(std::min(va, vb) - grow), pin_lo_v_, pin_hi_v_);
+        v.v1 = clampPx(std::ceil(std::max(va, vb) + grow), pin_lo_v_, pin_hi_v_);
+        if (v.u1 < pin_lo_u_ || v.v1 < pin_lo_v_ || v.u0 > pin_hi_u_ || v.v0 > pin_hi_v_) continue;
+        view.cylinders.push_back(v);
     }
     for (int i = 0; i < static_cast<int>(world_.lamps().size()); ++i) {
-        if ((world_.lamps()[i].centre - o).norm() <= std::max(reach, 12.0)) lamps.push_back(i);
+        if ((world_.lamps()[i].centre - o).norm() <= std::max(reach, 12.0)) view.lamps.push_back(i);
     }
+    return view;
+}
 
-    cv::Mat radiance(opt_.height_px, opt_.width_px, CV_32F);
-    float* out = radiance.ptr<float>();
+mrpt::img::CImage CameraRenderer::render(const mrpt::poses::CPose3D& camera_in_map,
+                                         const FrameConditions& frame, FrameStats* stats) const {
+    return render(std::vector<mrpt::poses::CPose3D>{camera_in_map}, frame, stats);
+}
+
+mrpt::img::CImage CameraRenderer::render(const std::vector<mrpt::poses::CPose3D>& row_poses,
+                                         const FrameConditions& frame, FrameStats* stats) const {
+    if (row_poses.size() != 1 && row_poses.size() != static_cast<std::size_t>(opt_.height_px)) {
+        throw std::invalid_argument("CameraRenderer::render: one pose or one per row");
+    }
+    std::vector<View> views;
+    views.reserve(row_poses.size());
+    for (const auto& pose : row_poses) views.push_back(makeView(pose));
+
+    const std::size_t count = static_cast<std::size_t>(opt_.width_px) * opt_.height_px;
+    std::vector<float> radiance(count), depth(count);
     const int n = std::min(threads_, opt_.height_px);
     std::vector<std::thread> pool;
     for (int k = 1; k < n; ++k) {
-        pool.emplace_back([&, k] { renderRows(R, o, cylinders, lamps, k, n, out); });
+        pool.emplace_back([&, k] { renderRows(views, k, n, radiance.data(), depth.data()); });
     }
-    renderRows(R, o, cylinders, lamps, 0, n, out);
+    renderRows(views, 0, n, radiance.data(), depth.data());
     for (auto& t : pool) t.join();
+    return develop(radiance, depth, frame, stats);
+}
 
-    // Motion blur: average of shifted copies along the image motion during the exposure.
-    const double blur = std::hypot(frame.blur_u_px, frame.blur_v_px);
-    if (blur >= 0.5) {
-        const int samples = std::min(16, static_cast<int>(std::ceil(blur)) + 1);
-        cv::Mat acc = cv::Mat::zeros(radiance.size(), CV_32F), shifted;
-        for (int k = 0; k < samples; ++k) {
-            const double a = (k + 0.5) / samples - 0.5;
-            const cv::Matx23d M(1, 0, a * frame.blur_u_px, 0, 1, a * frame.blur_v_px);
-            cv::warpAffine(radiance, shifted, M, radiance.size(), cv::INTER_LINEAR,
-                           cv::BORDER_REPLICATE);
-            acc += shifted;
-        }
-        radiance = acc / samples;
+mrpt::img::CImage CameraRenderer::develop(std::vector<float>& radiance_px,
+                                          const std::vector<float>& depth,
+                                          const FrameConditions& frame, FrameStats* stats) const {
+    const int W = opt_.width_px, H = opt_.height_px;
+    const int count = W * H;
+    cv::Mat radiance(H, W, CV_32F, radiance_px.data());
+    if (opt_.haze_extinction_per_m > 0) addHaze(radiance, depth, opt_, beam_);
+    motionBlur(radiance, frame);
+    if (!drops_.empty()) {
+        cv::Mat defocused;
+        const double sigma = std::max(2.0, opt_.drop_radius_px / 2);
+        cv::GaussianBlur(radiance, defocused, cv::Size(), sigma, sigma, cv::BORDER_REPLICATE);
+        const cv::Mat cover(H, W, CV_32F, const_cast<float*>(drops_.data()));
+        radiance = radiance.mul(1 - cover) + defocused.mul(cover);
     }
+    if (!dirt_.empty()) {
+        radiance = radiance.mul(cv::Mat(H, W, CV_32F, const_cast<float*>(dirt_.data())));
+    }
+    cv::Mat bloom;
+    if (opt_.bloom_strength > 0) {
+        // Light above saturation spills into the neighbouring pixels (lens flare, blooming).
+        const double x_sat = kind_ == Kind::Ceiling ? 255.0 / 235.0 : 1.5;
+        cv::Mat excess = cv::max(radiance * frame.exposure_gain - x_sat, 0.0);
+        cv::GaussianBlur(excess, bloom, cv::Size(), opt_.bloom_radius_px, opt_.bloom_radius_px,
+                         cv::BORDER_CONSTANT);
+        bloom *= opt_.bloom_strength;
+    }
+    if (!radiance.isContinuous()) radiance = radiance.clone();
 
-    // Exposure, tone curve, shot and read noise, quantisation.
-    cv::Mat img(opt_.height_px, opt_.width_px, CV_8U);
+    // Exposure, tone curve, shot and read noise, response, quantisation.
+    cv::Mat img(H, W, CV_8U);
     const float* src = radiance.ptr<float>();
+    const float* glow = bloom.empty() ? nullptr : bloom.ptr<float>();
     uint8_t* dst = img.ptr<uint8_t>();
-    const int count = opt_.width_px * opt_.height_px;
+    const bool response = opt_.response_gamma != 1 || opt_.response_knee_dn > 0;
     for (int i = 0; i < count; ++i) {
-        const double x = src[i] * frame.exposure_gain;
+        double x = src[i] * frame.exposure_gain;
+        if (glow) x += glow[i];
         double dn = kind_ == Kind::Ceiling ? 235.0 * x : 255.0 * (1.0 - std::exp(-2.2 * x));
         if (opt_.noise_std_dn > 0) {
             const uint32_t h = hash3(frame.noise_key, static_cast<uint32_t>(i), 1);
             const double sigma = opt_.noise_std_dn * std::sqrt(1.0 + std::max(dn, 0.0) / 64.0);
             dn += sigma * fastGaussian(h);
         }
+        if (response) {
+            const double knee = opt_.response_knee_dn;
+            if (knee > 0 && dn > knee) dn = knee + (dn - knee) * opt_.response_knee_slope;
+            dn = 255.0 * std::pow(std::clamp(dn / 255.0, 0.0, 1.0), 1.0 / opt_.response_gamma);
+        }
         dst[i] = static_cast<uint8_t>(std::clamp(std::lround(dn), 0L, 255L));
     }
+    if (stats) stats->mean_dn = cv::mean(img)[0];
     return mrpt::img::CImage(img, mrpt::img::DEEP_COPY);
 }
 

@@ -6,9 +6,12 @@
 #include <mrpt/core/bits_math.h>
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <functional>
 #include <sstream>
+#include <stdexcept>
+#include <type_traits>
 
 namespace lookup::sim {
 namespace {
@@ -58,6 +61,11 @@ class KeyTable {
         add(prefix + "pitch_deg", m.pitch_deg);
         add(prefix + "roll_deg", m.roll_deg);
     }
+    void add(SensorTiming& timing) {
+        add("latency_ms", timing.latency_ms);
+        add("jitter_ms", timing.jitter_ms);
+        add("drop_rate", timing.drop_rate);
+    }
 
     void load(const IniSection& s) const {
         std::vector<std::string> known;
@@ -84,25 +92,8 @@ class KeyTable {
     std::vector<Entry> entries_;
 };
 
-KeyTable worldKeys(WorldOptions& w) {
-    KeyTable t;
-    t.add("layout", w.layout);
-    t.add("length_m", w.length_m);
-    t.add("width_m", w.width_m);
-    t.add("ceiling_height_m", w.ceiling_height_m);
-    t.add("arch_radius_m", w.arch_radius_m);
-    t.add("segment_length_m", w.segment_length_m);
-    t.add("bend_max_deg", w.bend_max_deg);
-    t.add("twin_separation_m", w.twin_separation_m);
-    t.add("drawpoint_spacing_m", w.drawpoint_spacing_m);
-    t.add("drawpoint_length_m", w.drawpoint_length_m);
-    t.add("drawpoint_width_m", w.drawpoint_width_m);
-    t.add("drawpoint_angle_deg", w.drawpoint_angle_deg);
-    t.add("junction_spacing_m", w.junction_spacing_m);
-    t.add("junction_length_m", w.junction_length_m);
-    t.add("bump_amplitude_m", w.bump_amplitude_m);
-    t.add("bump_wavelength_m", w.bump_wavelength_m);
-    t.add("floor_roughness_m", w.floor_roughness_m);
+/// World keys that change how the mine looks, not its shape: what may differ per traverse.
+void addAppearanceKeys(KeyTable& t, WorldOptions& w) {
     t.add("rock_contrast", w.rock_contrast);
     t.add("bolt_spacing_m", w.bolt_spacing_m);
     t.add("bolt_plate_m", w.bolt_plate_m);
@@ -122,11 +113,39 @@ KeyTable worldKeys(WorldOptions& w) {
     t.add("cable_sag_m", w.cable_sag_m);
     t.add("light_spacing_m", w.light_spacing_m);
     t.add("sign_spacing_m", w.sign_spacing_m);
+}
+
+KeyTable worldAppearanceKeys(WorldOptions& w) {
+    KeyTable t;
+    addAppearanceKeys(t, w);
+    return t;
+}
+
+KeyTable worldKeys(WorldOptions& w) {
+    KeyTable t;
+    t.add("layout", w.layout);
+    t.add("length_m", w.length_m);
+    t.add("width_m", w.width_m);
+    t.add("ceiling_height_m", w.ceiling_height_m);
+    t.add("arch_radius_m", w.arch_radius_m);
+    t.add("segment_length_m", w.segment_length_m);
+    t.add("bend_max_deg", w.bend_max_deg);
+    t.add("twin_separation_m", w.twin_separation_m);
+    t.add("drawpoint_spacing_m", w.drawpoint_spacing_m);
+    t.add("drawpoint_length_m", w.drawpoint_length_m);
+    t.add("drawpoint_width_m", w.drawpoint_width_m);
+    t.add("drawpoint_angle_deg", w.drawpoint_angle_deg);
+    t.add("junction_spacing_m", w.junction_spacing_m);
+    t.add("junction_length_m", w.junction_length_m);
+    t.add("bump_amplitude_m", w.bump_amplitude_m);
+    t.add("bump_wavelength_m", w.bump_wavelength_m);
+    t.add("floor_roughness_m", w.floor_roughness_m);
     t.add("grid_resolution_m", w.grid_resolution_m);
     t.add("wall_roughness_m", w.wall_roughness_m);
     t.add("niche_spacing_m", w.niche_spacing_m);
     t.add("niche_depth_m", w.niche_depth_m);
     t.add("niche_width_m", w.niche_width_m);
+    addAppearanceKeys(t, w);
     return t;
 }
 
@@ -153,6 +172,29 @@ KeyTable cameraKeys(CameraOptions& c) {
     t.add("light_gain", c.light_gain);
     t.add("light_falloff_exp", c.light_falloff_exp);
     t.add("max_range_m", c.max_range_m);
+    t.add("distortion", c.distortion);
+    t.add("dist_k1", c.dist_k1);
+    t.add("dist_k2", c.dist_k2);
+    t.add("dist_p1", c.dist_p1);
+    t.add("dist_p2", c.dist_p2);
+    t.add("dist_k3", c.dist_k3);
+    t.add("dist_k4", c.dist_k4);
+    t.add("readout_ms", c.readout_ms);
+    t.add("stamp_row", c.stamp_row);
+    t.add(c.timing);
+    t.add("response_gamma", c.response_gamma);
+    t.add("response_knee_dn", c.response_knee_dn);
+    t.add("response_knee_slope", c.response_knee_slope);
+    t.add("auto_exposure_target_dn", c.auto_exposure_target_dn);
+    t.add("auto_exposure_tau_s", c.auto_exposure_tau_s);
+    t.add("bloom_strength", c.bloom_strength);
+    t.add("bloom_radius_px", c.bloom_radius_px);
+    t.add("dirt_spots", c.dirt_spots);
+    t.add("dirt_opacity", c.dirt_opacity);
+    t.add("water_drops", c.water_drops);
+    t.add("drop_radius_px", c.drop_radius_px);
+    t.add("haze_extinction_per_m", c.haze_extinction_per_m);
+    t.add("haze_airlight", c.haze_airlight);
     return t;
 }
 
@@ -166,6 +208,10 @@ KeyTable lidarKeys(LidarOptions& l) {
     t.add("max_range_m", l.max_range_m);
     t.add("noise_std_m", l.noise_std_m);
     t.add("pose_", l.mount);
+    t.add(l.timing);
+    t.add("sweep_ms", l.sweep_ms);
+    t.add("dust_rate", l.dust_rate);
+    t.add("dust_max_range_m", l.dust_max_range_m);
     return t;
 }
 
@@ -178,6 +224,12 @@ KeyTable odometryKeys(OdometryOptions& o) {
     t.add("yaw_bias_deg_per_m", o.yaw_bias_deg_per_m);
     t.add("noise_std_m", o.noise_std_m);
     t.add("noise_std_deg", o.noise_std_deg);
+    t.add(o.timing);
+    t.add("slip_fraction", o.slip_fraction);
+    t.add("slip_episode_m", o.slip_episode_m);
+    t.add("slip_factor", o.slip_factor);
+    t.add("dropout_fraction", o.dropout_fraction);
+    t.add("dropout_s", o.dropout_s);
     return t;
 }
 
@@ -193,10 +245,72 @@ KeyTable traverseKeys(TraverseOptions& tr) {
     t.add("accel_mps2", tr.accel_mps2);
     t.add("start_m", tr.start_m);
     t.add("end_m", tr.end_m);
+    t.add("direction", tr.direction);
+    t.add("plan", tr.plan);
     return t;
 }
 
 std::string traverseSection(std::size_t i) { return "traverse_" + std::to_string(i); }
+
+const char* const kOverridable[] = {"world",          "vehicle", "ceiling_camera",
+                                    "forward_camera", "lidar",   "odometry"};
+
+/// Applies `fn(section, optional, table_of_base)` to each per-traverse override of `tr`.
+template <typename Fn>
+void forEachOverride(TraverseOptions& tr, Fn&& fn) {
+    fn("world", tr.world, [](WorldOptions& w) { return worldAppearanceKeys(w); });
+    fn("vehicle", tr.vehicle, [](VehicleOptions& v) { return vehicleKeys(v); });
+    fn("ceiling_camera", tr.ceiling_camera, [](CameraOptions& c) { return cameraKeys(c); });
+    fn("forward_camera", tr.forward_camera, [](CameraOptions& c) { return cameraKeys(c); });
+    fn("lidar", tr.lidar, [](LidarOptions& l) { return lidarKeys(l); });
+    fn("odometry", tr.odometry, [](OdometryOptions& o) { return odometryKeys(o); });
+}
+
+void checkTiming(common::OptionsCheck& c, const SensorTiming& t, const std::string& p,
+                 double rate_hz) {
+    c.require(std::abs(t.latency_ms) <= 1000, p + ".latency_ms",
+              "in [-1000, 1000] (a latency over a second is a broken clock, not latency)");
+    c.require(t.jitter_ms >= 0 && t.jitter_ms <= 0.5e3 / rate_hz, p + ".jitter_ms",
+              "in [0, half the record period]");
+    c.require(t.drop_rate >= 0 && t.drop_rate < 1, p + ".drop_rate", "in [0, 1)");
+}
+
+void checkCameraEffects(common::OptionsCheck& c, const CameraOptions& cam, const std::string& p) {
+    c.require(cam.distortion == "none" || cam.distortion == "plumb_bob" ||
+                  cam.distortion == "kannala_brandt",
+              p + ".distortion", "none, plumb_bob or kannala_brandt");
+    for (double k :
+         {cam.dist_k1, cam.dist_k2, cam.dist_p1, cam.dist_p2, cam.dist_k3, cam.dist_k4}) {
+        c.require(std::abs(k) <= 5, p + ".dist_*", "coefficients in [-5, 5]");
+    }
+    c.require(cam.readout_ms >= 0 && cam.readout_ms < 1000 / cam.rate_hz, p + ".readout_ms",
+              "in [0, frame period " + std::to_string(1000 / cam.rate_hz) +
+                  " ms): rows are read within one frame");
+    c.require(cam.stamp_row == "first" || cam.stamp_row == "middle", p + ".stamp_row",
+              "first or middle");
+    checkTiming(c, cam.timing, p, cam.rate_hz);
+    c.require(cam.response_gamma >= 0.2 && cam.response_gamma <= 5, p + ".response_gamma",
+              "in [0.2, 5]");
+    c.require(cam.response_knee_dn >= 0 && cam.response_knee_dn < 255, p + ".response_knee_dn",
+              "in [0, 255)");
+    c.require(cam.response_knee_slope > 0 && cam.response_knee_slope <= 1,
+              p + ".response_knee_slope", "in (0, 1]");
+    c.require(cam.auto_exposure_target_dn >= 0 && cam.auto_exposure_target_dn < 255,
+              p + ".auto_exposure_target_dn", "in [0, 255)");
+    c.require(cam.auto_exposure_tau_s > 0, p + ".auto_exposure_tau_s", "> 0");
+    c.require(cam.bloom_strength >= 0 && cam.bloom_strength <= 1, p + ".bloom_strength",
+              "in [0, 1]");
+    c.require(cam.bloom_radius_px > 0 && cam.bloom_radius_px <= 100, p + ".bloom_radius_px",
+              "in (0, 100]");
+    c.require(cam.dirt_spots >= 0 && cam.dirt_spots <= 200, p + ".dirt_spots", "in [0, 200]");
+    c.require(cam.dirt_opacity >= 0 && cam.dirt_opacity < 1, p + ".dirt_opacity", "in [0, 1)");
+    c.require(cam.water_drops >= 0 && cam.water_drops <= 200, p + ".water_drops", "in [0, 200]");
+    c.require(cam.drop_radius_px > 0 && cam.drop_radius_px <= 200, p + ".drop_radius_px",
+              "in (0, 200]");
+    c.require(cam.haze_extinction_per_m >= 0 && cam.haze_extinction_per_m <= 2,
+              p + ".haze_extinction_per_m", "in [0, 2]");
+    c.require(cam.haze_airlight >= 0 && cam.haze_airlight <= 2, p + ".haze_airlight", "in [0, 2]");
+}
 
 void checkCamera(common::OptionsCheck& c, const CameraOptions& cam, const std::string& p) {
     c.require(!cam.label.empty(), p + ".label", "non-empty");
@@ -212,9 +326,184 @@ void checkCamera(common::OptionsCheck& c, const CameraOptions& cam, const std::s
     c.require(cam.light_gain > 0, p + ".light_gain", "> 0");
     c.require(cam.light_falloff_exp >= 0, p + ".light_falloff_exp", ">= 0");
     c.require(cam.max_range_m > 0, p + ".max_range_m", "> 0");
+    checkCameraEffects(c, cam, p);
+}
+
+void checkCameraMount(common::OptionsCheck& c, const CameraOptions& cam, const std::string& p,
+                      double ceiling_height_m) {
+    c.require(cam.mount.z_m > 0.2 && cam.mount.z_m < ceiling_height_m - 0.5, p + ".pose_z_m",
+              "in (0.2, ceiling_height_m - 0.5)");
+}
+
+void checkLidar(common::OptionsCheck& c, const LidarOptions& lidar, const std::string& p,
+                const WorldOptions& w) {
+    c.require(!lidar.label.empty(), p + ".label", "non-empty");
+    c.require(lidar.rate_hz > 0 && lidar.rate_hz <= 200, p + ".rate_hz", "in (0, 200]");
+    c.require(lidar.phase_s >= 0, p + ".phase_s", ">= 0");
+    c.require(lidar.aperture_deg > 0 && lidar.aperture_deg <= 360, p + ".aperture_deg",
+              "in (0, 360]");
+    c.require(lidar.resolution_deg >= 0.05 && lidar.resolution_deg <= 10, p + ".resolution_deg",
+              "in [0.05, 10]");
+    c.require(lidar.max_range_m > 1, p + ".max_range_m", "> 1");
+    c.require(lidar.noise_std_m >= 0, p + ".noise_std_m", ">= 0");
+    c.require(lidar.mount.z_m > 0.2 && lidar.mount.z_m < w.ceiling_height_m - w.arch_radius_m,
+              p + ".pose_z_m", "in (0.2, ceiling_height_m - arch_radius_m): the scan plane");
+    checkTiming(c, lidar.timing, p, lidar.rate_hz);
+    c.require(lidar.sweep_ms >= 0 && lidar.sweep_ms <= 1000 / lidar.rate_hz, p + ".sweep_ms",
+              "in [0, scan period]");
+    c.require(lidar.dust_rate >= 0 && lidar.dust_rate < 1, p + ".dust_rate", "in [0, 1)");
+    c.require(lidar.dust_max_range_m > 0.3 && lidar.dust_max_range_m <= lidar.max_range_m,
+              p + ".dust_max_range_m", "in (0.3, max_range_m]");
+}
+
+void checkOdometry(common::OptionsCheck& c, const OdometryOptions& o, const std::string& p) {
+    c.require(!o.label.empty(), p + ".label", "non-empty");
+    c.require(o.rate_hz > 0 && o.rate_hz <= 1000, p + ".rate_hz", "in (0, 1000]");
+    c.require(o.phase_s >= 0, p + ".phase_s", ">= 0");
+    c.require(o.noise_std_m >= 0, p + ".noise_std_m", ">= 0");
+    c.require(o.noise_std_deg >= 0, p + ".noise_std_deg", ">= 0");
+    checkTiming(c, o.timing, p, o.rate_hz);
+    c.require(o.slip_fraction >= 0 && o.slip_fraction <= 1, p + ".slip_fraction", "in [0, 1]");
+    c.require(o.slip_episode_m > 0, p + ".slip_episode_m", "> 0");
+    c.require(o.slip_factor >= 0.5 && o.slip_factor <= 3, p + ".slip_factor", "in [0.5, 3]");
+    c.require(o.dropout_fraction >= 0 && o.dropout_fraction < 1, p + ".dropout_fraction",
+              "in [0, 1)");
+    c.require(o.dropout_s > 0, p + ".dropout_s", "> 0");
+}
+
+void checkPlan(common::OptionsCheck& c, const TraverseOptions& t, const std::string& p) {
+    c.require(t.direction == "forward" || t.direction == "reverse", p + ".direction",
+              "forward or reverse");
+    if (t.plan.empty()) return;
+    try {
+        const std::vector<PlanLeg> legs = parsePlan(t.plan);
+        double s = t.start_m;
+        int facing = 0;
+        for (std::size_t k = 0; k < legs.size(); ++k) {
+            const PlanLeg& leg = legs[k];
+            const std::string what = p + ".plan leg " + std::to_string(k + 1);
+            if (leg.kind == PlanLeg::Kind::Stop) continue;
+            c.require(leg.value >= 0 && (t.end_m < 0 || leg.value <= t.end_m), what,
+                      "a target on the route (in [0, end_m])");
+            if (leg.value == s) continue;
+            const int travel = leg.value > s ? 1 : -1;
+            const int face = leg.kind == PlanLeg::Kind::Drive ? travel : -travel;
+            c.require(facing == 0 || face == facing, what,
+                      "keeps the vehicle's facing (it cannot turn round in the tunnel: use "
+                      "reverse)");
+            facing = face;
+            s = leg.value;
+        }
+    } catch (const std::invalid_argument& e) {
+        c.require(false, p + ".plan", e.what());
+    }
+}
+
+void checkAppearance(common::OptionsCheck& c, const WorldOptions& w, const std::string& p) {
+    c.require(w.rock_contrast >= 0 && w.rock_contrast <= 2, p + ".rock_contrast", "in [0, 2]");
+    c.require(w.bolt_spacing_m == 0 || w.bolt_spacing_m >= 0.3, p + ".bolt_spacing_m",
+              "0 or >= 0.3");
+    c.require(w.bolt_plate_m > 0 && w.bolt_plate_m < 0.5, p + ".bolt_plate_m", "in (0, 0.5)");
+    c.require(w.mesh_fraction >= 0 && w.mesh_fraction <= 1, p + ".mesh_fraction", "in [0, 1]");
+    c.require(w.mesh_pitch_m >= 0.02, p + ".mesh_pitch_m", ">= 0.02");
+    c.require(w.shotcrete_fraction >= 0 && w.shotcrete_fraction <= 1, p + ".shotcrete_fraction",
+              "in [0, 1]");
+    c.require(w.texture_image_size_m > 0, p + ".texture_image_size_m", "> 0");
+    c.require(w.duct_radius_m >= 0 && w.duct_radius_m < 1.5, p + ".duct_radius_m", "in [0, 1.5)");
+    c.require(w.pipe_radius_m >= 0 && w.pipe_radius_m < 0.5, p + ".pipe_radius_m", "in [0, 0.5)");
+    c.require(w.duct_drop_m > w.duct_radius_m, p + ".duct_drop_m", "> duct_radius_m");
+    c.require(w.pipe_drop_m > w.pipe_radius_m, p + ".pipe_drop_m", "> pipe_radius_m");
+    c.require(w.cable_span_m == 0 || w.cable_span_m >= 0.5, p + ".cable_span_m", "0 or >= 0.5");
+    c.require(w.cable_sag_m >= 0 && w.cable_sag_m < 1, p + ".cable_sag_m", "in [0, 1)");
+    c.require(w.light_spacing_m == 0 || w.light_spacing_m >= 2, p + ".light_spacing_m",
+              "0 or >= 2");
+    c.require(w.sign_spacing_m == 0 || w.sign_spacing_m >= 5, p + ".sign_spacing_m", "0 or >= 5");
+}
+
+void checkOverrides(common::OptionsCheck& c, const ScenarioOptions& sc, std::size_t i) {
+    const TraverseOptions& t = sc.traverses[i];
+    const std::string p = traverseSection(i) + ".";
+    const double h = sc.world.ceiling_height_m;
+    if (t.world) checkAppearance(c, *t.world, p + "world");
+    if (t.vehicle) {
+        c.require(t.vehicle->wheelbase_m > 0.5, p + "vehicle.wheelbase_m", "> 0.5");
+        c.require(t.vehicle->track_m > 0.5, p + "vehicle.track_m", "> 0.5");
+    }
+    auto camera = [&](const std::optional<CameraOptions>& cam, const CameraOptions& base,
+                      const std::string& name) {
+        if (!cam) return;
+        checkCamera(c, *cam, p + name);
+        checkCameraMount(c, *cam, p + name, h);
+        c.require(cam->label == base.label, p + name + ".label",
+                  "the scenario's label (" + base.label + "): the dataset names one per sensor");
+    };
+    camera(t.ceiling_camera, sc.ceiling_camera, "ceiling_camera");
+    camera(t.forward_camera, sc.forward_camera, "forward_camera");
+    if (t.lidar) {
+        checkLidar(c, *t.lidar, p + "lidar", sc.world);
+        c.require(t.lidar->label == sc.lidar.label, p + "lidar.label", "the scenario's label");
+    }
+    if (t.odometry) {
+        checkOdometry(c, *t.odometry, p + "odometry");
+        c.require(t.odometry->label == sc.odometry.label, p + "odometry.label",
+                  "the scenario's label");
+    }
 }
 
 }  // namespace
+
+std::vector<PlanLeg> parsePlan(const std::string& plan) {
+    std::vector<PlanLeg> legs;
+    std::stringstream list(plan);
+    std::string item;
+    while (std::getline(list, item, ',')) {
+        std::istringstream words(item);
+        std::string kind, rest;
+        double value = 0;
+        const std::string n = std::to_string(legs.size() + 1);
+        if (!(words >> kind >> value) || (words >> rest)) {
+            throw std::invalid_argument("leg " + n + " '" + item +
+                                        "' is not 'drive S', 'reverse S' or 'stop T'");
+        }
+        PlanLeg leg;
+        leg.value = value;
+        if (kind == "drive") {
+            leg.kind = PlanLeg::Kind::Drive;
+        } else if (kind == "reverse") {
+            leg.kind = PlanLeg::Kind::Reverse;
+        } else if (kind == "stop") {
+            leg.kind = PlanLeg::Kind::Stop;
+            if (!(value >= 0 && value <= 3600)) {
+                throw std::invalid_argument("leg " + n + ": dwell must be in [0, 3600] s");
+            }
+        } else {
+            throw std::invalid_argument("leg " + n + " '" + kind +
+                                        "' is not drive, reverse or stop");
+        }
+        legs.push_back(leg);
+    }
+    if (legs.empty()) throw std::invalid_argument("no legs");
+    return legs;
+}
+
+const WorldOptions& ScenarioOptions::worldFor(std::size_t i) const {
+    return traverses.at(i).world ? *traverses[i].world : world;
+}
+const VehicleOptions& ScenarioOptions::vehicleFor(std::size_t i) const {
+    return traverses.at(i).vehicle ? *traverses[i].vehicle : vehicle;
+}
+const CameraOptions& ScenarioOptions::ceilingCameraFor(std::size_t i) const {
+    return traverses.at(i).ceiling_camera ? *traverses[i].ceiling_camera : ceiling_camera;
+}
+const CameraOptions& ScenarioOptions::forwardCameraFor(std::size_t i) const {
+    return traverses.at(i).forward_camera ? *traverses[i].forward_camera : forward_camera;
+}
+const LidarOptions& ScenarioOptions::lidarFor(std::size_t i) const {
+    return traverses.at(i).lidar ? *traverses[i].lidar : lidar;
+}
+const OdometryOptions& ScenarioOptions::odometryFor(std::size_t i) const {
+    return traverses.at(i).odometry ? *traverses[i].odometry : odometry;
+}
 
 mrpt::poses::CPose3D MountPose::pose() const {
     return mrpt::poses::CPose3D(x_m, y_m, z_m, mrpt::DEG2RAD(yaw_deg), mrpt::DEG2RAD(pitch_deg),
@@ -235,6 +524,33 @@ ScenarioOptions::ScenarioOptions() {
     forward_camera.light_falloff_exp = 2.0;
     forward_camera.light_gain = 2.0;
     forward_camera.mount = {1.8, 0.0, 2.0, -90.0, 0.0, -90.0};  // optical axis = vehicle +x
+}
+
+void ScenarioOptions::loadOverrides(const mrpt::config::CConfigFileBase& source,
+                                    const std::string& section, TraverseOptions& tr) const {
+    const ScenarioOptions& base = *this;
+    auto baseOf = [&base](const char* name, auto* which) -> const auto& {
+        using T = std::remove_pointer_t<decltype(which)>;
+        if constexpr (std::is_same_v<T, WorldOptions>) {
+            return base.world;
+        } else if constexpr (std::is_same_v<T, VehicleOptions>) {
+            return base.vehicle;
+        } else if constexpr (std::is_same_v<T, LidarOptions>) {
+            return base.lidar;
+        } else if constexpr (std::is_same_v<T, OdometryOptions>) {
+            return base.odometry;
+        } else {
+            return std::string(name) == "ceiling_camera" ? base.ceiling_camera
+                                                         : base.forward_camera;
+        }
+    };
+    forEachOverride(tr, [&](const char* name, auto& opt, auto table) {
+        IniSection s(source, section + "." + name, source_name);
+        if (!s.exists()) return;
+        using T = typename std::remove_reference_t<decltype(opt)>::value_type;
+        opt = baseOf(name, static_cast<T*>(nullptr));
+        table(*opt).load(s);
+    });
 }
 
 void ScenarioOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
@@ -258,7 +574,10 @@ void ScenarioOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& so
 
     std::vector<std::string> known = {"scenario",       "world", "vehicle", "ceiling_camera",
                                       "forward_camera", "lidar", "odometry"};
-    for (int i = 0; i < traverse_count; ++i) known.push_back(traverseSection(i));
+    for (int i = 0; i < traverse_count; ++i) {
+        known.push_back(traverseSection(i));
+        for (const char* o : kOverridable) known.push_back(traverseSection(i) + "." + o);
+    }
     std::vector<std::string> sections;
     source.getAllSections(sections);
     for (const auto& s : sections) {
@@ -266,7 +585,9 @@ void ScenarioOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& so
             throw ConfigError(source_name + " [" + s +
                               "]: unknown section (traverse sections must be traverse_0 .. "
                               "traverse_" +
-                              std::to_string(traverse_count - 1) + ")");
+                              std::to_string(traverse_count - 1) +
+                              ", overrides traverse_i.world, .vehicle, .ceiling_camera, "
+                              ".forward_camera, .lidar, .odometry)");
         }
     }
 
@@ -287,6 +608,7 @@ void ScenarioOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& so
         }
         traverses[i].name = s.requireString("name");
         traverseKeys(traverses[i]).load(s);
+        loadOverrides(source, traverseSection(i), traverses[i]);
     }
 }
 
@@ -312,6 +634,9 @@ void ScenarioOptions::saveToConfigFile(mrpt::config::CConfigFileBase& target,
     odometryKeys(copy.odometry).save(target, "odometry");
     for (std::size_t i = 0; i < copy.traverses.size(); ++i) {
         traverseKeys(copy.traverses[i]).save(target, traverseSection(i));
+        forEachOverride(copy.traverses[i], [&](const char* name, auto& opt, auto table) {
+            if (opt) table(*opt).save(target, traverseSection(i) + "." + name);
+        });
     }
 }
 
@@ -379,26 +704,10 @@ void ScenarioOptions::check() const {
     c.require(vehicle.track_m > 0.5, "vehicle.track_m", "> 0.5");
     checkCamera(c, ceiling_camera, "ceiling_camera");
     checkCamera(c, forward_camera, "forward_camera");
-    c.require(ceiling_camera.mount.z_m > 0.2 && ceiling_camera.mount.z_m < w.ceiling_height_m - 0.5,
-              "ceiling_camera.pose_z_m", "in (0.2, ceiling_height_m - 0.5)");
-    c.require(forward_camera.mount.z_m > 0.2 && forward_camera.mount.z_m < w.ceiling_height_m - 0.5,
-              "forward_camera.pose_z_m", "in (0.2, ceiling_height_m - 0.5)");
-    c.require(!lidar.label.empty(), "lidar.label", "non-empty");
-    c.require(lidar.rate_hz > 0 && lidar.rate_hz <= 200, "lidar.rate_hz", "in (0, 200]");
-    c.require(lidar.phase_s >= 0, "lidar.phase_s", ">= 0");
-    c.require(lidar.aperture_deg > 0 && lidar.aperture_deg <= 360, "lidar.aperture_deg",
-              "in (0, 360]");
-    c.require(lidar.resolution_deg >= 0.05 && lidar.resolution_deg <= 10, "lidar.resolution_deg",
-              "in [0.05, 10]");
-    c.require(lidar.max_range_m > 1, "lidar.max_range_m", "> 1");
-    c.require(lidar.noise_std_m >= 0, "lidar.noise_std_m", ">= 0");
-    c.require(lidar.mount.z_m > 0.2 && lidar.mount.z_m < w.ceiling_height_m - w.arch_radius_m,
-              "lidar.pose_z_m", "in (0.2, ceiling_height_m - arch_radius_m): the scan plane");
-    c.require(!odometry.label.empty(), "odometry.label", "non-empty");
-    c.require(odometry.rate_hz > 0 && odometry.rate_hz <= 1000, "odometry.rate_hz", "in (0, 1000]");
-    c.require(odometry.phase_s >= 0, "odometry.phase_s", ">= 0");
-    c.require(odometry.noise_std_m >= 0, "odometry.noise_std_m", ">= 0");
-    c.require(odometry.noise_std_deg >= 0, "odometry.noise_std_deg", ">= 0");
+    checkCameraMount(c, ceiling_camera, "ceiling_camera", w.ceiling_height_m);
+    checkCameraMount(c, forward_camera, "forward_camera", w.ceiling_height_m);
+    checkLidar(c, lidar, "lidar", w);
+    checkOdometry(c, odometry, "odometry");
     c.require(!traverses.empty(), "traverse_count", ">= 1");
     for (std::size_t i = 0; i < traverses.size(); ++i) {
         const TraverseOptions& t = traverses[i];
@@ -430,6 +739,8 @@ void ScenarioOptions::check() const {
         c.require(t.accel_mps2 > 0.05 && t.accel_mps2 <= 10, p + ".accel_mps2", "in (0.05, 10]");
         c.require(t.start_m >= 0, p + ".start_m", ">= 0");
         c.require(t.end_m == -1 || t.end_m > t.start_m + 5, p + ".end_m", "-1 or > start_m + 5");
+        checkPlan(c, t, p);
+        checkOverrides(c, *this, i);
     }
     c.throwIfFailed();
 }

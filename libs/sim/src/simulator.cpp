@@ -37,7 +37,8 @@ constexpr double kTrackDt = 0.01;  // ground-truth step [s]
 enum class Sensor { Odometry = 0, Lidar = 1, Ceiling = 2, Forward = 3 };
 
 struct Event {
-    double t;  // seconds since the traverse start
+    double t;      // capture time, seconds since the traverse start
+    double stamp;  // recorded time stamp, seconds since the traverse start
     Sensor sensor;
     std::size_t index;
 };
@@ -76,6 +77,229 @@ std::string frameName(const std::string& label, std::size_t index) {
     return label + buf;
 }
 
+/// Capture times of one sensor on its own clock, their stamps (latency, jitter) and the
+/// records lost in transmission or in `lost` windows left out.
+template <typename Lost>
+void scheduleSensor(std::vector<Event>& events, Sensor s, double rate, double phase,
+                    const SensorTiming& timing, double duration, uint32_t seed, Lost&& lost) {
+    const uint32_t id = static_cast<uint32_t>(s);
+    for (std::size_t k = 0;; ++k) {
+        const double t = phase + k / rate;
+        if (t > duration) break;
+        const uint32_t kk = static_cast<uint32_t>(k);
+        if (timing.drop_rate > 0 && unit(hash3(seed, 4000 + id, kk)) < timing.drop_rate) continue;
+        if (lost(t)) continue;
+        double stamp = t;
+        if (timing.latency_ms != 0 || timing.jitter_ms != 0) {
+            const double jitter = gaussian(hash3(seed, 3000 + id, kk), hash3(seed, 3500 + id, kk));
+            stamp = t + 1e-3 * (timing.latency_ms + timing.jitter_ms * jitter);
+        }
+        events.push_back({t, stamp, s, k});
+    }
+}
+
+/// Odometry dropouts: windows of `dropout_s` chosen with probability `dropout_fraction`.
+bool inDropout(const OdometryOptions& o, double t, uint32_t seed) {
+    if (o.dropout_fraction <= 0) return false;
+    const double cell = std::floor(t / o.dropout_s);
+    return unit(hash3(seed, 5000, static_cast<uint32_t>(static_cast<int64_t>(cell)))) <
+           o.dropout_fraction;
+}
+
+/// Poses of the camera when each row is exposed (rolling shutter), `t_abs` being the time of the
+/// row the stamp refers to.
+std::vector<mrpt::poses::CPose3D> rowPoses(const common::PoseTrack& track, const CameraOptions& cam,
+                                           const mrpt::poses::CPose3D& on_vehicle, double t_abs) {
+    const double readout = 1e-3 * cam.readout_ms;
+    const double t_first = t_abs - (cam.stamp_row == "middle" ? readout / 2 : 0.0);
+    std::vector<mrpt::poses::CPose3D> poses;
+    poses.reserve(cam.height_px);
+    for (int v = 0; v < cam.height_px; ++v) {
+        poses.push_back(poseAt(track, t_first + readout * v / (cam.height_px - 1)) + on_vehicle);
+    }
+    return poses;
+}
+
+/// Per-camera state carried from frame to frame within a traverse (the auto-exposure loop).
+struct CameraState {
+    double gain = 1;     ///< exposure gain the auto-exposure has reached
+    double last_t = -1;  ///< time of the previous delivered frame [s], -1 = none
+};
+
+/// One camera frame: exposure (drift, flicker or auto-exposure), motion blur, rolling-shutter
+/// row poses; the time stamp is set by the caller.
+mrpt::obs::CObservationImage captureFrame(const common::PoseTrack& track, const CameraOptions& cam,
+                                          const CameraRenderer& renderer, const Event& ev,
+                                          double t0, uint32_t seed, bool blur,
+                                          double ceiling_height_m, CameraState& state) {
+    const mrpt::poses::CPose3D on_vehicle = cam.mount.pose();
+    const double t = ev.t;
+    FrameConditions fc;
+    const uint32_t key =
+        hash3(seed, static_cast<uint32_t>(ev.sensor), static_cast<uint32_t>(ev.index));
+    // Slow exposure drift plus a small frame-to-frame flicker, on top of the auto-exposure.
+    const double slow = 2 * valueNoise(t / 3.0, 0.5, seed + 17 * uint32_t(ev.sensor)).v - 1;
+    fc.exposure_gain =
+        state.gain * (1 + cam.exposure_variation * (0.8 * slow + 0.2 * (2 * unit(mix32(key)) - 1)));
+    fc.noise_key = key;
+    if (blur && cam.exposure_ms > 0) {
+        // Image motion of the ceiling point on the optical axis during the exposure.
+        const double half = 0.5e-3 * cam.exposure_ms;
+        const mrpt::poses::CPose3D c0 = poseAt(track, t0 + t - half) + on_vehicle;
+        const mrpt::poses::CPose3D c1 = poseAt(track, t0 + t + half) + on_vehicle;
+        const double range = std::max(ceiling_height_m - c0.z(), 0.5);
+        const mrpt::math::TPoint3D X = c0.composePoint(mrpt::math::TPoint3D(0, 0, range));
+        const mrpt::math::TPoint3D p1 = c1.inverseComposePoint(X);
+        const auto& K = renderer.intrinsics();
+        fc.blur_u_px = K.fx() * p1.x / p1.z;
+        fc.blur_v_px = K.fy() * p1.y / p1.z;
+    }
+    mrpt::obs::CObservationImage obs;
+    obs.sensorLabel = cam.label;
+    obs.cameraPose = on_vehicle;
+    obs.cameraParams = renderer.intrinsics();
+    FrameStats stats;
+    if (cam.readout_ms > 0) {
+        obs.image = renderer.render(rowPoses(track, cam, on_vehicle, t0 + t), fc, &stats);
+    } else {
+        obs.image = renderer.render(poseAt(track, t0 + t) + on_vehicle, fc, &stats);
+    }
+    if (cam.auto_exposure_target_dn > 0) {
+        // First-order loop on the metered mean grey level: after a step in scene brightness
+        // the gain closes the gap with time constant tau.
+        const double dt = state.last_t < 0 ? 1.0 / cam.rate_hz : t - state.last_t;
+        const double ratio = cam.auto_exposure_target_dn / std::max(stats.mean_dn, 1.0);
+        state.gain =
+            std::clamp(state.gain * std::pow(ratio, std::min(1.0, dt / cam.auto_exposure_tau_s)),
+                       1.0 / 64, 64.0);
+        state.last_t = t;
+    }
+    return obs;
+}
+
+/// Wheel odometry integrated on the vehicle, carried from record to record.
+struct OdometryState {
+    mrpt::poses::CPose2D odometry;   ///< accumulated, drifting
+    mrpt::poses::CPose2D last_true;  ///< true pose at the previous record
+    bool have_last = false;
+    double last_t = 0;    ///< capture time of the previous record [s]
+    double distance = 0;  ///< true distance so far [m]
+};
+
+/// One odometry record: true increment with scale error (times slip_factor in a slip episode),
+/// heading drift and noise; a vehicle standing still reads exactly zero.
+mrpt::obs::CObservationOdometry odometryRecord(const OdometryOptions& o,
+                                               const mrpt::poses::CPose2D& now, const Event& ev,
+                                               uint32_t seed, OdometryState& st) {
+    mrpt::obs::CObservationOdometry obs;
+    obs.sensorLabel = o.label;
+    obs.hasVelocities = true;
+    if (!st.have_last) {
+        st.last_true = now;
+        st.have_last = true;
+        st.last_t = ev.t;
+        obs.odometry = st.odometry;
+        return obs;
+    }
+    const mrpt::poses::CPose2D delta = now - st.last_true;
+    const double dist = std::hypot(delta.x(), delta.y());
+    const uint32_t key = hash3(seed, 2000 + ev.index, 11);
+    double k = 1 + o.scale_error;
+    if (o.slip_fraction > 0) {
+        const double cell = std::floor((st.distance + 0.5 * dist) / o.slip_episode_m);
+        const uint32_t c = static_cast<uint32_t>(static_cast<int64_t>(cell));
+        if (unit(hash3(seed, 6000, c)) < o.slip_fraction) k *= o.slip_factor;
+    }
+    st.distance += dist;
+    mrpt::poses::CPose2D measured(0, 0, 0);
+    if (dist > 0 || delta.phi() != 0) {
+        measured = mrpt::poses::CPose2D(
+            delta.x() * k + o.noise_std_m * gaussian(hash3(key, 1, 0), hash3(key, 2, 0)),
+            delta.y() * k + o.noise_std_m * gaussian(hash3(key, 3, 0), hash3(key, 4, 0)),
+            delta.phi() +
+                mrpt::DEG2RAD(o.yaw_bias_deg_per_m * dist +
+                              o.noise_std_deg * gaussian(hash3(key, 5, 0), hash3(key, 6, 0))));
+    }
+    st.odometry = st.odometry + measured;
+    st.last_true = now;
+    // Measured local velocities over the time since the previous record (one period unless
+    // records were lost).
+    const double periods = std::max(1.0, std::round((ev.t - st.last_t) * o.rate_hz));
+    st.last_t = ev.t;
+    obs.odometry = st.odometry;
+    obs.velocityLocal.vx = measured.x() * o.rate_hz / periods;
+    obs.velocityLocal.vy = measured.y() * o.rate_hz / periods;
+    obs.velocityLocal.omega = measured.phi() * o.rate_hz / periods;
+    return obs;
+}
+
+/// Every sensor on its own clock, in stamp order; ties are broken by sensor order so the file
+/// order is fixed.
+std::vector<Event> scheduleEvents(const CameraOptions& ceiling, const CameraOptions& forward,
+                                  const LidarOptions& lidar, const OdometryOptions& odo,
+                                  double duration, uint32_t seed) {
+    std::vector<Event> events;
+    auto never = [](double) { return false; };
+    scheduleSensor(events, Sensor::Odometry, odo.rate_hz, odo.phase_s, odo.timing, duration, seed,
+                   [&](double t) { return inDropout(odo, t, seed); });
+    scheduleSensor(events, Sensor::Lidar, lidar.rate_hz, lidar.phase_s, lidar.timing, duration,
+                   seed, never);
+    scheduleSensor(events, Sensor::Ceiling, ceiling.rate_hz, ceiling.phase_s, ceiling.timing,
+                   duration, seed, never);
+    scheduleSensor(events, Sensor::Forward, forward.rate_hz, forward.phase_s, forward.timing,
+                   duration, seed, never);
+    std::stable_sort(events.begin(), events.end(), [](const Event& a, const Event& b) {
+        return a.stamp < b.stamp || (a.stamp == b.stamp && a.sensor < b.sensor);
+    });
+    return events;
+}
+
+TraverseSummary startSummary(const TraverseOptions& tr, const common::PoseTrack& track) {
+    TraverseSummary sum;
+    sum.name = tr.name;
+    sum.roles = tr.roles;
+    sum.duration_s = track.back().time_s - track.front().time_s;
+    sum.start_time_s = track.front().time_s;
+    sum.ground_truth_rows = track.size();
+    for (std::size_t i = 1; i < track.size(); ++i) {
+        sum.length_m += std::hypot(track[i].pose.x() - track[i - 1].pose.x(),
+                                   track[i].pose.y() - track[i - 1].pose.y());
+    }
+    return sum;
+}
+
+/// Drives `legs` from route position `s` into `track` (which gets the start pose too):
+/// `pose(s, s_limit, facing_back)` places the vehicle, `speed(s, from, to)` is the leg's speed.
+template <typename PoseFn, typename SpeedFn>
+void drivePlan(const std::vector<PlanLeg>& legs, double s, double length, double start_time_s,
+               const PoseFn& pose, const SpeedFn& speed, common::PoseTrack* track) {
+    bool facing_back = false;
+    for (const PlanLeg& leg : legs) {  // the first motion fixes the facing (checked constant)
+        if (leg.kind == PlanLeg::Kind::Stop || leg.value == s) continue;
+        facing_back = (leg.value < s) == (leg.kind == PlanLeg::Kind::Drive);
+        break;
+    }
+    double t = 0;
+    track->push_back({start_time_s + t, pose(s, length, facing_back)});
+    for (const PlanLeg& leg : legs) {
+        if (leg.kind == PlanLeg::Kind::Stop) {
+            for (long k = std::lround(leg.value / kTrackDt); k > 0; --k) {
+                t += kTrackDt;
+                track->push_back({start_time_s + t, pose(s, length, facing_back)});
+            }
+            continue;
+        }
+        const double from = s, to = std::clamp(leg.value, 0.0, length);
+        const double sign = to > from ? 1 : -1;
+        while (s != to) {
+            const double v = speed(s + 0.5 * sign * speed(s, from, to) * kTrackDt, from, to);
+            s = sign > 0 ? std::min(s + v * kTrackDt, to) : std::max(s - v * kTrackDt, to);
+            t += kTrackDt;
+            track->push_back({start_time_s + t, pose(s, length, facing_back)});
+        }
+    }
+}
+
 void writeDatasetIni(const std::string& path, const ScenarioOptions& sc) {
     std::ofstream f(path);
     f << "# Written by lookup-sim; see docs/dataset-format.md\n"
@@ -103,7 +327,8 @@ void writeDatasetIni(const std::string& path, const ScenarioOptions& sc) {
 
 mrpt::obs::CObservation2DRangeScan simulateLidar(const TunnelWorld& world,
                                                  const mrpt::poses::CPose2D& vehicle,
-                                                 const LidarOptions& lidar, uint32_t noise_key) {
+                                                 const LidarOptions& lidar, uint32_t noise_key,
+                                                 const mrpt::poses::CPose2D* vehicle_at_end) {
     mrpt::obs::CObservation2DRangeScan scan;
     scan.sensorLabel = lidar.label;
     scan.aperture = static_cast<float>(mrpt::DEG2RAD(lidar.aperture_deg));
@@ -120,10 +345,30 @@ mrpt::obs::CObservation2DRangeScan simulateLidar(const TunnelWorld& world,
     const Eigen::Vector3d origin(sensor.x(), sensor.y(), lidar.mount.z_m);
     const double rad_per_ray = mrpt::DEG2RAD(lidar.resolution_deg);
     for (std::size_t r = 0; r < rays; ++r) {
-        const double angle =
-            sensor.phi() - scan.aperture / 2 + r * scan.aperture / static_cast<double>(rays - 1);
+        mrpt::poses::CPose2D ray_sensor = sensor;
+        Eigen::Vector3d ray_origin = origin;
+        if (vehicle_at_end) {
+            // The sweep runs from the first ray to the last while the vehicle moves.
+            const double a = r / static_cast<double>(rays - 1);
+            const mrpt::poses::CPose2D v(
+                vehicle.x() + a * (vehicle_at_end->x() - vehicle.x()),
+                vehicle.y() + a * (vehicle_at_end->y() - vehicle.y()),
+                vehicle.phi() + a * mrpt::math::wrapToPi(vehicle_at_end->phi() - vehicle.phi()));
+            ray_sensor = v + mrpt::poses::CPose2D(scan.sensorPose);
+            ray_origin = Eigen::Vector3d(ray_sensor.x(), ray_sensor.y(), lidar.mount.z_m);
+        }
+        const double angle = ray_sensor.phi() - scan.aperture / 2 +
+                             r * scan.aperture / static_cast<double>(rays - 1);
         const Eigen::Vector3d dir(std::cos(angle), std::sin(angle), 0.0);
-        const SurfaceHit hit = world.traceStatic(origin, dir, 0.0, lidar.max_range_m, rad_per_ray);
+        SurfaceHit hit = world.traceStatic(ray_origin, dir, 0.0, lidar.max_range_m, rad_per_ray);
+        if (lidar.dust_rate > 0 && unit(hash3(noise_key, r, 3)) < lidar.dust_rate) {
+            // Airborne dust returns the pulse early, uniformly along the beam's first metres.
+            const double d = 0.3 + unit(hash3(noise_key, r, 4)) * (lidar.dust_max_range_m - 0.3);
+            if (d < hit.t) {
+                hit.t = d;
+                hit.kind = SurfaceKind::Wall;
+            }
+        }
         if (hit.kind == SurfaceKind::None || !(hit.t < lidar.max_range_m)) {
             scan.setScanRange(r, scan.maxRange);
             scan.setScanRangeValidity(r, false);
@@ -163,19 +408,23 @@ common::PoseTrack vehicleTrack(const TunnelWorld& world, const TraverseOptions& 
         hash3(static_cast<uint32_t>(tr.name.size()), tr.name.empty() ? 0 : tr.name[0],
               static_cast<uint32_t>(tr.speed_kmh * 1000));
     const double v_cruise = tr.speed_kmh / 3.6, v_min = 0.3;
-    auto speed = [&](double s) {
+    // Cruise speed with its slow wobble, limited by accelerating from `from` and braking to `to`.
+    auto legSpeed = [&](double s, double from, double to) {
+        const double sign = to >= from ? 1.0 : -1.0;
         const double wobble = 2 * fbm(s / 60.0, 0.5, seed, 2, 1.0, 0.5, 0).v - 1;
         double v = v_cruise * (1 + tr.speed_variation * std::clamp(2.0 * wobble, -1.0, 1.0));
-        v = std::min(v, std::sqrt(v_min * v_min + 2 * tr.accel_mps2 * (s - s_begin)));
-        v = std::min(v, std::sqrt(v_min * v_min + 2 * tr.accel_mps2 * std::max(s_end - s, 0.0)));
+        v = std::min(
+            v, std::sqrt(v_min * v_min + 2 * tr.accel_mps2 * std::max(sign * (s - from), 0.0)));
+        v = std::min(v,
+                     std::sqrt(v_min * v_min + 2 * tr.accel_mps2 * std::max(sign * (to - s), 0.0)));
         return std::max(v, v_min);
     };
-    common::PoseTrack track;
-    double s = s_begin, t = 0;
-    for (;;) {
+    // The vehicle on the floor at route position s, facing along the route or against it.
+    auto poseAtS = [&](double s, double s_lim, bool facing_back) {
         const Vector2d p = path(s);
-        const Vector2d ahead = path(std::min(s + 0.2, s_end + 0.2)) - path(s - 0.2);
-        const double yaw = std::atan2(ahead.y(), ahead.x());
+        const Vector2d ahead = path(std::min(s + 0.2, s_lim + 0.2)) - path(s - 0.2);
+        double yaw = std::atan2(ahead.y(), ahead.x());
+        if (facing_back) yaw = mrpt::math::wrapToPi(yaw + M_PI);
         const Vector2d fwd(std::cos(yaw), std::sin(yaw)), left(-fwd.y(), fwd.x());
         const Vector2d front = p + fwd * vehicle.wheelbase_m / 2,
                        rear = p - fwd * vehicle.wheelbase_m / 2;
@@ -187,25 +436,86 @@ common::PoseTrack vehicleTrack(const TunnelWorld& world, const TraverseOptions& 
         // MRPT: positive pitch lowers the nose, positive roll raises the left side.
         const double pitch = -std::atan2(zf - zr, vehicle.wheelbase_m);
         const double roll = std::atan2(zl - zri, vehicle.track_m);
-        track.push_back(
-            {start_time_s + t,
-             mrpt::poses::CPose3D(p.x(), p.y(), 0.25 * (zf + zr + zl + zri), yaw, pitch, roll)});
-        if (s >= s_end) break;
-        const double v = speed(s + 0.5 * speed(s) * kTrackDt);  // midpoint rule
-        s = std::min(s + v * kTrackDt, s_end);
-        t += kTrackDt;
+        return mrpt::poses::CPose3D(p.x(), p.y(), 0.25 * (zf + zr + zl + zri), yaw, pitch, roll);
+    };
+    common::PoseTrack track;
+    double s = s_begin, t = 0;
+    if (tr.plan.empty() && tr.direction != "reverse") {
+        for (;;) {
+            track.push_back({start_time_s + t, poseAtS(s, s_end, false)});
+            if (s >= s_end) break;
+            const double v = legSpeed(s + 0.5 * legSpeed(s, s_begin, s_end) * kTrackDt, s_begin,
+                                      s_end);  // midpoint rule
+            s = std::min(s + v * kTrackDt, s_end);
+            t += kTrackDt;
+        }
+        return track;
     }
+    std::vector<PlanLeg> legs;
+    if (tr.plan.empty()) {
+        s = s_end;  // reverse direction: end to start, facing the way of travel
+        legs.push_back({PlanLeg::Kind::Drive, s_begin});
+    } else {
+        legs = parsePlan(tr.plan);
+    }
+    drivePlan(legs, s, length, start_time_s, poseAtS, legSpeed, &track);
     return track;
 }
 
 Simulator::Simulator(ScenarioOptions scenario) : scenario_(std::move(scenario)) {
     scenario_.check();
     world_ = std::make_unique<TunnelWorld>(scenario_.world, scenario_.seed);
+    checkPlansOnRoute();
+    checkLenses();
     double next = scenario_.start_time_s;
     for (std::size_t i = 0; i < scenario_.traverses.size(); ++i) {
         const double t0 = std::max(scenario_.start_time_s + i * scenario_.traverse_gap_s, next);
-        tracks_.push_back(vehicleTrack(*world_, scenario_.traverses[i], scenario_.vehicle, t0));
+        tracks_.push_back(
+            vehicleTrack(*world_, scenario_.traverses[i], scenario_.vehicleFor(i), t0));
         next = std::ceil(tracks_.back().back().time_s + 10.0);
+        // Another day's look of the same mine: the same geometry and seed, other appearance.
+        traverse_worlds_.push_back(
+            scenario_.traverses[i].world
+                ? std::make_unique<TunnelWorld>(*scenario_.traverses[i].world, scenario_.seed)
+                : nullptr);
+    }
+}
+
+void Simulator::checkLenses() const {
+    auto probe = [&](const CameraOptions& cam, const std::string& section) {
+        if (cam.distortion == "none") return;
+        try {
+            const CameraRenderer renderer(*world_, cam, CameraRenderer::Kind::Ceiling, 1);
+        } catch (const std::exception& e) {
+            throw common::ConfigError(scenario_.source_name + " [" + section +
+                                      "] distortion: " + e.what());
+        }
+    };
+    probe(scenario_.ceiling_camera, "ceiling_camera");
+    probe(scenario_.forward_camera, "forward_camera");
+    for (std::size_t i = 0; i < scenario_.traverses.size(); ++i) {
+        const TraverseOptions& t = scenario_.traverses[i];
+        const std::string p = "traverse_" + std::to_string(i) + ".";
+        if (t.ceiling_camera) probe(*t.ceiling_camera, p + "ceiling_camera");
+        if (t.forward_camera) probe(*t.forward_camera, p + "forward_camera");
+    }
+}
+
+void Simulator::checkPlansOnRoute() const {
+    const double length = world_->routeLength();
+    for (std::size_t i = 0; i < scenario_.traverses.size(); ++i) {
+        const TraverseOptions& t = scenario_.traverses[i];
+        if (t.plan.empty()) continue;
+        const std::vector<PlanLeg> legs = parsePlan(t.plan);
+        for (std::size_t k = 0; k < legs.size(); ++k) {
+            if (legs[k].kind == PlanLeg::Kind::Stop || legs[k].value <= length) continue;
+            std::ostringstream os;
+            os << scenario_.source_name << " [traverse_" << i << "] plan: leg " << k + 1 << " ("
+               << (legs[k].kind == PlanLeg::Kind::Drive ? "drive " : "reverse ") << legs[k].value
+               << ") leaves the route, which is " << std::fixed << std::setprecision(1) << length
+               << " m long";
+            throw common::ConfigError(os.str());
+        }
     }
 }
 
@@ -258,6 +568,7 @@ SimulationResult Simulator::run(const std::string& out_dir, const Progress& prog
 TraverseSummary Simulator::runTraverse(std::size_t index, const std::string& out_dir,
                                        const mrpt::maps::COccupancyGridMap2D& grid,
                                        const Progress& progress) const {
+    (void)grid;
     const auto start = std::chrono::steady_clock::now();
     const TraverseOptions& tr = scenario_.traverses[index];
     const common::PoseTrack& track = tracks_[index];
@@ -266,148 +577,62 @@ TraverseSummary Simulator::runTraverse(std::size_t index, const std::string& out
     const uint32_t seed =
         hash3(static_cast<uint32_t>(scenario_.seed), static_cast<uint32_t>(scenario_.seed >> 32),
               static_cast<uint32_t>(index) + 1);
-    TraverseSummary sum;
-    sum.name = tr.name;
-    sum.roles = tr.roles;
-    sum.duration_s = duration;
-    sum.start_time_s = t0;
-    sum.ground_truth_rows = track.size();
-    for (std::size_t i = 1; i < track.size(); ++i) {
-        sum.length_m += std::hypot(track[i].pose.x() - track[i - 1].pose.x(),
-                                   track[i].pose.y() - track[i - 1].pose.y());
-    }
+    TraverseSummary sum = startSummary(tr, track);
 
     const std::string stem = out_dir + "/" + tr.name;
     std::error_code ec;
     fs::remove_all(stem + "_Images", ec);  // no stale frames from an earlier run
     common::writeMrptPoseFile(stem + ".rawlog.GT.txt", track);
 
-    // Every sensor on its own clock; ties are broken by sensor order so the file order is fixed.
-    std::vector<Event> events;
-    auto schedule = [&](Sensor s, double rate, double phase) {
-        for (std::size_t k = 0;; ++k) {
-            const double t = phase + k / rate;
-            if (t > duration) break;
-            events.push_back({t, s, k});
-        }
-    };
-    schedule(Sensor::Odometry, scenario_.odometry.rate_hz, scenario_.odometry.phase_s);
-    schedule(Sensor::Lidar, scenario_.lidar.rate_hz, scenario_.lidar.phase_s);
-    schedule(Sensor::Ceiling, scenario_.ceiling_camera.rate_hz, scenario_.ceiling_camera.phase_s);
-    schedule(Sensor::Forward, scenario_.forward_camera.rate_hz, scenario_.forward_camera.phase_s);
-    std::stable_sort(events.begin(), events.end(), [](const Event& a, const Event& b) {
-        return a.t < b.t || (a.t == b.t && a.sensor < b.sensor);
-    });
+    const CameraOptions& ceiling_opt = scenario_.ceilingCameraFor(index);
+    const CameraOptions& forward_opt = scenario_.forwardCameraFor(index);
+    const LidarOptions& lidar_opt = scenario_.lidarFor(index);
+    const OdometryOptions& odo_opt = scenario_.odometryFor(index);
+    const std::vector<Event> events =
+        scheduleEvents(ceiling_opt, forward_opt, lidar_opt, odo_opt, duration, seed);
 
-    const CameraRenderer ceiling(*world_, scenario_.ceiling_camera, CameraRenderer::Kind::Ceiling,
+    const TunnelWorld& seen = traverse_worlds_[index] ? *traverse_worlds_[index] : *world_;
+    const CameraRenderer ceiling(seen, ceiling_opt, CameraRenderer::Kind::Ceiling,
                                  scenario_.threads);
-    const CameraRenderer forward(*world_, scenario_.forward_camera, CameraRenderer::Kind::Forward,
+    const CameraRenderer forward(seen, forward_opt, CameraRenderer::Kind::Forward,
                                  scenario_.threads);
-    const mrpt::poses::CPose3D ceiling_on_vehicle = scenario_.ceiling_camera.mount.pose();
-    const mrpt::poses::CPose3D forward_on_vehicle = scenario_.forward_camera.mount.pose();
+    CameraState cam_state[2];
+    OdometryState odo_state;
 
     common::RawlogWriter writer(stem + ".rawlog");
-    mrpt::poses::CPose2D odometry;  // accumulated, drifting
-    mrpt::poses::CPose2D last_true;
-    bool have_last = false;
-    auto cameraConditions = [&](const CameraOptions& cam, const CameraRenderer& renderer,
-                                const mrpt::poses::CPose3D& on_vehicle, double t, Sensor s,
-                                std::size_t k, bool blur) {
-        FrameConditions fc;
-        const uint32_t key = hash3(seed, static_cast<uint32_t>(s), static_cast<uint32_t>(k));
-        // Slow auto-exposure drift plus a small frame-to-frame flicker.
-        const double slow = 2 * valueNoise(t / 3.0, 0.5, seed + 17 * uint32_t(s)).v - 1;
-        fc.exposure_gain =
-            1 + cam.exposure_variation * (0.8 * slow + 0.2 * (2 * unit(mix32(key)) - 1));
-        fc.noise_key = key;
-        if (blur && cam.exposure_ms > 0) {
-            // Image motion of the ceiling point on the optical axis during the exposure.
-            const double half = 0.5e-3 * cam.exposure_ms;
-            const mrpt::poses::CPose3D c0 = poseAt(track, t0 + t - half) + on_vehicle;
-            const mrpt::poses::CPose3D c1 = poseAt(track, t0 + t + half) + on_vehicle;
-            const double range = std::max(scenario_.world.ceiling_height_m - c0.z(), 0.5);
-            const mrpt::math::TPoint3D X = c0.composePoint(mrpt::math::TPoint3D(0, 0, range));
-            const mrpt::math::TPoint3D p1 = c1.inverseComposePoint(X);
-            const auto& K = renderer.intrinsics();
-            fc.blur_u_px = K.fx() * p1.x / p1.z;
-            fc.blur_v_px = K.fy() * p1.y / p1.z;
-        }
-        return fc;
-    };
-
     std::size_t done = 0, last_report = 0;
     for (const Event& ev : events) {
         const double t_abs = t0 + ev.t;
         const mrpt::poses::CPose3D vehicle = poseAt(track, t_abs);
-        const auto stamp = mrpt::Clock::fromDouble(t_abs);
+        const auto stamp = mrpt::Clock::fromDouble(t0 + ev.stamp);
         switch (ev.sensor) {
             case Sensor::Ceiling:
             case Sensor::Forward: {
                 const bool is_ceiling = ev.sensor == Sensor::Ceiling;
-                const CameraOptions& cam =
-                    is_ceiling ? scenario_.ceiling_camera : scenario_.forward_camera;
-                const CameraRenderer& renderer = is_ceiling ? ceiling : forward;
-                const mrpt::poses::CPose3D& on_vehicle =
-                    is_ceiling ? ceiling_on_vehicle : forward_on_vehicle;
-                const FrameConditions fc = cameraConditions(cam, renderer, on_vehicle, ev.t,
-                                                            ev.sensor, ev.index, is_ceiling);
-                mrpt::obs::CObservationImage obs;
-                obs.sensorLabel = cam.label;
+                mrpt::obs::CObservationImage obs =
+                    captureFrame(track, is_ceiling ? ceiling_opt : forward_opt,
+                                 is_ceiling ? ceiling : forward, ev, t0, seed, is_ceiling,
+                                 scenario_.world.ceiling_height_m, cam_state[is_ceiling ? 0 : 1]);
                 obs.timestamp = stamp;
-                obs.cameraPose = on_vehicle;
-                obs.cameraParams = renderer.intrinsics();
-                obs.image = renderer.render(vehicle + on_vehicle, fc);
-                writer.writeWithExternalImage(obs, frameName(cam.label, ev.index));
+                writer.writeWithExternalImage(obs, frameName(obs.sensorLabel, ev.index));
                 (is_ceiling ? sum.ceiling_frames : sum.forward_frames)++;
                 break;
             }
             case Sensor::Lidar: {
-                mrpt::obs::CObservation2DRangeScan scan =
-                    simulateLidar(*world_, mrpt::poses::CPose2D(vehicle), scenario_.lidar,
-                                  hash3(seed, 1000 + ev.index, 7));
+                const mrpt::poses::CPose2D at_end(poseAt(track, t_abs + 1e-3 * lidar_opt.sweep_ms));
+                mrpt::obs::CObservation2DRangeScan scan = simulateLidar(
+                    *world_, mrpt::poses::CPose2D(vehicle), lidar_opt,
+                    hash3(seed, 1000 + ev.index, 7), lidar_opt.sweep_ms > 0 ? &at_end : nullptr);
                 scan.timestamp = stamp;
                 writer.write(scan);
                 sum.lidar_scans++;
                 break;
             }
             case Sensor::Odometry: {
-                const mrpt::poses::CPose2D now(vehicle);
-                if (have_last) {
-                    const mrpt::poses::CPose2D delta = now - last_true;
-                    const double dist = std::hypot(delta.x(), delta.y());
-                    const uint32_t key = hash3(seed, 2000 + ev.index, 11);
-                    const OdometryOptions& o = scenario_.odometry;
-                    const double k = 1 + o.scale_error;
-                    const mrpt::poses::CPose2D measured(
-                        delta.x() * k +
-                            o.noise_std_m * gaussian(hash3(key, 1, 0), hash3(key, 2, 0)),
-                        delta.y() * k +
-                            o.noise_std_m * gaussian(hash3(key, 3, 0), hash3(key, 4, 0)),
-                        delta.phi() + mrpt::DEG2RAD(o.yaw_bias_deg_per_m * dist +
-                                                    o.noise_std_deg * gaussian(hash3(key, 5, 0),
-                                                                               hash3(key, 6, 0))));
-                    odometry = odometry + measured;
-                    // Measured local velocities over the last period.
-                    last_true = now;
-                    mrpt::obs::CObservationOdometry obs;
-                    obs.sensorLabel = o.label;
-                    obs.timestamp = stamp;
-                    obs.odometry = odometry;
-                    obs.hasVelocities = true;
-                    obs.velocityLocal.vx = measured.x() * o.rate_hz;
-                    obs.velocityLocal.vy = measured.y() * o.rate_hz;
-                    obs.velocityLocal.omega = measured.phi() * o.rate_hz;
-                    writer.write(obs);
-                } else {
-                    last_true = now;
-                    have_last = true;
-                    mrpt::obs::CObservationOdometry obs;
-                    obs.sensorLabel = scenario_.odometry.label;
-                    obs.timestamp = stamp;
-                    obs.odometry = odometry;
-                    obs.hasVelocities = true;
-                    writer.write(obs);
-                }
+                mrpt::obs::CObservationOdometry obs =
+                    odometryRecord(odo_opt, mrpt::poses::CPose2D(vehicle), ev, seed, odo_state);
+                obs.timestamp = stamp;
+                writer.write(obs);
                 sum.odometry_records++;
                 break;
             }

@@ -23,6 +23,11 @@ struct FrameConditions {
     uint32_t noise_key = 0;      ///< selects the sensor-noise pattern (hash of seed and frame)
 };
 
+/// What the camera measured of its own frame (for the auto-exposure loop).
+struct FrameStats {
+    double mean_dn = 0;  ///< mean grey level of the delivered image [DN]
+};
+
 class CameraRenderer {
   public:
     enum class Kind {
@@ -33,27 +38,52 @@ class CameraRenderer {
     /// `threads` = 0: all cores. The image does not depend on the thread count.
     CameraRenderer(const TunnelWorld& world, const CameraOptions& camera, Kind kind, int threads);
 
-    /// Pinhole intrinsics: fx = fy = (width/2) / tan(hfov/2), principal point at the image centre
-    /// ((width-1)/2, (height-1)/2), no distortion.
+    /// Intrinsics: fx = fy = (width/2) / tan(hfov/2), principal point at the image centre
+    /// ((width-1)/2, (height-1)/2), and the lens distortion of the options (none, plumb_bob or
+    /// kannala_brandt), as a calibration would record them. Each pixel is rendered along the
+    /// exact ray this model gives it (the distortion inverted per pixel), so the image has no
+    /// resampling blur and no black borders.
     const mrpt::img::TCamera& intrinsics() const { return camera_; }
 
     /// Renders the view of a camera whose frame (+Z optical axis, +X right, +Y down) has pose
-    /// `camera_in_map`. Returns a grey 8-bit image.
+    /// `camera_in_map`. Returns a grey 8-bit image; `stats` (optional) gets its mean level.
     mrpt::img::CImage render(const mrpt::poses::CPose3D& camera_in_map,
-                             const FrameConditions& frame) const;
+                             const FrameConditions& frame, FrameStats* stats = nullptr) const;
+    /// Rolling shutter: row v seen from `row_poses[v]` (one pose per image row).
+    mrpt::img::CImage render(const std::vector<mrpt::poses::CPose3D>& row_poses,
+                             const FrameConditions& frame, FrameStats* stats = nullptr) const;
+
+    /// Normalised undistorted coordinates (x/z, y/z) of a distorted pixel (u, v) under `camera`
+    /// (Gauss-Newton inversion of its distortion to 1e-12 px); false if it does not converge.
+    static bool undistortPixel(const mrpt::img::TCamera& camera, double u, double v, double* x,
+                               double* y);
+    /// Pixel of the normalised point (x, y) (ray (x, y, 1)) under `camera`'s distortion.
+    static void distortPoint(const mrpt::img::TCamera& camera, double x, double y, double* u,
+                             double* v);
 
   private:
     /// A furniture piece and the image rectangle it can cover in the current frame.
     struct ObjectInView {
         int index = 0;
-        int u0 = 0, u1 = 0, v0 = 0, v1 = 0;
+        int u0 = 0, u1 = 0, v0 = 0, v1 = 0;  ///< in undistorted (pinhole) pixel coordinates
     };
-    void renderRows(const Eigen::Matrix3d& R, const Eigen::Vector3d& o,
-                    const std::vector<ObjectInView>& cylinders, const std::vector<int>& lamps,
-                    int first, int step, float* out) const;
-    double shadePixel(int index, const Eigen::Matrix3d& R, const Eigen::Vector3d& o,
-                      const std::vector<ObjectInView>& cylinders,
-                      const std::vector<int>& lamps) const;
+    /// One camera pose and what can be seen from it.
+    struct View {
+        Eigen::Matrix3d R;
+        Eigen::Vector3d o;
+        std::vector<ObjectInView> cylinders;
+        std::vector<int> lamps;
+    };
+    View makeView(const mrpt::poses::CPose3D& camera_in_map) const;
+    void renderRows(const std::vector<View>& views, int first, int step, float* out,
+                    float* depth) const;
+    double shadePixel(int index, const View& view, double* depth) const;
+    void buildRays();
+    void buildLensMasks();
+    /// Radiance (and depth) to the delivered 8-bit image: haze, motion blur, lens drops and
+    /// dirt, exposure, bloom, tone curve, noise, response.
+    mrpt::img::CImage develop(std::vector<float>& radiance, const std::vector<float>& depth,
+                              const FrameConditions& frame, FrameStats* stats) const;
 
     const TunnelWorld& world_;
     CameraOptions opt_;
@@ -61,8 +91,14 @@ class CameraRenderer {
     int threads_;
     mrpt::img::TCamera camera_;
     std::vector<Eigen::Vector3d> rays_;  ///< unit ray per pixel in the camera frame
-    std::vector<double> beam_;           ///< vehicle-light beam factor per pixel
-    double half_diag_fov_ = 0;           ///< [rad]
+    std::vector<float> pin_u_, pin_v_;   ///< undistorted (pinhole) coordinates per pixel
+    double pin_lo_u_ = 0, pin_hi_u_ = 0, pin_lo_v_ = 0, pin_hi_v_ = 0;  ///< their range
+    bool cull_ = true;          ///< image-rectangle culling valid (no ray at or behind 90 deg)
+    std::vector<float> dirt_;   ///< lens transmission per pixel (1: clean), empty = no dirt
+    std::vector<float> drops_;  ///< water-drop cover per pixel in [0, 1], empty = no drops
+    uint32_t lens_seed_ = 0;    ///< where this camera's dirt and drops lie
+    std::vector<double> beam_;  ///< vehicle-light beam factor per pixel
+    double half_diag_fov_ = 0;  ///< [rad]
 };
 
 }  // namespace lookup::sim

@@ -7,6 +7,7 @@
 #include <mrpt/poses/CPose3D.h>
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -81,7 +82,15 @@ struct VehicleOptions {
     double track_m = 1.8;        ///< distance between left and right wheels [m]
 };
 
-/// A grey pinhole camera rendered by ray casting.
+/// When a sensor's record is stamped and whether it arrives at all (every sensor has its own).
+struct SensorTiming {
+    double latency_ms = 0;  ///< constant stamp offset, stamp = true time + latency (either sign)
+    double jitter_ms = 0;   ///< standard deviation of a Gaussian stamp error, per record [ms]
+    double drop_rate = 0;   ///< share of records lost in transmission [0, 1)
+};
+
+/// A grey camera rendered by ray casting: pinhole, optionally with lens distortion, rolling
+/// shutter and the image effects of a real sensor (all off by default).
 struct CameraOptions {
     std::string label;       ///< sensorLabel of its observations
     double rate_hz = 20;     ///< frame rate [Hz]
@@ -96,6 +105,30 @@ struct CameraOptions {
     double light_gain = 1.0;  ///< vehicle-light intensity (1: ceiling at nominal range ~ albedo)
     double light_falloff_exp = 1.5;  ///< vehicle-light beam: intensity ~ cos(off-axis)^exp
     double max_range_m = 60;         ///< rays beyond this see darkness [m]
+    /// Lens distortion as a calibration records it (mrpt::img::DistortionModel names): "none",
+    /// "plumb_bob" (radial-tangential k1, k2, p1, p2, k3) or "kannala_brandt" (fisheye k1..k4,
+    /// read from dist_k1, dist_k2, dist_k3, dist_k4). fx, fy, cx, cy stay those of hfov_deg.
+    std::string distortion = "none";
+    double dist_k1 = 0, dist_k2 = 0, dist_p1 = 0, dist_p2 = 0, dist_k3 = 0, dist_k4 = 0;
+    /// Rolling shutter: time from the first row's exposure to the last row's, 0 = global [ms].
+    double readout_ms = 0;
+    std::string stamp_row = "first";  ///< row the time stamp refers to: "first" or "middle"
+    SensorTiming timing;
+    double response_gamma = 1;         ///< output = linear^(1/gamma) (1: linear response)
+    double response_knee_dn = 0;       ///< knee point, above it the slope drops, 0 = none [DN]
+    double response_knee_slope = 0.3;  ///< slope above the knee (relative)
+    /// Auto-exposure: the gain follows the mean grey level towards this target, 0 = off (fixed
+    /// gain, with the exposure_variation drift) [DN].
+    double auto_exposure_target_dn = 0;
+    double auto_exposure_tau_s = 0.5;  ///< time constant of that control loop [s]
+    double bloom_strength = 0;         ///< share of the light above saturation spread around [0, 1]
+    double bloom_radius_px = 6;        ///< Gaussian radius of that spread [px]
+    int dirt_spots = 0;                ///< fixed dark out-of-focus blotches on the lens
+    double dirt_opacity = 0.35;        ///< light a blotch's centre blocks [0, 1)
+    int water_drops = 0;               ///< fixed water drops (defocused discs) on the lens
+    double drop_radius_px = 10;        ///< mean radius of a drop [px]
+    double haze_extinction_per_m = 0;  ///< dust haze: light attenuation exp(-beta d) [1/m]
+    double haze_airlight = 0.15;       ///< radiance of the lit haze at full depth (1 = white)
 };
 
 /// A horizontal 2-D scanner simulated by MRPT against the occupancy grid.
@@ -110,6 +143,12 @@ struct LidarOptions {
     /// Scanner pose on the vehicle; its height is the scan plane's (it must lie below the
     /// arch, above the floor).
     MountPose mount{1.9, 0.0, 1.2, 0.0, 0.0, 0.0};
+    SensorTiming timing;
+    /// Duration of one sweep from the first ray to the last; the vehicle moves during it (scan
+    /// skew). The stamp refers to the first ray. 0 = instantaneous [ms].
+    double sweep_ms = 0;
+    double dust_rate = 0;         ///< share of rays returning from airborne dust [0, 1)
+    double dust_max_range_m = 8;  ///< dust returns are uniform in [0.3, this] [m]
 };
 
 /// Wheel odometry: accumulated 2-D pose with scale error, yaw bias and noise.
@@ -121,6 +160,12 @@ struct OdometryOptions {
     double yaw_bias_deg_per_m = 0.02;  ///< heading drift per metre travelled [deg/m]
     double noise_std_m = 0.002;        ///< translation noise per record [m]
     double noise_std_deg = 0.02;       ///< heading noise per record [deg]
+    SensorTiming timing;
+    double slip_fraction = 0;     ///< share of the distance driven in wheel-slip episodes [0, 1]
+    double slip_episode_m = 5;    ///< length of one slip episode [m]
+    double slip_factor = 1.3;     ///< odometry distance / true distance while slipping
+    double dropout_fraction = 0;  ///< share of the time in odometry dropouts (no records) [0, 1)
+    double dropout_s = 2;         ///< duration of one dropout [s]
 };
 
 /// One drive along the route.
@@ -135,10 +180,36 @@ struct TraverseOptions {
     double accel_mps2 = 1.5;        ///< acceleration and braking at start and end [m/s^2]
     double start_m = 0;             ///< start along the route [m]
     double end_m = -1;              ///< end along the route, -1 = route end [m]
+    /// "forward": start_m to end_m; "reverse": end_m to start_m, the vehicle facing its way.
+    std::string direction = "forward";
+    /// Duty cycle, replacing start-to-end: comma list of legs from start_m, "drive S" (to route
+    /// position S [m], facing the way of travel), "reverse S" (backing up to S), "stop T"
+    /// (stand still T [s]). The vehicle cannot turn round: all motion keeps one facing.
+    std::string plan;
+    /// Per-traverse overrides ([traverse_i.SECTION]); empty = the scenario's section. The world
+    /// override changes appearance keys only (the mine's geometry is one for all traverses).
+    std::optional<WorldOptions> world;
+    std::optional<VehicleOptions> vehicle;
+    std::optional<CameraOptions> ceiling_camera;
+    std::optional<CameraOptions> forward_camera;
+    std::optional<LidarOptions> lidar;
+    std::optional<OdometryOptions> odometry;
 };
 
+/// One leg of a traverse plan.
+struct PlanLeg {
+    enum class Kind { Drive, Reverse, Stop } kind = Kind::Drive;
+    double value = 0;  ///< target route position [m] (Drive, Reverse) or dwell [s] (Stop)
+};
+
+/// Parses TraverseOptions::plan; throws std::invalid_argument saying which leg is malformed.
+std::vector<PlanLeg> parsePlan(const std::string& plan);
+
 /// The whole scenario. Sections: [scenario], [world], [vehicle], [ceiling_camera],
-/// [forward_camera], [lidar], [odometry], [traverse_0] ... [traverse_{traverse_count-1}].
+/// [forward_camera], [lidar], [odometry], [traverse_0] ... [traverse_{traverse_count-1}], and
+/// optional overrides [traverse_i.world] (appearance keys), [traverse_i.vehicle],
+/// [traverse_i.ceiling_camera], [traverse_i.forward_camera], [traverse_i.lidar],
+/// [traverse_i.odometry] holding the keys that differ on that traverse.
 /// Loading is strict: unknown sections or keys and malformed values are refused with a
 /// common::ConfigError naming the file, section and key.
 struct ScenarioOptions : public mrpt::config::CLoadableOptions {
@@ -174,6 +245,20 @@ struct ScenarioOptions : public mrpt::config::CLoadableOptions {
 
     /// The resolved scenario as .ini text (what `scenario.ini` holds).
     std::string toIniText() const;
+
+    /// Traverse i's sensors, vehicle and world: its override, else the scenario's.
+    const WorldOptions& worldFor(std::size_t i) const;
+    const VehicleOptions& vehicleFor(std::size_t i) const;
+    const CameraOptions& ceilingCameraFor(std::size_t i) const;
+    const CameraOptions& forwardCameraFor(std::size_t i) const;
+    const LidarOptions& lidarFor(std::size_t i) const;
+    const OdometryOptions& odometryFor(std::size_t i) const;
+
+  private:
+    /// Reads [SECTION.world] ... [SECTION.odometry] of traverse `tr` on top of this scenario's
+    /// (already loaded) sections.
+    void loadOverrides(const mrpt::config::CConfigFileBase& source, const std::string& section,
+                       TraverseOptions& tr) const;
 };
 
 /// `<dir>/<name>.ini` for the first dir in `search_dirs` that has it; throws ConfigError

@@ -59,9 +59,12 @@ common::PoseTrack vehicleTrack(const TunnelWorld& world, const TraverseOptions& 
 /// into the 0.1 m occupancy grid: its walls are staircases aligned with the map axes, and scan
 /// matching against them was biased by the tunnel's heading, 0.4 % in length and up to
 /// 0.007 deg/m in heading, which ICP-SLAM integrated over 1 km into metres.)
-mrpt::obs::CObservation2DRangeScan simulateLidar(const TunnelWorld& world,
-                                                 const mrpt::poses::CPose2D& vehicle,
-                                                 const LidarOptions& lidar, uint32_t noise_key);
+/// `vehicle_at_end` (optional): the vehicle when the last ray is measured; rays in between
+/// are taken from poses interpolated along the sweep (scan skew), the scan's stamp being the
+/// first ray's. Dust returns (`dust_rate`) replace a ray's range by a short one.
+mrpt::obs::CObservation2DRangeScan simulateLidar(
+    const TunnelWorld& world, const mrpt::poses::CPose2D& vehicle, const LidarOptions& lidar,
+    uint32_t noise_key, const mrpt::poses::CPose2D* vehicle_at_end = nullptr);
 
 class Simulator {
   public:
@@ -91,8 +94,15 @@ class Simulator {
                                 const mrpt::maps::COccupancyGridMap2D& grid,
                                 const Progress& progress) const;
 
+    /// Plan targets beyond the route's end: ConfigError naming the file, traverse and leg.
+    void checkPlansOnRoute() const;
+    /// A lens distortion that leaves some pixel without a ray: ConfigError naming the section.
+    void checkLenses() const;
+
     ScenarioOptions scenario_;
     std::unique_ptr<TunnelWorld> world_;
+    /// Per traverse: its own-appearance world ([traverse_i.world]), null = world_.
+    std::vector<std::unique_ptr<TunnelWorld>> traverse_worlds_;
     std::vector<common::PoseTrack> tracks_;
 };
 

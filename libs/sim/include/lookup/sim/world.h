@@ -70,6 +70,8 @@ class TunnelWorld {
     TunnelWorld(const WorldOptions& options, uint64_t seed);
 
     const WorldOptions& options() const { return opt_; }
+    /// The world's 32-bit seed (a hash of the scenario seed).
+    uint32_t seed() const { return seed_; }
     const std::vector<TunnelSegment>& segments() const { return segments_; }
     /// Smoothed drivable centre line, points 0.25 m apart, from the start of the route.
     const std::vector<Eigen::Vector2d>& route() const { return route_; }
