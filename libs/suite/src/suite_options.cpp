@@ -110,7 +110,7 @@ Condition readCondition(const mrpt::config::CConfigFileBase& ini, const std::str
     ini.getAllKeys(section, keys);
     for (const auto& key : keys) {
         if (key == "preset" || key == "localize_ini") continue;
-        const std::size_t dot = key.find('.');
+        const std::size_t dot = key.rfind('.');  // sections may hold dots: traverse_3.world
         if (dot == std::string::npos || dot == 0 || dot + 1 == key.size()) {
             throw common::ConfigError(s.where(key) +
                                       "unknown key (overrides are SECTION.KEY = VALUE)");
