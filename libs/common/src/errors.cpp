@@ -1,0 +1,90 @@
+#include "lookup/common/errors.h"
+
+#include <mrpt/3rdparty/tclap/ArgException.h>
+#include <mrpt/core/exceptions.h>
+
+#include <iostream>
+#include <new>
+#include <sstream>
+
+#include "lookup/common/config.h"
+
+namespace lookup::common {
+namespace {
+
+std::string trim(const std::string& s) {
+    const auto b = s.find_first_not_of(" \t\r\n");
+    if (b == std::string::npos) return {};
+    return s.substr(b, s.find_last_not_of(" \t\r\n") - b + 1);
+}
+
+// MRPT's dump: "==== MRPT exception ====\nMessage: ...\nLocation: ...\nCall stack ...".
+constexpr const char* kMrptDumpMark = "==== MRPT exception ====";
+
+std::string withoutDump(const std::string& text) {
+    const auto mark = text.find(kMrptDumpMark);
+    if (mark == std::string::npos) return text;
+    std::string line = trim(text.substr(0, mark));
+    const auto msg = text.find("Message:", mark);
+    if (msg != std::string::npos) {
+        const auto from = msg + std::string("Message:").size();
+        const auto end = text.find('\n', from);
+        const std::string m = trim(text.substr(from, end == std::string::npos ? end : end - from));
+        line += (line.empty() ? "" : " ") + m;
+    }
+    return line;
+}
+
+}  // namespace
+
+WriteError::WriteError(const std::string& file, const std::string& reason)
+    : std::runtime_error(file + ": write error: " + reason) {}
+
+std::string errorLine(const std::exception& e) {
+    std::stringstream in(withoutDump(e.what()));
+    std::string out;
+    for (std::string line; std::getline(in, line);) {
+        line = trim(line);
+        if (!line.empty()) out += (out.empty() ? "" : "; ") + line;
+    }
+    return out.empty() ? std::string("unknown error") : out;
+}
+
+std::string errorText(const std::exception& e, bool verbose) {
+    return verbose ? std::string(e.what()) : errorLine(e);
+}
+
+int exitCodeFor(const std::exception& e) {
+    if (dynamic_cast<const ConfigError*>(&e) || dynamic_cast<const TCLAP::ArgException*>(&e)) {
+        return kExitUsage;
+    }
+    if (dynamic_cast<const WriteError*>(&e)) return kExitWriteError;
+    if (dynamic_cast<const InternalError*>(&e) || dynamic_cast<const std::bad_alloc*>(&e)) {
+        return kExitInternal;
+    }
+    return kExitBadInput;
+}
+
+bool verboseRequested(int argc, const char* const* argv) {
+    for (int i = 1; i < argc; ++i) {
+        const std::string a = argv[i];
+        if (a == "--verbose" || a == "-v") return true;
+    }
+    return false;
+}
+
+int guardedMain(const char* program, int argc, const char* const* argv,
+                const std::function<int()>& body) {
+    const bool verbose = verboseRequested(argc, argv);
+    try {
+        return body();
+    } catch (const std::exception& e) {
+        std::cerr << program << ": " << errorText(e, verbose) << std::endl;
+        return exitCodeFor(e);
+    } catch (...) {
+        std::cerr << program << ": internal error: unknown exception" << std::endl;
+        return kExitInternal;
+    }
+}
+
+}  // namespace lookup::common
