@@ -281,7 +281,11 @@ SurveyResult Survey::run(const SurveyInputs& in) const {
     result.out_dir = fs::absolute(in.out_dir).lexically_normal().string();
     try {
         if (in.traverses.empty()) throw std::runtime_error("no input traverses");
-        if (in.out_dir.empty()) throw std::runtime_error("no output folder given");
+        if (in.out_dir.empty()) throw common::ConfigError("no output folder given");
+        // Leftovers of an interrupted run: the old database put back, stale folders removed.
+        for (auto& line : database::recoverInterrupted(in.out_dir)) {
+            result.warnings.push_back(std::move(line));
+        }
         const bool laser = in.poses_file.empty();
 
         // 1. Read every traverse (image headers, odometry, scans) and its ground truth.
