@@ -89,12 +89,15 @@ TEST(SurveyFault, NonFiniteLidarRangesLeaveReferencePosesAsAccurate) {
             if (i % 31 == 0) scan->setScanRange(i, std::numeric_limits<float>::infinity());
             if (i % 53 == 0) scan->setScanRange(i, -1.0f);
         }
+        if (scans == 50) scan->aperture = float(kNaN);
+        if (scans == 60) scan->maxRange = std::numeric_limits<float>::infinity();
+        if (scans == 70) scan->sensorPose.x(kNaN);
     });
     const auto r =
         Survey(shareOptions(), shareIni()).run(inputsFor(bad, f.ground_truth, dir / "db"));
     ASSERT_TRUE(r.ok()) << r.reason;
     const auto& t = r.traverses.at(0);
-    EXPECT_EQ(t.skipped.scans, 1u);  // the all-NaN one
+    EXPECT_EQ(t.skipped.scans, 4u);  // all-NaN ranges, NaN aperture, inf maxRange, NaN pose
     EXPECT_GT(t.skipped.lidar_ranges, 30 * scans);
     ASSERT_FALSE(r.warnings.empty());
     EXPECT_NE(r.warnings[0].find("nan.rawlog"), std::string::npos) << r.warnings[0];

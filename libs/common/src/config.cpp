@@ -258,10 +258,11 @@ void checkMrptSection(const mrpt::config::CConfigFileBase& config, const std::st
                       const std::vector<std::string>& extra) {
     if (!config.sectionExists(section)) return;
     KeyRecorder recorder(config);
+    std::string load_error;  // reported after the key checks, which name the key
     try {
         load(recorder);
     } catch (const std::exception& e) {
-        throw ConfigError(configSourceName(config) + " [" + section + "]: " + errorLine(e));
+        load_error = configSourceName(config) + " [" + section + "]: " + errorLine(e);
     }
     const IniSection user(config, section);
     std::vector<std::string> keys;
@@ -269,6 +270,7 @@ void checkMrptSection(const mrpt::config::CConfigFileBase& config, const std::st
     for (const auto& key : keys) {
         const std::string value = user.getString(key, "");
         const auto it = recorder.defaults.find(lowerCase(section) + "/" + lowerCase(key));
+        if (it == recorder.defaults.end() && !load_error.empty()) continue;  // not reached
         if (it == recorder.defaults.end()) {
             if (std::find(extra.begin(), extra.end(), lowerCase(key)) != extra.end()) continue;
             throw ConfigError(user.where(key) + "unknown key (MRPT does not read it)");
@@ -280,11 +282,17 @@ void checkMrptSection(const mrpt::config::CConfigFileBase& config, const std::st
         if (isNumber(dflt) && !isNumber(value) && !(isBool(dflt) && isBool(value))) {
             throw ConfigError(user.where(key) + "'" + value + "' is not a finite number");
         }
+        const bool bracketed = value.size() >= 2 && value.front() == '[' && value.back() == ']';
+        if (bracketed && !vectorSize(value)) {
+            throw ConfigError(user.where(key) + "'" + value +
+                              "' is not a vector of finite numbers");
+        }
         if (const auto n = vectorSize(dflt); n && vectorSize(value) != n) {
             throw ConfigError(user.where(key) + "'" + value + "' is not a vector of " +
                               std::to_string(*n) + " finite numbers");
         }
     }
+    if (!load_error.empty()) throw ConfigError(load_error);
 }
 
 void OptionsCheck::require(bool condition, const std::string& field,
