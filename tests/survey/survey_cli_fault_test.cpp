@@ -129,7 +129,9 @@ TEST(SurveyCliFault, DamagedRawlogsRefusedNamingTheFileNeverASignal) {
     const auto& d = data();
     const std::string bytes = slurp(d.f.rawlog);
     const fs::path bad = d.dir / "damaged.rawlog";
-    fs::create_directories(d.dir / "damaged_Images");
+    // The damaged copy refers to the same external images.
+    fs::remove_all(d.dir / "damaged_Images");
+    fs::create_directory_symlink(d.dir / "corridor_Images", d.dir / "damaged_Images");
     fs::copy_file(d.f.ground_truth, bad.string() + ".GT.txt", fs::copy_options::overwrite_existing);
     int refused = 0, accepted = 0;
     for (int k = 0; k < 12; ++k) {
@@ -150,7 +152,8 @@ TEST(SurveyCliFault, DamagedRawlogsRefusedNamingTheFileNeverASignal) {
         ++refused;
         EXPECT_EQ(r.code, 2) << "case " << k << ": " << r.err;
         EXPECT_EQ(lines(r.err), 1u) << r.err;
-        EXPECT_NE(r.err.find("damaged.rawlog"), std::string::npos) << r.err;
+        EXPECT_NE(r.err.find("damaged.rawlog: record"), std::string::npos) << r.err;
+        EXPECT_EQ(r.err.find("missing external image"), std::string::npos) << r.err;
     }
     EXPECT_GE(refused, 4);  // every truncation at least
     RecordProperty("damaged_accepted", accepted);

@@ -9,6 +9,7 @@
 #include <signal.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstdio>
 #include <cstdlib>
@@ -121,7 +122,11 @@ std::vector<std::string> recoverInterrupted(const std::string& out) {
     }
     std::vector<std::string> done;
     if (!fs::exists(target) && !old.empty()) {
-        // Killed between the renames: the old database is complete; put it back.
+        // Killed between the renames: the old database is complete; put the newest back.
+        std::sort(old.begin(), old.end(), [](const fs::path& a, const fs::path& b) {
+            std::error_code e;
+            return fs::last_write_time(a, e) < fs::last_write_time(b, e);
+        });
         const fs::path back = old.back();
         old.pop_back();
         fs::rename(back, target, ec);
