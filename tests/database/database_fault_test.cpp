@@ -7,11 +7,13 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <functional>
 #include <iterator>
+#include <limits>
 
 #include "lookup/common/errors.h"
 #include "lookup/database/database_writer.h"
@@ -215,4 +217,19 @@ TEST(DatabaseFault, FullDiskIsAWriteErrorAndKeepsTheOldDatabase) {
         ASSERT_EQ(loadError(db), "") << limit;
         EXPECT_EQ(ReferenceDatabase::load(db.string()).size(), 3u) << limit;
     }
+}
+
+TEST(DatabaseFault, NonFinitePoseNeverStored) {
+    const auto dir = tempDir("nanpose");
+    DatabaseWriter w((dir / "db").string());
+    ReferenceInput in;
+    in.ceiling = mrpt::obs::CObservationImage::Create();
+    in.ceiling->image.resize(8, 8, mrpt::img::CH_GRAY);
+    in.vehicle_cov.setIdentity();
+    in.vehicle_pose = mrpt::poses::CPose3D(1, std::nan(""), 0, 0, 0, 0);
+    EXPECT_THROW(w.add(in), DatabaseError);
+    in.vehicle_pose = mrpt::poses::CPose3D();
+    in.vehicle_cov(1, 1) = std::numeric_limits<double>::infinity();
+    EXPECT_THROW(w.add(in), DatabaseError);
+    EXPECT_EQ(w.size(), 0u);
 }

@@ -11,6 +11,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -174,6 +175,20 @@ DatabaseWriter::~DatabaseWriter() {
 
 uint32_t DatabaseWriter::add(const ReferenceInput& in) {
     if (!in.ceiling) throw DatabaseError("DatabaseWriter::add: reference without ceiling image");
+    // The last line of defence: whatever went wrong upstream, no NaN reaches the database.
+    const auto finite = [](const mrpt::poses::CPose3D& p) {
+        const auto v = p.asVectorVal();
+        return std::all_of(v.begin(), v.end(), [](double x) { return std::isfinite(x); });
+    };
+    bool cov_finite = true;
+    for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) cov_finite &= std::isfinite(in.vehicle_cov(r, c));
+    if (!finite(in.vehicle_pose) || !cov_finite || !finite(in.ceiling->cameraPose) ||
+        (in.forward && !finite(in.forward_vehicle_pose))) {
+        throw DatabaseError(out_dir_ + ": reference " + std::to_string(references_.size()) +
+                            " (t=" + std::to_string(mrpt::Clock::toDouble(in.ceiling->timestamp)) +
+                            " s) has a non-finite pose or covariance; not stored");
+    }
     const auto id = static_cast<uint32_t>(references_.size());
     char stem[32];
     std::snprintf(stem, sizeof(stem), "%06u", id);
