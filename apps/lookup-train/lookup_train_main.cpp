@@ -14,6 +14,8 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "lookup/common/cli.h"
+#include "lookup/common/config.h"
+#include "lookup/common/errors.h"
 #include "lookup/common/share_dirs.h"
 #include "lookup/database/reference_database.h"
 #include "lookup/fcn/heat_maps.h"
@@ -53,7 +55,7 @@ void drawFigure(const std::string& db_dir, int index, const std::string& png) {
     const auto points = lookup::refine::heatMapPoints(heat, s.heat_map_points, s.damping_ratio,
                                                       s.damping_side_px, s.heatMapMargin());
     if (!cv::imwrite(png, lookup::fcn::heatMapFigure(db.ceilingImage(i), heat, points))) {
-        throw std::runtime_error(png + ": cannot write");
+        throw lookup::common::WriteError(png, "cannot write the figure");
     }
     std::printf("%s: reference %zu of %s\n", png.c_str(), i, db_dir.c_str());
 }
@@ -61,9 +63,11 @@ void drawFigure(const std::string& db_dir, int index, const std::string& png) {
 }  // namespace
 
 int main(int argc, char** argv) {
-    try {
-        TCLAP::CmdLine cmd("lookup-train: FCN sample-point selector (LibTorch) and heat maps", ' ',
-                           "0.1");
+    return lookup::common::guardedMain("lookup-train", argc, argv, [&] {
+        TCLAP::CmdLine cmd(std::string("lookup-train: FCN sample-point selector (LibTorch) and "
+                                       "heat maps. ") +
+                               lookup::common::kExitCodesHelp,
+                           ' ', "0.1");
         TCLAP::ValueArg<std::string> db("", "db", "reference database folder", true, "", "DB", cmd);
         TCLAP::ValueArg<std::string> train("", "train",
                                            "training query rawlogs, comma separated (each with "
@@ -91,6 +95,7 @@ int main(int argc, char** argv) {
         TCLAP::SwitchArg no_heat("", "no-heatmaps", "do not write heat maps into the database",
                                  cmd);
         TCLAP::SwitchArg quiet("", "quiet", "no progress bars", cmd);
+        TCLAP::SwitchArg verbose("v", "verbose", "full error texts (MRPT call stacks)", cmd);
         TCLAP::ValueArg<std::string> figure("", "figure",
                                             "only draw reference --figure-ref beside its stored "
                                             "heat map and the 12 points the localiser samples "
@@ -108,10 +113,11 @@ int main(int argc, char** argv) {
         const std::string ini_file = ini.getValue().empty() ? defaultIni() : ini.getValue();
         if (!ini_file.empty()) {
             if (!std::filesystem::is_regular_file(ini_file)) {
-                throw std::runtime_error(ini_file + ": no such file");
+                throw lookup::common::ConfigError(ini_file + ": no such file");
             }
-            mrpt::config::CConfigFile cfg(ini_file);
-            options.loadFromConfigFile(cfg, "fcn");
+            const auto cfg = lookup::common::loadIniFile(ini_file);
+            options.loadFromConfigFile(*cfg, "fcn");
+            lookup::common::IniSection(*cfg, "fcn").validate([&] { options.check(); });
         }
         options.check();
 
@@ -123,7 +129,8 @@ int main(int argc, char** argv) {
             return 0;
         }
         if (train.getValue().empty()) {
-            throw std::runtime_error("--train FILES is required (or --heatmaps-only MODEL)");
+            throw lookup::common::ConfigError(
+                "--train FILES is required (or --heatmaps-only MODEL)");
         }
 
         lookup::fcn::TrainRequest req;
@@ -150,9 +157,9 @@ int main(int argc, char** argv) {
             r.evaluation.pairs, r.model_file.c_str(), r.heat_maps.directory.c_str(),
             r.heat_maps.count, r.report_file.c_str());
         for (const auto& w : r.warnings) std::fprintf(stderr, "warning: %s\n", w.c_str());
+        if (std::fflush(stdout) != 0 || std::ferror(stdout)) {
+            throw lookup::common::WriteError("stdout", "cannot write the summary");
+        }
         return 0;
-    } catch (const std::exception& e) {
-        std::cerr << "lookup-train: " << e.what() << "\n";
-        return 1;
-    }
+    });
 }

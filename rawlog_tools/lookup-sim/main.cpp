@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "lookup/common/cli.h"
+#include "lookup/common/errors.h"
 #include "lookup/common/share_dirs.h"
 
 namespace {
@@ -27,8 +28,12 @@ std::vector<std::string> scenarioDirectories() {
 
 }  // namespace
 
-int main(int argc, char** argv) {
-    TCLAP::CmdLine cmd("lookup-sim: synthetic underground mine with ground truth (MRPT rawlogs)",
+namespace {
+
+int run(int argc, char** argv) {
+    TCLAP::CmdLine cmd(std::string("lookup-sim: synthetic underground mine with ground truth "
+                                   "(MRPT rawlogs). ") +
+                           lookup::common::kExitCodesHelp,
                        ' ', "0.1");
     TCLAP::ValueArg<std::string> preset(
         "p", "preset",
@@ -42,17 +47,13 @@ int main(int argc, char** argv) {
     TCLAP::ValueArg<int> threads("j", "threads", "render threads (0: all cores)", false, -1, "N",
                                  cmd);
     TCLAP::SwitchArg quiet("q", "quiet", "no progress bar", cmd);
-    try {
-        if (!cmd.parse(argc, argv)) return lookup::common::parseFailureExitCode(argc, argv);
-    } catch (const TCLAP::ArgException& e) {
-        std::cerr << "lookup-sim: " << e.error() << " (" << e.argId() << ")\n";
-        return 2;
-    }
+    TCLAP::SwitchArg verbose("v", "verbose", "full error texts (MRPT call stacks)", cmd);
+    if (!cmd.parse(argc, argv)) return lookup::common::parseFailureExitCode(argc, argv);
     if (preset.isSet() == scenario.isSet()) {
-        std::cerr << "lookup-sim: give exactly one of --preset NAME or --scenario FILE.ini\n";
-        return 2;
+        throw lookup::common::ConfigError(
+            "give exactly one of --preset NAME or --scenario FILE.ini");
     }
-    try {
+    {
         const std::string path =
             scenario.isSet() ? scenario.getValue()
                              : lookup::sim::findPreset(preset.getValue(), scenarioDirectories());
@@ -72,10 +73,19 @@ int main(int argc, char** argv) {
             std::fflush(stderr);
         };
         const auto result = sim.run(out.getValue(), progress);
-        std::cout << lookup::sim::formatSummary(result);
-        return result.status == lookup::sim::SimulationResult::Status::Ok ? 0 : 1;
-    } catch (const std::exception& e) {
-        std::cerr << "lookup-sim: " << e.what() << "\n";
-        return 1;
+        if (result.status != lookup::sim::SimulationResult::Status::Ok) {
+            // The simulator's failures are the outputs it could not write.
+            std::cerr << "lookup-sim: FAILED: " << result.reason << std::endl;
+            return int(lookup::common::kExitWriteError);
+        }
+        std::cout << lookup::sim::formatSummary(result) << std::flush;
+        if (!std::cout) throw lookup::common::WriteError("stdout", "cannot write the summary");
+        return int(lookup::common::kExitOk);
     }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    return lookup::common::guardedMain("lookup-sim", argc, argv, [&] { return run(argc, argv); });
 }

@@ -32,6 +32,7 @@ void writeDatabase(const fs::path& out, int n) {
     cam.ncols = 16;
     cam.nrows = 12;
     cam.fx(321.5);
+    cam.fy(321.5);
     for (int i = 0; i < n; ++i) {
         ReferenceInput in;
         in.traverse = i < n / 2 ? "a" : "b";
@@ -162,6 +163,16 @@ TEST(Database, MissingImageAndMissingFolderNamed) {
     const auto dir = tempDir("broken");
     writeDatabase(dir / "db", 3);
     fs::remove(dir / "db" / "refs_Images" / "ceiling_000001.png");
+    try {
+        ReferenceDatabase::load((dir / "db").string());
+        FAIL() << "missing image accepted";
+    } catch (const DatabaseError& e) {
+        const std::string m = e.what();
+        EXPECT_NE(m.find("ceiling_000001.png"), std::string::npos) << m;
+        EXPECT_NE(m.find("manifest.crc32"), std::string::npos) << m;
+    }
+    // Without the manifest (older databases) the record that refers to it is named.
+    fs::remove(dir / "db" / "manifest.crc32");
     try {
         ReferenceDatabase::load((dir / "db").string());
         FAIL() << "missing image accepted";

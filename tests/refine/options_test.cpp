@@ -76,3 +76,27 @@ TEST(RefinerOptions, LoadingIsStrict) {
     mrpt::config::CConfigFileMemory nan("[r.matcher]\npatch_px = forty\n");
     EXPECT_THROW(o.loadFromConfigFile(nan, "r"), ConfigError);
 }
+
+TEST(RefinerOptions, IntegersAreRangeCheckedOnLoadNamingTheRange) {
+    const auto message = [](const std::string& text) {
+        mrpt::config::CConfigFileMemory cfg(text);
+        RefinerOptions o;
+        try {
+            o.loadFromConfigFile(cfg, "r");
+        } catch (const ConfigError& e) {
+            return std::string(e.what());
+        }
+        return std::string();
+    };
+    // 4294967320 used to wrap to 24 (the default) and pass unnoticed.
+    std::string m = message("[r.sampler]\ngrid_points = 4294967320\n");
+    EXPECT_NE(m.find("[r.sampler] grid_points: 4294967320 is out of range [4, 1024]"),
+              std::string::npos)
+        << m;
+    m = message("[r.sampler]\ngrid_points = 100000\n");
+    EXPECT_NE(m.find("grid_points: 100000 is out of range [4, 1024]"), std::string::npos) << m;
+    m = message("[r.matcher]\nsearch_range_px = -5\n");
+    EXPECT_NE(m.find("search_range_px: -5 is out of range [2, 512]"), std::string::npos) << m;
+    m = message("[r.sampler]\ndamping_ratio = nan\n");
+    EXPECT_NE(m.find("damping_ratio: 'nan' is not finite"), std::string::npos) << m;
+}

@@ -95,6 +95,8 @@ inline Fixture makeSurveyRawlog(const std::string& dir, const std::string& name,
     cam.fy(40);
     cam.cx(40);
     cam.cy(30);
+    mrpt::img::TCamera forward_cam = cam;  // the survey refuses images of another size
+    forward_cam.scaleToResolution(32, 24);
     for (int k = 0; k <= static_cast<int>(duration_s * 10); ++k) {
         const double t = k * 0.1;
         const auto pose = truePoseAt(t);
@@ -132,7 +134,7 @@ inline Fixture makeSurveyRawlog(const std::string& dir, const std::string& name,
         forward.sensorLabel = "FORWARD_CAM";
         forward.timestamp = mrpt::Clock::fromDouble(t0 + t + 0.02);
         forward.cameraPose = f.forward_mount;
-        forward.cameraParams = cam;
+        forward.cameraParams = forward_cam;
         forward.image = mrpt::img::CImage(ceilingTexture(mrpt::poses::CPose3D(pose), 32, 24),
                                           mrpt::img::DEEP_COPY);
         w.writeWithExternalImage(forward, "FORWARD_CAM_" + std::to_string(k) + ".png");

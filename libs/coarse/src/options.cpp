@@ -7,10 +7,7 @@
 namespace lookup::coarse {
 namespace {
 std::string sourceName(const mrpt::config::CConfigFileBase& source) {
-    if (const auto* file = dynamic_cast<const mrpt::config::CConfigFile*>(&source)) {
-        return file->getAssociatedFile();
-    }
-    return "<config>";
+    return common::configSourceName(source);
 }
 }  // namespace
 
@@ -42,27 +39,31 @@ void CoarseOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& sour
                          "odometry_tolerance_m",
                          "odometry_tolerance_per_m"});
     camera_label = s.getString("camera_label", camera_label);
-    thumb_width_px = s.getInt("thumb_width_px", thumb_width_px);
-    thumb_height_px = s.getInt("thumb_height_px", thumb_height_px);
-    patch_size_px = s.getInt("patch_size_px", patch_size_px);
-    sequence_length = s.getInt("sequence_length", sequence_length);
+    thumb_width_px = s.getInt("thumb_width_px", thumb_width_px, 4, 1024);
+    thumb_height_px = s.getInt("thumb_height_px", thumb_height_px, 4, 1024);
+    patch_size_px = s.getInt("patch_size_px", patch_size_px, 2, 1024);
+    sequence_length = s.getInt("sequence_length", sequence_length, 2, 100000);
     velocity_min = s.getDouble("velocity_min", velocity_min);
     velocity_max = s.getDouble("velocity_max", velocity_max);
-    velocity_steps = s.getInt("velocity_steps", velocity_steps);
-    contrast_window_refs = s.getInt("contrast_window_refs", contrast_window_refs);
-    exclusion_half_window_refs = s.getInt("exclusion_half_window_refs", exclusion_half_window_refs);
-    tracking_half_window_refs = s.getInt("tracking_half_window_refs", tracking_half_window_refs);
+    velocity_steps = s.getInt("velocity_steps", velocity_steps, 1, 1000);
+    contrast_window_refs = s.getInt("contrast_window_refs", contrast_window_refs, 1, 100000);
+    exclusion_half_window_refs =
+        s.getInt("exclusion_half_window_refs", exclusion_half_window_refs, 0, 100000);
+    tracking_half_window_refs =
+        s.getInt("tracking_half_window_refs", tracking_half_window_refs, 1, 100000);
     min_confidence = s.getDouble("min_confidence", min_confidence);
     global_index_min_references =
-        s.getInt("global_index_min_references", global_index_min_references);
-    global_index_neighbours = s.getInt("global_index_neighbours", global_index_neighbours);
-    global_index_windows = s.getInt("global_index_windows", global_index_windows);
+        s.getInt("global_index_min_references", global_index_min_references, 0, 100000000);
+    global_index_neighbours =
+        s.getInt("global_index_neighbours", global_index_neighbours, 1, 100000);
+    global_index_windows = s.getInt("global_index_windows", global_index_windows, 1, 100000);
     global_index_full_search_every =
-        s.getInt("global_index_full_search_every", global_index_full_search_every);
+        s.getInt("global_index_full_search_every", global_index_full_search_every, 0, 100000000);
     use_odometry = s.getBool("use_odometry", use_odometry);
     odometry_scale_tolerance = s.getDouble("odometry_scale_tolerance", odometry_scale_tolerance);
-    odometry_scale_steps = s.getInt("odometry_scale_steps", odometry_scale_steps);
-    odometry_sequence_length = s.getInt("odometry_sequence_length", odometry_sequence_length);
+    odometry_scale_steps = s.getInt("odometry_scale_steps", odometry_scale_steps, 1, 1000);
+    odometry_sequence_length =
+        s.getInt("odometry_sequence_length", odometry_sequence_length, 2, 100000);
     max_coast_m = s.getDouble("max_coast_m", max_coast_m);
     confirm_global = s.getBool("confirm_global", confirm_global);
     odometry_tolerance_m = s.getDouble("odometry_tolerance_m", odometry_tolerance_m);

@@ -1,11 +1,13 @@
 #include <mrpt/config/CConfigFile.h>
 #include <mrpt/config/CConfigFileMemory.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 
 #include "lookup/common/config.h"
+#include "lookup/common/errors.h"
 #include "lookup/database/reference.h"
 
 namespace lookup::database {
@@ -27,13 +29,46 @@ std::vector<std::string> split(const std::string& s) {
     return out;
 }
 
+// [ceiling_camera] / [forward_camera]: MRPT's TCamera reader takes "fx = abc" as 0, so the
+// keys and values are checked first, and the intrinsics must be usable.
+// `may_be_unset`: all-zero focal lengths mean "no such camera" (a survey without forward
+// images writes MRPT's default TCamera).
+void readCamera(const mrpt::config::CConfigFileBase& cfg, const std::string& path,
+                const std::string& section, mrpt::img::TCamera& camera, bool may_be_unset) {
+    try {
+        if (!cfg.sectionExists(section)) {
+            throw common::ConfigError(path + ": no [" + section + "] section");
+        }
+        common::checkMrptSection(cfg, section, [&](const mrpt::config::CConfigFileBase& view) {
+            camera.loadFromConfigFile(section, view);
+        });
+        const common::IniSection s(cfg, section, path);
+        if (may_be_unset && camera.fx() == 0 && camera.fy() == 0) return;
+        if (!(camera.fx() > 0 && camera.fy() > 0 && std::isfinite(camera.fx()) &&
+              std::isfinite(camera.fy()))) {
+            throw common::ConfigError(s.where("fx") + "focal lengths must be finite and > 0");
+        }
+        if (camera.ncols == 0 || camera.nrows == 0) {
+            throw common::ConfigError(s.where("resolution") + "image size must be > 0");
+        }
+    } catch (const common::ConfigError& e) {
+        throw DatabaseError(e.what());
+    }
+}
+
 }  // namespace
 
 DatabaseInfo readDatabaseInfo(const std::string& path) {
     if (!std::filesystem::is_regular_file(path)) {
         throw DatabaseError(path + ": no such file (not a LookUP database?)");
     }
-    mrpt::config::CConfigFile cfg(path);
+    std::unique_ptr<common::NamedConfigFile> file;
+    try {
+        file = common::loadIniFile(path);
+    } catch (const common::ConfigError& e) {
+        throw DatabaseError(e.what());
+    }
+    const auto& cfg = *file;
     DatabaseInfo info;
     try {
         common::IniSection db(cfg, "database", path);
@@ -58,13 +93,9 @@ DatabaseInfo readDatabaseInfo(const std::string& path) {
     } catch (const common::ConfigError& e) {
         throw DatabaseError(e.what());
     }
-    try {
-        info.ceiling_camera.loadFromConfigFile("ceiling_camera", cfg);
-        if (cfg.sectionExists("forward_camera")) {
-            info.forward_camera.loadFromConfigFile("forward_camera", cfg);
-        }
-    } catch (const std::exception& e) {
-        throw DatabaseError(path + " [ceiling_camera]/[forward_camera]: " + e.what());
+    readCamera(cfg, path, "ceiling_camera", info.ceiling_camera, false);
+    if (cfg.sectionExists("forward_camera")) {
+        readCamera(cfg, path, "forward_camera", info.forward_camera, true);
     }
     return info;
 }
@@ -83,7 +114,7 @@ void writeDatabaseInfo(const std::string& path, const DatabaseInfo& info) {
     info.ceiling_camera.saveToConfigFile("ceiling_camera", cfg);
     info.forward_camera.saveToConfigFile("forward_camera", cfg);
     std::ofstream out(path);
-    if (!out) throw DatabaseError(path + ": cannot open for writing");
+    if (!out) throw common::WriteError(path, "cannot open for writing");
     out << "# LookUP reference database (written by lookup-survey; see docs/survey.md)\n";
     out << cfg.getContent() << "\n";
     out << "# Quality heat maps (paper Sec. III-C), one image per reference named <id>.png in\n"
@@ -92,7 +123,8 @@ void writeDatabaseInfo(const std::string& path, const DatabaseInfo& info) {
            "directory = "
         << info.heatmaps_dir << "\n\n";
     out << "# Options used to build the database\n" << info.options_ini << "\n";
-    if (!out) throw DatabaseError(path + ": write failed");
+    out.close();
+    if (!out) throw common::WriteError(path, "write failed");
 }
 
 }  // namespace lookup::database

@@ -1,15 +1,27 @@
 #include "lookup/database/database_writer.h"
 
+#include <mrpt/io/CFileGZInputStream.h>
 #include <mrpt/io/CFileGZOutputStream.h>
 #include <mrpt/obs/CObservationRobotPose.h>
 #include <mrpt/serialization/CArchive.h>
 
+#include <fcntl.h>
+#include <signal.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 
+#include "lookup/common/errors.h"
 #include "lookup/common/pose_files.h"
+#include "lookup/database/manifest.h"
+#include "lookup/database/reference_database.h"
 #include "lookup/obs/observation_lookup_reference.h"
 
 namespace lookup::database {
@@ -38,11 +50,9 @@ mrpt::obs::CObservationImage::Ptr externalCopy(const mrpt::obs::CObservationImag
         const std::string from = src.image.getExternalStorageFileAbsolutePath();
         std::error_code ec;
         fs::copy_file(from, target, fs::copy_options::overwrite_existing, ec);
-        if (ec)
-            throw DatabaseError("cannot copy image " + from + " to " + target + ": " +
-                                ec.message());
+        if (ec) throw common::WriteError(target, "cannot copy image " + from + ": " + ec.message());
     } else if (!src.image.saveToFile(target)) {
-        throw DatabaseError("cannot write image " + target);
+        throw common::WriteError(target, "cannot write image");
     }
     auto out = mrpt::obs::CObservationImage::Create();
     out->sensorLabel = src.sensorLabel;
@@ -53,17 +63,107 @@ mrpt::obs::CObservationImage::Ptr externalCopy(const mrpt::obs::CObservationImag
     return out;
 }
 
+// fsync of a file or folder; WriteError naming it on failure.
+void syncPath(const fs::path& path, bool directory) {
+    const int fd = ::open(path.c_str(), directory ? (O_RDONLY | O_DIRECTORY) : O_RDONLY);
+    if (fd < 0) throw common::WriteError(path.string(), std::strerror(errno));
+    const int rc = ::fsync(fd);
+    const int err = errno;
+    ::close(fd);
+    if (rc != 0)
+        throw common::WriteError(path.string(), std::string("fsync: ") + std::strerror(err));
+}
+
+// Every file and folder under `dir` (and `dir` itself) on disk before the rename.
+void syncTree(const fs::path& dir) {
+    for (const auto& e : fs::recursive_directory_iterator(dir)) {
+        syncPath(e.path(), e.is_directory());
+    }
+    syncPath(dir, true);
+}
+
+// The pid in a leftover's name "<base>.tmp-<pid>-XXXXXX" (0 when the name has none).
+long ownerPid(const std::string& name, const std::string& prefix) {
+    return std::strtol(name.c_str() + prefix.size(), nullptr, 10);
+}
+
+bool processAlive(long pid) { return pid > 0 && (::kill(pid_t(pid), 0) == 0 || errno == EPERM); }
+
+std::string megabytes(const fs::path& dir) {
+    std::uintmax_t bytes = 0;
+    std::error_code ec;
+    for (const auto& e : fs::recursive_directory_iterator(dir, ec)) {
+        if (e.is_regular_file(ec)) bytes += e.file_size(ec);
+    }
+    char buf[32];
+    std::snprintf(buf, sizeof(buf), "%.1f MB", bytes / 1.0e6);
+    return buf;
+}
+
 }  // namespace
+
+void testKillPoint(const char* point) {
+    const char* at = std::getenv("LOOKUP_TEST_KILL_AT");
+    if (at != nullptr && std::strcmp(at, point) == 0) ::raise(SIGKILL);
+}
+
+std::vector<std::string> recoverInterrupted(const std::string& out) {
+    const fs::path target(normalised(out));
+    const std::string base = target.filename().string();
+    std::vector<fs::path> staging, old;
+    std::error_code ec;
+    for (const auto& e : fs::directory_iterator(target.parent_path(), ec)) {
+        const std::string name = e.path().filename().string();
+        for (const auto& [kind, list] : {std::pair{".tmp-", &staging}, std::pair{".old-", &old}}) {
+            const std::string prefix = base + kind;
+            if (name.rfind(prefix, 0) == 0 && !processAlive(ownerPid(name, prefix))) {
+                list->push_back(e.path());
+            }
+        }
+    }
+    std::vector<std::string> done;
+    if (!fs::exists(target) && !old.empty()) {
+        // Killed between the renames: the old database is complete; put the newest back.
+        std::sort(old.begin(), old.end(), [](const fs::path& a, const fs::path& b) {
+            std::error_code e;
+            return fs::last_write_time(a, e) < fs::last_write_time(b, e);
+        });
+        const fs::path back = old.back();
+        old.pop_back();
+        fs::rename(back, target, ec);
+        if (ec) {
+            throw common::WriteError(target.string(), "no database, and cannot rename " +
+                                                          back.string() + " back: " + ec.message());
+        }
+        done.push_back(target.string() +
+                       ": restored the database an interrupted lookup-survey "
+                       "had moved to " +
+                       back.string());
+    }
+    for (const auto* list : {&staging, &old}) {
+        for (const auto& p : *list) {
+            const std::string size = megabytes(p);
+            fs::remove_all(p, ec);
+            done.push_back((ec ? "cannot remove " : "removed ") + p.string() + " (" + size +
+                           ", left by an interrupted lookup-survey)" +
+                           (ec ? ": " + ec.message() : std::string()));
+        }
+    }
+    return done;
+}
 
 DatabaseWriter::DatabaseWriter(const std::string& out_dir) : out_dir_(normalised(out_dir)) {
     std::error_code ec;
     fs::create_directories(fs::path(out_dir_).parent_path(), ec);
-    std::string templ = out_dir_ + ".tmp-XXXXXX";
+    std::string templ = out_dir_ + ".tmp-" + std::to_string(::getpid()) + "-XXXXXX";
     if (mkdtemp(templ.data()) == nullptr) {
-        throw DatabaseError(out_dir_ + ": cannot create a staging folder beside it");
+        throw common::WriteError(out_dir_, std::string("cannot create a staging folder beside "
+                                                       "it: ") +
+                                               std::strerror(errno));
     }
     staging_ = templ;
     rawlog_ = std::make_unique<common::RawlogWriter>(staging_ + "/" + kRefsRawlog);
+    testKillPoint("staging-created");
 }
 
 DatabaseWriter::~DatabaseWriter() {
@@ -75,6 +175,20 @@ DatabaseWriter::~DatabaseWriter() {
 
 uint32_t DatabaseWriter::add(const ReferenceInput& in) {
     if (!in.ceiling) throw DatabaseError("DatabaseWriter::add: reference without ceiling image");
+    // The last line of defence: whatever went wrong upstream, no NaN reaches the database.
+    const auto finite = [](const mrpt::poses::CPose3D& p) {
+        const auto v = p.asVectorVal();
+        return std::all_of(v.begin(), v.end(), [](double x) { return std::isfinite(x); });
+    };
+    bool cov_finite = true;
+    for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) cov_finite &= std::isfinite(in.vehicle_cov(r, c));
+    if (!finite(in.vehicle_pose) || !cov_finite || !finite(in.ceiling->cameraPose) ||
+        (in.forward && !finite(in.forward_vehicle_pose))) {
+        throw DatabaseError(out_dir_ + ": reference " + std::to_string(references_.size()) +
+                            " (t=" + std::to_string(mrpt::Clock::toDouble(in.ceiling->timestamp)) +
+                            " s) has a non-finite pose or covariance; not stored");
+    }
     const auto id = static_cast<uint32_t>(references_.size());
     char stem[32];
     std::snprintf(stem, sizeof(stem), "%06u", id);
@@ -99,7 +213,7 @@ uint32_t DatabaseWriter::add(const ReferenceInput& in) {
                                                  ".png");
     auto ceiling = externalCopy(*in.ceiling, images_dir, ceiling_name);
     ref.ceiling_image_path = images_dir + "/" + ceiling_name;
-    rawlog_->write(*ceiling);
+    writeRecord(*ceiling);
 
     std::string forward_name;
     if (in.forward) {
@@ -109,7 +223,7 @@ uint32_t DatabaseWriter::add(const ReferenceInput& in) {
                                        : "",
                                    ".png");
         auto forward = externalCopy(*in.forward, images_dir, forward_name);
-        rawlog_->write(*forward);
+        writeRecord(*forward);
         ref.has_forward = true;
         ref.forward_time_s = mrpt::Clock::toDouble(in.forward->timestamp);
         ref.forward_image_path = images_dir + "/" + forward_name;
@@ -125,7 +239,7 @@ uint32_t DatabaseWriter::add(const ReferenceInput& in) {
     for (int r = 0; r < 3; ++r)
         for (int c = 0; c < 3; ++c)
             pose.pose.cov(map_index[r], map_index[c]) = in.vehicle_cov(r, c);
-    rawlog_->write(pose);
+    writeRecord(pose);
 
     obs::CObservationLookupReference record;
     record.sensorLabel = kReferenceLabel;
@@ -143,7 +257,7 @@ uint32_t DatabaseWriter::add(const ReferenceInput& in) {
     record.sharpness = in.sharpness;
     record.mean_intensity = in.mean_intensity;
     record.travelled_m = in.travelled_m;
-    rawlog_->write(record);
+    writeRecord(record);
 
     references_.push_back(std::move(ref));
     return id;
@@ -151,23 +265,43 @@ uint32_t DatabaseWriter::add(const ReferenceInput& in) {
 
 void DatabaseWriter::setMap(const mrpt::maps::COccupancyGridMap2D& map) {
     const std::string grid = staging_ + "/" + kMapGrid;
-    {
-        mrpt::io::CFileGZOutputStream f;
-        if (!f.open(grid)) throw DatabaseError(grid + ": cannot open for writing");
-        auto arch = mrpt::serialization::archiveFrom(f);
-        arch << map;
+    try {
+        {
+            mrpt::io::CFileGZOutputStream f;
+            if (!f.open(grid)) throw common::WriteError(grid, "cannot open for writing");
+            auto arch = mrpt::serialization::archiveFrom(f);
+            arch << map;
+        }
+        // MRPT's gz stream does not report a failed write (a full disk): read it back.
+        mrpt::io::CFileGZInputStream in(grid);
+        mrpt::maps::COccupancyGridMap2D back;
+        auto arch = mrpt::serialization::archiveFrom(in);
+        arch >> back;
+    } catch (const common::WriteError&) {
+        throw;
+    } catch (const std::exception& e) {
+        throw common::WriteError(grid, "does not read back (" + common::errorLine(e) + ")");
     }
     if (!map.saveAsBitmapFile(staging_ + "/" + kMapPng)) {
-        throw DatabaseError(staging_ + "/" + kMapPng + ": cannot write");
+        throw common::WriteError(staging_ + "/" + kMapPng, "cannot write");
     }
     has_map_ = true;
+}
+
+void DatabaseWriter::writeRecord(const mrpt::obs::CObservation& obs) {
+    try {
+        rawlog_->write(obs);
+    } catch (const std::exception& e) {
+        throw common::WriteError(staging_ + "/" + kRefsRawlog, common::errorLine(e));
+    }
 }
 
 void DatabaseWriter::writeTextFile(const std::string& name, const std::string& content) {
     const std::string path = staging_ + "/" + name;
     std::ofstream out(path);
     out << content;
-    if (!out) throw DatabaseError(path + ": cannot write");
+    out.close();
+    if (!out) throw common::WriteError(path, "cannot write");
 }
 
 void DatabaseWriter::commit(DatabaseInfo info) {
@@ -175,37 +309,64 @@ void DatabaseWriter::commit(DatabaseInfo info) {
     try {
         rawlog_->close();
     } catch (const std::exception& e) {
-        throw DatabaseError(e.what());
+        throw common::WriteError(staging_ + "/" + kRefsRawlog, common::errorLine(e));
     }
     common::PoseTrack track;
     for (const auto& r : references_) track.push_back({r.time_s, r.vehicle_pose});
     try {
         common::writeTumPoseFile(staging_ + "/" + kRefsTum, track);
     } catch (const std::exception& e) {
-        throw DatabaseError(e.what());
+        throw common::WriteError(staging_ + "/" + kRefsTum, common::errorLine(e));
     }
     info.reference_count = references_.size();
     info.map_file = has_map_ ? kMapGrid : "";
     writeDatabaseInfo(staging_ + "/" + kDbIni, info);
+    writeManifest(staging_);
+    syncTree(staging_);
+    verifyStaged();
+    swapIntoPlace();
+}
 
-    // Swap into place: the old database is only removed once the new one is there.
+void DatabaseWriter::verifyStaged() const {
+    // A write that failed unnoticed (a full disk under a buffered stream) shows up here as a
+    // database that does not load, before anything at out_dir is touched.
+    try {
+        const auto db = ReferenceDatabase::load(staging_, 1);
+        if (db.size() != references_.size()) {
+            throw DatabaseError(staging_ + ": holds " + std::to_string(db.size()) + " of " +
+                                std::to_string(references_.size()) + " references");
+        }
+    } catch (const common::WriteError&) {
+        throw;
+    } catch (const std::exception& e) {
+        throw common::WriteError(staging_, "the database just written does not load back (" +
+                                               common::errorLine(e) + ")");
+    }
+}
+
+void DatabaseWriter::swapIntoPlace() {
     std::error_code ec;
     std::string old;
     if (fs::exists(out_dir_)) {
         old = staging_;
         old.replace(old.rfind(".tmp-"), 5, ".old-");
         fs::rename(out_dir_, old, ec);
-        if (ec)
-            throw DatabaseError(out_dir_ + ": cannot move the old database aside: " + ec.message());
+        if (ec) {
+            throw common::WriteError(out_dir_,
+                                     "cannot move the old database aside: " + ec.message());
+        }
     }
+    testKillPoint("between-renames");
     fs::rename(staging_, out_dir_, ec);
     if (ec) {
         std::error_code ignored;
         if (!old.empty()) fs::rename(old, out_dir_, ignored);
-        throw DatabaseError(out_dir_ + ": cannot rename " + staging_ +
-                            " into place: " + ec.message());
+        throw common::WriteError(out_dir_,
+                                 "cannot rename " + staging_ + " into place: " + ec.message());
     }
     committed_ = true;
+    syncPath(fs::path(out_dir_).parent_path(), true);
+    testKillPoint("before-old-removed");
     if (!old.empty()) fs::remove_all(old, ec);
 }
 

@@ -8,6 +8,7 @@
 
 #include "lookup/common/rawlog_io.h"
 #include "lookup/database/image_cache.h"
+#include "lookup/database/manifest.h"
 #include "lookup/obs/observation_lookup_reference.h"
 #include "lookup/obs/register_classes.h"
 
@@ -51,7 +52,22 @@ ReferenceDatabase ReferenceDatabase::load(const std::string& dir, std::size_t ca
     obs::registerClasses();
     auto impl = std::make_unique<Impl>();
     impl->dir = fs::absolute(dir).lexically_normal().string();
-    if (!fs::is_directory(dir)) throw DatabaseError(dir + ": no such database folder");
+    if (!fs::is_directory(dir)) {
+        // A kill between lookup-survey's two renames leaves the database at <dir>.old-*.
+        std::string aside;
+        std::error_code ec;
+        const fs::path target(impl->dir);
+        for (const auto& e : fs::directory_iterator(target.parent_path(), ec)) {
+            const std::string name = e.path().filename().string();
+            if (name.rfind(target.filename().string() + ".old-", 0) == 0) aside = e.path().string();
+        }
+        throw DatabaseError(dir + ": no such database folder" +
+                            (aside.empty() ? std::string()
+                                           : " (an interrupted lookup-survey left it at " + aside +
+                                                 "; the next lookup-survey run with --out " + dir +
+                                                 " restores it)"));
+    }
+    verifyManifest(impl->dir);
     impl->info = readDatabaseInfo(impl->dir + "/" + kDbIni);
 
     const std::string rawlog_path = impl->dir + "/" + kRefsRawlog;

@@ -9,6 +9,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "lookup/common/errors.h"
 #include "lookup/database/reference.h"
 #include "lookup/localize/localizer.h"
 
@@ -79,10 +80,11 @@ void setHeatMapsDirectory(const std::string& db_ini_path, const std::string& dir
     {
         std::ofstream o(tmp);
         for (const auto& l : out) o << l << "\n";
+        o.close();
         if (!o) {
             std::error_code ec;
             fs::remove(tmp, ec);
-            throw std::runtime_error(tmp + ": write failed");
+            throw common::WriteError(tmp, "write failed");
         }
     }
     std::error_code ec;
@@ -95,7 +97,7 @@ void setHeatMapsDirectory(const std::string& db_ini_path, const std::string& dir
     fs::rename(tmp, db_ini_path, ec);
     if (ec) {
         fs::remove(tmp, ec);
-        throw std::runtime_error(db_ini_path + ": cannot replace: " + ec.message());
+        throw common::WriteError(db_ini_path, "cannot replace: " + ec.message());
     }
 }
 
@@ -115,11 +117,15 @@ HeatMapsWritten writeHeatMaps(const database::ReferenceDatabase& db, const HeatM
             const cv::Mat heat = model.predictAtNetworkScale(db.ceilingImage(i));
             const fs::path file = staging / localize::heatMapFileName(i);
             if (!cv::imwrite(file.string(), encodeHeatMap(heat))) {
-                throw std::runtime_error(file.string() + ": cannot write");
+                throw common::WriteError(file.string(), "cannot write the heat map");
             }
             if (progress) progress(i + 1, db.size());
         }
         fs::rename(staging, final_dir);
+    } catch (const common::WriteError&) {
+        std::error_code ec;
+        fs::remove_all(staging, ec);
+        throw;
     } catch (const std::exception& e) {
         std::error_code ec;
         fs::remove_all(staging, ec);

@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <opencv2/imgproc.hpp>
 
+#include "lookup/common/errors.h"
 #include "model_impl.h"
 
 namespace lookup::fcn {
@@ -146,7 +147,7 @@ void HeatMapModel::save(const std::string& path) const {
     } catch (const std::exception& e) {
         std::error_code ec;
         std::filesystem::remove(tmp, ec);
-        throw ModelError(path + ": cannot write the model: " + e.what());
+        throw common::WriteError(path, std::string("cannot write the model: ") + e.what());
     }
 }
 

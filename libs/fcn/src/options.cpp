@@ -14,10 +14,7 @@ using common::IniSection;
 using common::OptionsCheck;
 
 std::string sourceName(const mrpt::config::CConfigFileBase& source) {
-    if (const auto* file = dynamic_cast<const mrpt::config::CConfigFile*>(&source)) {
-        return file->getAssociatedFile();
-    }
-    return "<memory>";
+    return common::configSourceName(source);
 }
 
 template <typename T>
@@ -32,9 +29,9 @@ void NetworkOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& sou
                                         const std::string& section) {
     const IniSection s(source, section, sourceName(source));
     s.rejectUnknownKeys({"base_channels", "max_channels", "depth", "input_scale"});
-    base_channels = s.getInt("base_channels", base_channels);
-    max_channels = s.getInt("max_channels", max_channels);
-    depth = s.getInt("depth", depth);
+    base_channels = s.getInt("base_channels", base_channels, 1, 256);
+    max_channels = s.getInt("max_channels", max_channels, 1, 512);
+    depth = s.getInt("depth", depth, 1, 6);
     input_scale = s.getDouble("input_scale", input_scale);
 }
 
@@ -77,18 +74,18 @@ void LabelOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& sourc
                          "min_time_gap_s", "query_stride", "held_out_share", "min_pair_inliers",
                          "use_pose_prior", "precise_inlier_px", "min_references",
                          "min_training_pairs", "min_held_out_pairs"});
-    grid_step_px = s.getInt("grid_step_px", grid_step_px);
-    references_per_query = s.getInt("references_per_query", references_per_query);
+    grid_step_px = s.getInt("grid_step_px", grid_step_px, 2, 4096);
+    references_per_query = s.getInt("references_per_query", references_per_query, 1, 1000);
     max_reference_distance_m = s.getDouble("max_reference_distance_m", max_reference_distance_m);
     min_time_gap_s = s.getDouble("min_time_gap_s", min_time_gap_s);
-    query_stride = s.getInt("query_stride", query_stride);
+    query_stride = s.getInt("query_stride", query_stride, 1, 1000000);
     held_out_share = s.getDouble("held_out_share", held_out_share);
-    min_pair_inliers = s.getInt("min_pair_inliers", min_pair_inliers);
+    min_pair_inliers = s.getInt("min_pair_inliers", min_pair_inliers, 4, 100000);
     use_pose_prior = s.getBool("use_pose_prior", use_pose_prior);
     precise_inlier_px = s.getDouble("precise_inlier_px", precise_inlier_px);
-    min_references = s.getInt("min_references", min_references);
-    min_training_pairs = s.getInt("min_training_pairs", min_training_pairs);
-    min_held_out_pairs = s.getInt("min_held_out_pairs", min_held_out_pairs);
+    min_references = s.getInt("min_references", min_references, 1, 100000000);
+    min_training_pairs = s.getInt("min_training_pairs", min_training_pairs, 1, 100000000);
+    min_held_out_pairs = s.getInt("min_held_out_pairs", min_held_out_pairs, 1, 100000000);
     if (source.sectionExists(section + ".matcher")) {
         matcher.loadFromConfigFile(source, section + ".matcher");
     }
@@ -140,13 +137,13 @@ void TrainingOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& so
     const IniSection s(source, section, sourceName(source));
     s.rejectUnknownKeys(
         {"epochs", "batch_size", "learning_rate", "weight_decay", "augment", "seed", "threads"});
-    epochs = s.getInt("epochs", epochs);
-    batch_size = s.getInt("batch_size", batch_size);
+    epochs = s.getInt("epochs", epochs, 1, 100000);
+    batch_size = s.getInt("batch_size", batch_size, 1, 100000);
     learning_rate = s.getDouble("learning_rate", learning_rate);
     weight_decay = s.getDouble("weight_decay", weight_decay);
     augment = s.getBool("augment", augment);
-    seed = s.getInt("seed", seed);
-    threads = s.getInt("threads", threads);
+    seed = s.getInt("seed", seed, 0, 2147483647);
+    threads = s.getInt("threads", threads, 1, 1024);
 }
 
 void TrainingOptions::saveToConfigFile(mrpt::config::CConfigFileBase& t,

@@ -11,6 +11,7 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 
+#include "lookup/common/errors.h"
 #include "lookup/database/reference_database.h"
 
 namespace fs = std::filesystem;
@@ -209,7 +210,8 @@ void writeTrainReport(const TrainReport& r, const TrainRequest& req, const Train
     };
     std::ofstream out(path);
     out << j.dump(2) << "\n";
-    if (!out) throw std::runtime_error(path + ": write failed");
+    out.close();
+    if (!out) throw common::WriteError(path, "write failed");
 }
 
 HeatMapsWritten writeHeatMapsWithModel(const std::string& db_dir, const std::string& model_file) {

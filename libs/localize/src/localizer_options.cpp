@@ -6,7 +6,7 @@ namespace lookup::localize {
 
 void LocalizerOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
                                           const std::string& section) {
-    const common::IniSection s(source, section, "localizer options");
+    const common::IniSection s(source, section);
     s.rejectUnknownKeys({"ceiling_camera_label",
                          "forward_camera_label",
                          "odometry_label",
@@ -34,7 +34,7 @@ void LocalizerOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& s
     ceiling_camera_label = s.getString("ceiling_camera_label", ceiling_camera_label);
     forward_camera_label = s.getString("forward_camera_label", forward_camera_label);
     odometry_label = s.getString("odometry_label", odometry_label);
-    references_per_query = s.getInt("references_per_query", references_per_query);
+    references_per_query = s.getInt("references_per_query", references_per_query, 1, 1000);
     use_tracking = s.getBool("use_tracking", use_tracking);
     max_tracking_gap_s = s.getDouble("max_tracking_gap_s", max_tracking_gap_s);
     acquisition_radius_m = s.getDouble("acquisition_radius_m", acquisition_radius_m);
@@ -43,23 +43,25 @@ void LocalizerOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& s
         s.getDouble("acquisition_ambiguity_margin", acquisition_ambiguity_margin);
     acquisition_ambiguity_distance_m =
         s.getDouble("acquisition_ambiguity_distance_m", acquisition_ambiguity_distance_m);
-    acquisition_probe_points = s.getInt("acquisition_probe_points", acquisition_probe_points);
+    acquisition_probe_points =
+        s.getInt("acquisition_probe_points", acquisition_probe_points, 0, 100000);
     acquisition_probe_min_matched =
-        s.getInt("acquisition_probe_min_matched", acquisition_probe_min_matched);
-    startup_acquisition_frames = s.getInt("startup_acquisition_frames", startup_acquisition_frames);
+        s.getInt("acquisition_probe_min_matched", acquisition_probe_min_matched, 0, 100000);
+    startup_acquisition_frames =
+        s.getInt("startup_acquisition_frames", startup_acquisition_frames, 0, 100000000);
     coarse_traverse = s.getString("coarse_traverse", coarse_traverse);
     coarse_while_tracking = s.getBool("coarse_while_tracking", coarse_while_tracking);
     realtime = s.getBool("realtime", realtime);
     max_latency_s = s.getDouble("max_latency_s", max_latency_s);
     write_debug_images = s.getBool("write_debug_images", write_debug_images);
-    debug_image_every = s.getInt("debug_image_every", debug_image_every);
+    debug_image_every = s.getInt("debug_image_every", debug_image_every, 1, 100000000);
     image_cache_capacity = static_cast<std::size_t>(
-        s.getInt("image_cache_capacity", static_cast<int>(image_cache_capacity)));
+        s.getInt("image_cache_capacity", static_cast<int>(image_cache_capacity), 1, 100000000));
     health_interval_s = s.getDouble("health_interval_s", health_interval_s);
     camera_timeout_s = s.getDouble("camera_timeout_s", camera_timeout_s);
     persist_fix_file = s.getString("persist_fix_file", persist_fix_file);
     persist_interval_s = s.getDouble("persist_interval_s", persist_interval_s);
-    check();
+    s.validate([&] { check(); });
 }
 
 void LocalizerOptions::saveToConfigFile(mrpt::config::CConfigFileBase& target,

@@ -46,14 +46,14 @@ void CorrespondenceOptions::loadFromConfigFile(const mrpt::config::CConfigFileBa
     if (!parseCorrespondenceMethod(name, method)) {
         throw common::ConfigError(s.where("method") + "'" + name + "' is not one of sad, orb, ecc");
     }
-    orb_features = s.getInt("orb_features", orb_features);
+    orb_features = s.getInt("orb_features", orb_features, 8, 100000);
     orb_ratio = s.getDouble("orb_ratio", orb_ratio);
-    orb_min_matches = s.getInt("orb_min_matches", orb_min_matches);
-    ecc_pyramid_levels = s.getInt("ecc_pyramid_levels", ecc_pyramid_levels);
-    ecc_max_iterations = s.getInt("ecc_max_iterations", ecc_max_iterations);
+    orb_min_matches = s.getInt("orb_min_matches", orb_min_matches, 4, 100000);
+    ecc_pyramid_levels = s.getInt("ecc_pyramid_levels", ecc_pyramid_levels, 0, 4);
+    ecc_max_iterations = s.getInt("ecc_max_iterations", ecc_max_iterations, 1, 100000);
     ecc_epsilon = s.getDouble("ecc_epsilon", ecc_epsilon);
     ecc_min_correlation = s.getDouble("ecc_min_correlation", ecc_min_correlation);
-    ecc_gauss_filter_px = s.getInt("ecc_gauss_filter_px", ecc_gauss_filter_px);
+    ecc_gauss_filter_px = s.getInt("ecc_gauss_filter_px", ecc_gauss_filter_px, 1, 99);
 }
 
 void CorrespondenceOptions::saveToConfigFile(mrpt::config::CConfigFileBase& t,

@@ -13,10 +13,7 @@ using common::IniSection;
 using common::OptionsCheck;
 
 std::string sourceName(const mrpt::config::CConfigFileBase& source) {
-    if (const auto* file = dynamic_cast<const mrpt::config::CConfigFile*>(&source)) {
-        return file->getAssociatedFile();
-    }
-    return "<memory>";
+    return common::configSourceName(source);
 }
 
 const char* toString(SamplingMode m) {
@@ -79,12 +76,12 @@ void SamplerOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& sou
     s.rejectUnknownKeys({"mode", "grid_points", "heat_map_points", "damping_ratio",
                          "damping_side_px", "border_margin_px", "heat_map_margin_px"});
     mode = parseSamplingMode(s, "mode", mode);
-    grid_points = s.getInt("grid_points", grid_points);
-    heat_map_points = s.getInt("heat_map_points", heat_map_points);
+    grid_points = s.getInt("grid_points", grid_points, 4, 1024);
+    heat_map_points = s.getInt("heat_map_points", heat_map_points, 4, 1024);
     damping_ratio = s.getDouble("damping_ratio", damping_ratio);
-    damping_side_px = s.getInt("damping_side_px", damping_side_px);
-    border_margin_px = s.getInt("border_margin_px", border_margin_px);
-    heat_map_margin_px = s.getInt("heat_map_margin_px", heat_map_margin_px);
+    damping_side_px = s.getInt("damping_side_px", damping_side_px, 1, 4096);
+    border_margin_px = s.getInt("border_margin_px", border_margin_px, 0, 4096);
+    heat_map_margin_px = s.getInt("heat_map_margin_px", heat_map_margin_px, 0, 4096);
 }
 
 void SamplerOptions::saveToConfigFile(mrpt::config::CConfigFileBase& t,
@@ -100,8 +97,10 @@ void SamplerOptions::saveToConfigFile(mrpt::config::CConfigFileBase& t,
 
 void SamplerOptions::check() const {
     OptionsCheck c("refine.sampler");
-    c.require(grid_points >= 4, "grid_points", ">= 4 (a homography needs 4 points)");
-    c.require(heat_map_points >= 4, "heat_map_points", ">= 4 (a homography needs 4 points)");
+    c.require(grid_points >= 4 && grid_points <= 1024, "grid_points",
+              "in [4, 1024] (a homography needs 4 points)");
+    c.require(heat_map_points >= 4 && heat_map_points <= 1024, "heat_map_points",
+              "in [4, 1024] (a homography needs 4 points)");
     c.require(damping_ratio > 0.0 && damping_ratio < 1.0, "damping_ratio", "in (0, 1)");
     c.require(damping_side_px >= 1, "damping_side_px", ">= 1");
     c.require(border_margin_px >= 0, "border_margin_px", ">= 0");
@@ -117,14 +116,14 @@ void MatcherOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& sou
                          "refine_radius_px", "min_texture", "min_distinctiveness",
                          "exclusion_radius_px", "subpixel", "use_simd", "normalize_brightness",
                          "illumination_sigma_px", "compensate_motion"});
-    search_range_px = s.getInt("search_range_px", search_range_px);
-    patch_px = s.getInt("patch_px", patch_px);
-    pyramid_levels = s.getInt("pyramid_levels", pyramid_levels);
-    min_top_patch_px = s.getInt("min_top_patch_px", min_top_patch_px);
-    refine_radius_px = s.getInt("refine_radius_px", refine_radius_px);
+    search_range_px = s.getInt("search_range_px", search_range_px, 2, 512);
+    patch_px = s.getInt("patch_px", patch_px, 4, 256);
+    pyramid_levels = s.getInt("pyramid_levels", pyramid_levels, 0, 4);
+    min_top_patch_px = s.getInt("min_top_patch_px", min_top_patch_px, 3, 256);
+    refine_radius_px = s.getInt("refine_radius_px", refine_radius_px, 1, 8);
     min_texture = s.getDouble("min_texture", min_texture);
     min_distinctiveness = s.getDouble("min_distinctiveness", min_distinctiveness);
-    exclusion_radius_px = s.getInt("exclusion_radius_px", exclusion_radius_px);
+    exclusion_radius_px = s.getInt("exclusion_radius_px", exclusion_radius_px, 1, 4096);
     subpixel = parseSubpixel(s, "subpixel", subpixel);
     use_simd = s.getBool("use_simd", use_simd);
     normalize_brightness = s.getBool("normalize_brightness", normalize_brightness);
@@ -172,9 +171,9 @@ void HomographyOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& 
     const IniSection s(source, section, sourceName(source));
     s.rejectUnknownKeys(
         {"ransac_min_points", "ransac_threshold_px", "ransac_max_iterations", "ransac_confidence"});
-    ransac_min_points = s.getInt("ransac_min_points", ransac_min_points);
+    ransac_min_points = s.getInt("ransac_min_points", ransac_min_points, 4, 1024);
     ransac_threshold_px = s.getDouble("ransac_threshold_px", ransac_threshold_px);
-    ransac_max_iterations = s.getInt("ransac_max_iterations", ransac_max_iterations);
+    ransac_max_iterations = s.getInt("ransac_max_iterations", ransac_max_iterations, 1, 1000000);
     ransac_confidence = s.getDouble("ransac_confidence", ransac_confidence);
 }
 
@@ -206,8 +205,8 @@ void EstimatorOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& s
     tilt_sigma_deg = s.getDouble("tilt_sigma_deg", tilt_sigma_deg);
     pixel_sigma_px = s.getDouble("pixel_sigma_px", pixel_sigma_px);
     huber_loss_px = s.getDouble("huber_loss_px", huber_loss_px);
-    max_iterations = s.getInt("max_iterations", max_iterations);
-    min_inliers = s.getInt("min_inliers", min_inliers);
+    max_iterations = s.getInt("max_iterations", max_iterations, 1, 100000);
+    min_inliers = s.getInt("min_inliers", min_inliers, 3, 1024);
 }
 
 void EstimatorOptions::saveToConfigFile(mrpt::config::CConfigFileBase& t,

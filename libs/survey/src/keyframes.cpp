@@ -18,6 +18,10 @@ KeyframeSelection selectKeyframes(const std::vector<KeyframeCandidate>& candidat
         }
         if (travelled - last_kept_at < options.keyframe_spacing_m) continue;
         const ImageQuality q = quality(i);
+        if (!q.usable) {
+            ++out.rejected_unusable;
+            continue;
+        }
         if (q.sharpness < options.min_sharpness) {
             ++out.rejected_blur;
             continue;

@@ -23,7 +23,7 @@ namespace lookup::survey {
 
 void PoseGraphOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
                                           const std::string& section) {
-    common::IniSection s(source, section, "pose-graph options");
+    common::IniSection s(source, section);
     s.rejectUnknownKeys({"enabled", "all_traverses", "keyframe_spacing_m", "keyframe_spacing_deg",
                          "max_edge_distance_m", "edges_per_keyframe", "cross_edges_per_keyframe",
                          "min_matched_share", "max_correction_m", "max_correction_deg",
@@ -35,8 +35,9 @@ void PoseGraphOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& s
     keyframe_spacing_m = s.getDouble("keyframe_spacing_m", keyframe_spacing_m);
     keyframe_spacing_deg = s.getDouble("keyframe_spacing_deg", keyframe_spacing_deg);
     max_edge_distance_m = s.getDouble("max_edge_distance_m", max_edge_distance_m);
-    edges_per_keyframe = s.getInt("edges_per_keyframe", edges_per_keyframe);
-    cross_edges_per_keyframe = s.getInt("cross_edges_per_keyframe", cross_edges_per_keyframe);
+    edges_per_keyframe = s.getInt("edges_per_keyframe", edges_per_keyframe, 1, 1000);
+    cross_edges_per_keyframe =
+        s.getInt("cross_edges_per_keyframe", cross_edges_per_keyframe, 0, 1000);
     min_matched_share = s.getDouble("min_matched_share", min_matched_share);
     max_correction_m = s.getDouble("max_correction_m", max_correction_m);
     max_correction_deg = s.getDouble("max_correction_deg", max_correction_deg);
@@ -48,10 +49,10 @@ void PoseGraphOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& s
     odometry_std_yaw_deg_per_m =
         s.getDouble("odometry_std_yaw_deg_per_m", odometry_std_yaw_deg_per_m);
     huber_sigmas = s.getDouble("huber_sigmas", huber_sigmas);
-    max_iterations = s.getInt("max_iterations", max_iterations);
-    threads = s.getInt("threads", threads);
-    covariance_stride = s.getInt("covariance_stride", covariance_stride);
-    check();
+    max_iterations = s.getInt("max_iterations", max_iterations, 1, 100000);
+    threads = s.getInt("threads", threads, 0, 1024);
+    covariance_stride = s.getInt("covariance_stride", covariance_stride, 0, 100000000);
+    s.validate([&] { check(); });
 }
 
 void PoseGraphOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,

@@ -16,9 +16,11 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "lookup/common/config.h"
+#include "lookup/common/errors.h"
 #include "lookup/common/rawlog_io.h"
 #include "lookup/database/database_writer.h"
 #include "lookup/survey/keyframes.h"
+#include "lookup/survey/mrpt_sections.h"
 #include "lookup/survey/traverse.h"
 
 namespace lookup::survey {
@@ -60,17 +62,57 @@ std::size_t nearestIndex(const std::vector<double>& times, double t) {
     return (t - times[hi - 1] <= times[hi] - t) ? hi - 1 : hi;
 }
 
-cv::Mat loadGrey(const mrpt::obs::CObservationImage& obs) {
+cv::Mat loadPixels(const mrpt::obs::CObservationImage& obs, int flags) {
     if (obs.image.isExternallyStored()) {
-        const std::string path = obs.image.getExternalStorageFileAbsolutePath();
-        cv::Mat m = cv::imread(path, cv::IMREAD_GRAYSCALE);
-        if (m.empty()) throw std::runtime_error(path + ": cannot read image");
-        return m;
+        return cv::imread(obs.image.getExternalStorageFileAbsolutePath(), flags);
     }
     cv::Mat m;
     obs.image.asCvMat(m, mrpt::img::DEEP_COPY);
-    if (m.channels() == 3) return m;  // measureImageQuality converts
     return m;
+}
+
+std::string imageName(const mrpt::obs::CObservationImage& obs) {
+    return obs.image.isExternallyStored() ? obs.image.getExternalStorageFileAbsolutePath()
+                                          : obs.sensorLabel + " image in the rawlog";
+}
+
+// Why the pixels of `obs` cannot be used ("" = usable): unreadable, empty, not 8-bit, or not
+// the size its intrinsics (and the database's camera, `expected`) say.
+std::string pixelProblem(const mrpt::obs::CObservationImage& obs, const cv::Mat& m,
+                         const mrpt::img::TCamera* expected) {
+    if (m.empty()) return imageName(obs) + ": unreadable or empty image";
+    if (m.depth() != CV_8U) return imageName(obs) + ": not an 8-bit image";
+    const auto& c = obs.cameraParams;
+    if (std::uint32_t(m.cols) != c.ncols || std::uint32_t(m.rows) != c.nrows) {
+        return imageName(obs) + ": image is " + std::to_string(m.cols) + "x" +
+               std::to_string(m.rows) + " but its intrinsics say " + std::to_string(c.ncols) + "x" +
+               std::to_string(c.nrows);
+    }
+    if (expected && (expected->ncols != c.ncols || expected->nrows != c.nrows)) {
+        return imageName(obs) + ": image is " + std::to_string(m.cols) + "x" +
+               std::to_string(m.rows) + " but the database's camera is " +
+               std::to_string(expected->ncols) + "x" + std::to_string(expected->nrows);
+    }
+    return "";
+}
+
+// Quality of a candidate ceiling image; not usable (with `problem` set) when pixelProblem().
+ImageQuality ceilingQuality(const mrpt::obs::CObservationImage& obs,
+                            const mrpt::img::TCamera* expected, std::string& problem) {
+    cv::Mat m;
+    try {
+        m = loadPixels(obs, cv::IMREAD_UNCHANGED);
+    } catch (const std::exception&) {
+        m = cv::Mat();
+    }
+    problem = pixelProblem(obs, m, expected);
+    if (!problem.empty()) {
+        ImageQuality q;
+        q.usable = false;
+        return q;
+    }
+    if (m.channels() != 1 && m.channels() != 3) m = loadPixels(obs, cv::IMREAD_GRAYSCALE);
+    return measureImageQuality(m);
 }
 
 std::uint64_t folderSize(const std::string& dir) {
@@ -108,6 +150,24 @@ std::string jsonEscape(const std::string& s) {
         }
     }
     return o;
+}
+
+// One warning line per kind of refused input of a traverse.
+void addWarnings(const TraverseReport& r, const std::string& rawlog,
+                 std::vector<std::string>& out) {
+    const auto& k = r.skipped;
+    if (k.lidar_ranges + k.records() > 0) {
+        out.push_back(rawlog + ": refused " + std::to_string(k.lidar_ranges) +
+                      " non-finite lidar ranges, " + std::to_string(k.scans) + " scans, " +
+                      std::to_string(k.odometry) + " odometry records, " +
+                      std::to_string(k.ceiling_intrinsics + k.forward_intrinsics) +
+                      " images with unusable intrinsics (first: " + k.first + ")");
+    }
+    if (r.rejected_image + r.rejected_forward > 0) {
+        out.push_back(rawlog + ": refused " + std::to_string(r.rejected_image) + " ceiling and " +
+                      std::to_string(r.rejected_forward) +
+                      " forward images (first: " + r.first_image_problem + ")");
+    }
 }
 
 std::string statsJson(const PoseErrorStats& s) {
@@ -170,7 +230,15 @@ std::string SurveyResult::toJson() const {
           << ", \"frames_without_pose\": " << t.frames_without_pose
           << ", \"references\": " << t.references << ", \"rejected_blur\": " << t.rejected_blur
           << ", \"rejected_exposure\": " << t.rejected_exposure
+          << ", \"rejected_image\": " << t.rejected_image
+          << ", \"rejected_forward\": " << t.rejected_forward
           << ", \"without_forward\": " << t.without_forward
+          << ",\n     \"skipped\": {\"lidar_ranges\": " << t.skipped.lidar_ranges
+          << ", \"scans\": " << t.skipped.scans << ", \"odometry\": " << t.skipped.odometry
+          << ", \"ceiling_intrinsics\": " << t.skipped.ceiling_intrinsics
+          << ", \"forward_intrinsics\": " << t.skipped.forward_intrinsics << ", \"first\": \""
+          << jsonEscape(t.skipped.first) << "\", \"first_image\": \""
+          << jsonEscape(t.first_image_problem) << "\"}"
           << ", \"localisation_time_s\": " << t.localisation_time_s
           << ", \"has_ground_truth\": " << (t.has_ground_truth ? "true" : "false");
         if (t.has_ground_truth) {
@@ -195,6 +263,8 @@ std::string SurveyResult::toJson() const {
 Survey::Survey(SurveyOptions options, const mrpt::config::CConfigFileBase& config)
     : options_(std::move(options)) {
     options_.check();
+    config_.setFileName(common::configSourceName(config));
+    checkMrptSections(config);
     if (config.sectionExists("pose_graph")) graph_options_.loadFromConfigFile(config, "pose_graph");
     std::vector<std::string> sections;
     config.getAllSections(sections);
@@ -211,7 +281,11 @@ SurveyResult Survey::run(const SurveyInputs& in) const {
     result.out_dir = fs::absolute(in.out_dir).lexically_normal().string();
     try {
         if (in.traverses.empty()) throw std::runtime_error("no input traverses");
-        if (in.out_dir.empty()) throw std::runtime_error("no output folder given");
+        if (in.out_dir.empty()) throw common::ConfigError("no output folder given");
+        // Leftovers of an interrupted run: the old database put back, stale folders removed.
+        for (auto& line : database::recoverInterrupted(in.out_dir)) {
+            result.warnings.push_back(std::move(line));
+        }
         const bool laser = in.poses_file.empty();
 
         // 1. Read every traverse (image headers, odometry, scans) and its ground truth.
@@ -444,14 +518,48 @@ SurveyResult Survey::run(const SurveyInputs& in) const {
                         (laser ? std::string("the laser track") : in.poses_file));
             }
             const auto selection = selectKeyframes(candidates, options_, [&](std::size_t c) {
-                return measureImageQuality(loadGrey(*d.ceiling[frame_of[c]]));
+                std::string problem;
+                const auto q =
+                    ceilingQuality(*d.ceiling[frame_of[c]],
+                                   have_intrinsics ? &info.ceiling_camera : nullptr, problem);
+                if (!problem.empty() && rep.first_image_problem.empty()) {
+                    rep.first_image_problem = problem;
+                }
+                // The first usable image fixes the database's camera.
+                if (q.usable && !have_intrinsics) {
+                    info.ceiling_camera = d.ceiling[frame_of[c]]->cameraParams;
+                    have_intrinsics = true;
+                }
+                return q;
             });
+            rep.rejected_image = selection.rejected_unusable;
+            rep.skipped = d.skipped;
             rep.rejected_blur = selection.rejected_blur;
             rep.rejected_exposure = selection.rejected_exposure;
 
             std::vector<double> forward_times;
             for (const auto& fw : d.forward)
                 forward_times.push_back(mrpt::Clock::toDouble(fw->timestamp));
+            std::vector<int> forward_state(d.forward.size(), 0);  // 0 unknown, 1 ok, -1 refused
+            const auto forwardUsable = [&](std::size_t fi) {
+                if (forward_state[fi] == 0) {
+                    const auto& fw = *d.forward[fi];
+                    cv::Mat m;
+                    try {
+                        m = loadPixels(fw, cv::IMREAD_UNCHANGED);
+                    } catch (const std::exception&) {
+                        m = cv::Mat();
+                    }
+                    const std::string problem = pixelProblem(
+                        fw, m, have_forward_intrinsics ? &info.forward_camera : nullptr);
+                    forward_state[fi] = problem.empty() ? 1 : -1;
+                    if (!problem.empty()) {
+                        ++rep.rejected_forward;
+                        if (rep.first_image_problem.empty()) rep.first_image_problem = problem;
+                    }
+                }
+                return forward_state[fi] > 0;
+            };
 
             std::vector<double> err_m, err_yaw, travelled;
             std::vector<mrpt::poses::CPose3D> ref_poses;
@@ -469,7 +577,8 @@ SurveyResult Survey::run(const SurveyInputs& in) const {
                 if (!forward_times.empty()) {
                     const std::size_t fi = nearestIndex(forward_times, candidates[c].time_s);
                     if (std::abs(forward_times[fi] - candidates[c].time_s) <=
-                        options_.forward_max_dt_s) {
+                            options_.forward_max_dt_s &&
+                        forwardUsable(fi)) {
                         ref.forward = d.forward[fi];
                         ref.forward_vehicle_pose =
                             poseAt(interp, forward_times[fi]).value_or(ref.vehicle_pose);
@@ -480,10 +589,6 @@ SurveyResult Survey::run(const SurveyInputs& in) const {
                     }
                 }
                 if (!ref.forward) ++rep.without_forward;
-                if (!have_intrinsics) {
-                    info.ceiling_camera = ceiling->cameraParams;
-                    have_intrinsics = true;
-                }
                 writer.add(ref);
                 if (gt[i]) {
                     if (auto truth = poseAt(*gt[i], candidates[c].time_s)) {
@@ -519,6 +624,7 @@ SurveyResult Survey::run(const SurveyInputs& in) const {
                     b = e;
                 }
             }
+            addWarnings(rep, d.rawlog, result.warnings);
             result.traverses.push_back(rep);
         }
         result.references = writer.size();
@@ -533,7 +639,9 @@ SurveyResult Survey::run(const SurveyInputs& in) const {
         writer.commit(info);
     } catch (const std::exception& e) {
         result.status = SurveyStatus::Failed;
-        result.reason = e.what();
+        result.reason = common::errorLine(e);
+        result.detail = e.what();
+        result.exit_code = common::exitCodeFor(e);
         result.references = 0;
     }
     result.total_time_s = total.Tac();

@@ -10,6 +10,7 @@
 
 #include "lookup/common/cli.h"
 #include "lookup/common/config.h"
+#include "lookup/common/errors.h"
 #include "lookup/common/share_dirs.h"
 
 namespace lookup::survey {
@@ -37,7 +38,8 @@ std::string resolve(const fs::path& base, const std::string& p) {
 // `options`.
 void readDataset(const std::string& path, SurveyInputs& inputs, SurveyOptions& options) {
     if (!fs::is_regular_file(path)) throw common::ConfigError(path + ": no such dataset file");
-    mrpt::config::CConfigFile cfg(path);
+    const auto file = common::loadIniFile(path);
+    const auto& cfg = *file;
     const fs::path base = fs::absolute(path).parent_path();
     common::IniSection ds(cfg, "dataset", path);
     if (!ds.exists()) throw common::ConfigError(path + ": no [dataset] section");
@@ -80,8 +82,10 @@ std::string defaultSurveyIni() {
 }
 
 bool SurveyApp::initialize(int argc, const char* const* argv) {
-    TCLAP::CmdLine cmd("lookup-survey: builds a LookUP reference database from survey rawlogs", ' ',
-                       "0.1");
+    TCLAP::CmdLine cmd(std::string("lookup-survey: builds a LookUP reference database from survey "
+                                   "rawlogs. ") +
+                           common::kExitCodesHelp,
+                       ' ', "0.1");
     TCLAP::ValueArg<std::string> dataset("d", "dataset", "lookup-sim dataset.ini", false, "",
                                          "DATASET.ini", cmd);
     TCLAP::ValueArg<std::string> rawlogs("r", "rawlogs", "comma-separated survey rawlogs", false,
@@ -98,10 +102,11 @@ bool SurveyApp::initialize(int argc, const char* const* argv) {
     TCLAP::ValueArg<std::string> map("m", "map", "existing grid map replacing ICP-SLAM", false, "",
                                      "FILE.gridmap[.gz]", cmd);
     TCLAP::SwitchArg quiet("q", "quiet", "no progress bar", cmd, false);
+    TCLAP::SwitchArg verbose("v", "verbose", "full error texts (MRPT call stacks)", cmd, false);
     std::vector<const char*> args(argv, argv + argc);
     if (!cmd.parse(argc, args.data())) {
         // TCLAP printed the help, the version or the error.
-        exit_code_ = common::parseFailureExitCode(argc, argv, 2);
+        exit_code_ = common::parseFailureExitCode(argc, argv, common::kExitUsage);
         return false;
     }
     try {
@@ -110,21 +115,10 @@ bool SurveyApp::initialize(int argc, const char* const* argv) {
         }
         const std::string ini_path = ini.isSet() ? ini.getValue() : defaultSurveyIni();
         if (!ini_path.empty()) {
-            if (!fs::is_regular_file(ini_path)) {
-                throw common::ConfigError(ini_path + ": no such .ini file");
-            }
-            std::ifstream file(ini_path);
-            std::stringstream text;
-            text << file.rdbuf();
-            config_.setContent(text.str());
-            if (config_.sectionExists("survey")) {
-                // IniSection errors name "survey options"; say which file.
-                try {
-                    options_.loadFromConfigFile(config_, "survey");
-                } catch (const common::ConfigError& e) {
-                    throw common::ConfigError(ini_path + ": " + e.what());
-                }
-            }
+            const auto file = common::loadIniFile(ini_path);
+            config_.setContent(file->getContent());
+            config_.setFileName(ini_path);
+            if (config_.sectionExists("survey")) options_.loadFromConfigFile(config_, "survey");
         }
         if (dataset.isSet()) {
             readDataset(dataset.getValue(), inputs_, options_);
@@ -142,19 +136,41 @@ bool SurveyApp::initialize(int argc, const char* const* argv) {
         inputs_.poses_file = poses.getValue();
         inputs_.map_file = map.getValue();
         inputs_.show_progress = !quiet.getValue();
+        verbose_ = verbose.getValue();
     } catch (const std::exception& e) {
-        std::cerr << "lookup-survey: " << e.what() << "\n";
-        exit_code_ = 2;
+        std::cerr << "lookup-survey: " << common::errorText(e, verbose.getValue()) << "\n";
+        exit_code_ = common::exitCodeFor(e);
         return false;
     }
     return true;
 }
 
 int SurveyApp::run() {
-    Survey survey(options_, config_);
-    result_ = survey.run(inputs_);
-    std::cout << result_.summaryLine() << std::endl;
-    exit_code_ = result_.ok() ? 0 : 1;
+    try {
+        const Survey survey(options_, config_);
+        result_ = survey.run(inputs_);
+    } catch (const std::exception& e) {
+        // Options the Survey itself reads ([pose_graph], the MRPT sections).
+        result_ = SurveyResult();
+        result_.reason = common::errorLine(e);
+        result_.detail = e.what();
+        result_.exit_code = common::exitCodeFor(e);
+    }
+    for (const auto& w : result_.warnings) std::cerr << "lookup-survey: warning: " << w << "\n";
+    if (result_.ok()) {
+        std::cout << result_.summaryLine() << std::endl;
+        if (!std::cout) {
+            std::cerr << "lookup-survey: stdout: write error" << std::endl;
+            return exit_code_ = common::kExitWriteError;
+        }
+        exit_code_ = common::kExitOk;
+    } else {
+        std::cerr << (verbose_ && !result_.detail.empty()
+                          ? "lookup-survey: FAILED: " + result_.detail
+                          : result_.summaryLine())
+                  << std::endl;
+        exit_code_ = result_.exit_code != 0 ? result_.exit_code : common::kExitBadInput;
+    }
     return exit_code_;
 }
 

@@ -6,7 +6,7 @@ namespace lookup::survey {
 
 void SurveyOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
                                        const std::string& section) {
-    common::IniSection s(source, section, "survey options");
+    common::IniSection s(source, section);
     s.rejectUnknownKeys(
         {"ceiling_camera_label",  "forward_camera_label",  "lidar_label",
          "odometry_label",        "keyframe_spacing_m",    "min_sharpness",
@@ -29,7 +29,7 @@ void SurveyOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& sour
     max_pose_gap_s = s.getDouble("max_pose_gap_s", max_pose_gap_s);
     max_outside_fraction = s.getDouble("max_outside_fraction", max_outside_fraction);
     ceiling_height_m = s.getDouble("ceiling_height_m", ceiling_height_m);
-    mcl_particles = s.getInt("mcl_particles", mcl_particles);
+    mcl_particles = s.getInt("mcl_particles", mcl_particles, 10, 10000000);
     mcl_init_std_xy_m = s.getDouble("mcl_init_std_xy_m", mcl_init_std_xy_m);
     mcl_init_std_yaw_deg = s.getDouble("mcl_init_std_yaw_deg", mcl_init_std_yaw_deg);
     odometry_min_std_xy_m = s.getDouble("odometry_min_std_xy_m", odometry_min_std_xy_m);
@@ -40,7 +40,7 @@ void SurveyOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& sour
     map_std_yaw_deg = s.getDouble("map_std_yaw_deg", map_std_yaw_deg);
     pose_file_std_xy_m = s.getDouble("pose_file_std_xy_m", pose_file_std_xy_m);
     pose_file_std_yaw_deg = s.getDouble("pose_file_std_yaw_deg", pose_file_std_yaw_deg);
-    check();
+    s.validate([&] { check(); });
 }
 
 void SurveyOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,

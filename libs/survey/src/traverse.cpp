@@ -3,6 +3,7 @@
 #include <mrpt/obs/CObservation2DRangeScan.h>
 #include <mrpt/obs/CObservationOdometry.h>
 
+#include <cmath>
 #include <filesystem>
 #include <map>
 
@@ -17,7 +18,68 @@ std::string listLabels(const std::set<std::string>& labels) {
     return s.empty() ? "none" : s;
 }
 
+bool finitePose(const mrpt::poses::CPose3D& p) {
+    return std::isfinite(p.x()) && std::isfinite(p.y()) && std::isfinite(p.z()) &&
+           std::isfinite(p.yaw()) && std::isfinite(p.pitch()) && std::isfinite(p.roll());
+}
+
+// Makes non-finite or negative ranges invalid (counted in `skipped`); returns why the whole
+// scan is unusable, or "".
+std::string sanitiseScan(mrpt::obs::CObservation2DRangeScan& scan, SkippedRecords& skipped) {
+    if (!finitePose(scan.sensorPose)) return "lidar mounting pose is not finite";
+    if (!std::isfinite(scan.aperture) || !(scan.aperture > 0)) return "lidar aperture not > 0";
+    if (!std::isfinite(scan.maxRange) || !(scan.maxRange > 0)) return "lidar maxRange not > 0";
+    std::size_t usable = 0;
+    for (std::size_t i = 0; i < scan.getScanSize(); ++i) {
+        const float r = scan.getScanRange(i);
+        if (!std::isfinite(r) || r < 0) {
+            // Zero as well as invalid: some MRPT map insertions read invalid ranges too.
+            scan.setScanRange(i, 0.0f);
+            scan.setScanRangeValidity(i, false);
+            ++skipped.lidar_ranges;
+        } else if (scan.getScanRangeValidity(i)) {
+            ++usable;
+        }
+    }
+    return usable == 0 ? "no finite lidar range" : "";
+}
+
+std::string odometryProblem(const mrpt::obs::CObservationOdometry& odo) {
+    const auto& p = odo.odometry;
+    if (!std::isfinite(p.x()) || !std::isfinite(p.y()) || !std::isfinite(p.phi())) {
+        return "odometry pose is not finite";
+    }
+    const auto& v = odo.velocityLocal;
+    if (odo.hasVelocities &&
+        (!std::isfinite(v.vx) || !std::isfinite(v.vy) || !std::isfinite(v.omega))) {
+        return "odometry velocity is not finite";
+    }
+    return "";
+}
+
+void noteSkip(SkippedRecords& skipped, const std::string& rawlog, std::size_t record,
+              const std::string& reason) {
+    if (skipped.first.empty()) {
+        skipped.first = rawlog + ": record " + std::to_string(record) + ": " + reason;
+    }
+}
+
 }  // namespace
+
+std::string intrinsicsProblem(const mrpt::obs::CObservationImage& image) {
+    const auto& c = image.cameraParams;
+    if (!std::isfinite(c.fx()) || !std::isfinite(c.fy()) || !(c.fx() > 0) || !(c.fy() > 0)) {
+        return "focal length fx=" + std::to_string(c.fx()) + " fy=" + std::to_string(c.fy()) +
+               " is not finite and > 0";
+    }
+    if (!std::isfinite(c.cx()) || !std::isfinite(c.cy())) return "principal point is not finite";
+    if (c.ncols == 0 || c.nrows == 0) return "image size in the intrinsics is zero";
+    for (double d : c.dist) {
+        if (!std::isfinite(d)) return "distortion is not finite";
+    }
+    if (!finitePose(image.cameraPose)) return "camera mounting pose is not finite";
+    return "";
+}
 
 TraverseData readTraverse(const std::string& rawlog, const SurveyOptions& options,
                           bool need_laser) {
@@ -55,21 +117,46 @@ TraverseData readTraverse(const std::string& rawlog, const SurveyOptions& option
                     throw common::RawlogError(rawlog, record, "missing external image " + file);
                 }
             }
+            if (const std::string why = intrinsicsProblem(*img); !why.empty()) {
+                ++(is_ceiling ? t.skipped.ceiling_intrinsics : t.skipped.forward_intrinsics);
+                noteSkip(t.skipped, rawlog, record, o->sensorLabel + ": " + why);
+                continue;
+            }
             if (is_ceiling) {
                 t.ceiling.push_back(img);
                 t.ceiling_records.push_back(record);
             } else {
                 t.forward.push_back(img);
             }
-        } else if (o->sensorLabel == options.lidar_label &&
-                   std::dynamic_pointer_cast<mrpt::obs::CObservation2DRangeScan>(o)) {
+        } else if (auto scan = std::dynamic_pointer_cast<mrpt::obs::CObservation2DRangeScan>(o);
+                   scan && o->sensorLabel == options.lidar_label) {
+            const std::size_t before = t.skipped.lidar_ranges;
+            if (const std::string why = sanitiseScan(*scan, t.skipped); !why.empty()) {
+                ++t.skipped.scans;
+                noteSkip(t.skipped, rawlog, record, o->sensorLabel + ": " + why);
+                continue;
+            }
+            if (t.skipped.lidar_ranges > before) {
+                noteSkip(t.skipped, rawlog, record,
+                         o->sensorLabel + ": " + std::to_string(t.skipped.lidar_ranges - before) +
+                             " non-finite or negative ranges made invalid");
+            }
             t.laser_sequence.push_back(o);
             ++t.scan_count;
-        } else if (std::dynamic_pointer_cast<mrpt::obs::CObservationOdometry>(o) &&
-                   o->sensorLabel == options.odometry_label) {
+        } else if (auto odo = std::dynamic_pointer_cast<mrpt::obs::CObservationOdometry>(o);
+                   odo && o->sensorLabel == options.odometry_label) {
+            if (const std::string why = odometryProblem(*odo); !why.empty()) {
+                ++t.skipped.odometry;
+                noteSkip(t.skipped, rawlog, record, o->sensorLabel + ": " + why);
+                continue;
+            }
             t.laser_sequence.push_back(o);
             ++t.odometry_count;
         }
+    }
+    if (t.ceiling.empty() && t.skipped.ceiling_intrinsics > 0) {
+        throw common::RawlogError(rawlog, "every " + options.ceiling_camera_label +
+                                              " image refused (first: " + t.skipped.first + ")");
     }
     if (t.ceiling.empty()) {
         throw common::RawlogError(rawlog, "no CObservationImage labelled '" +

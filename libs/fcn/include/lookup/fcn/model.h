@@ -35,7 +35,7 @@ class HeatMapModel {
     /// refused. Throws ModelError naming `path`.
     static HeatMapModel load(const std::string& path, const NetworkOptions* expected = nullptr);
     /// Writes the architecture header and the weights (torch::serialize archive) to `path`
-    /// via `<path>.tmp` + rename. Throws ModelError naming `path` on failure.
+    /// via `<path>.tmp` + rename. Throws common::WriteError naming `path` on failure.
     void save(const std::string& path) const;
 
     const NetworkOptions& options() const;

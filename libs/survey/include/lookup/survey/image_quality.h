@@ -10,6 +10,7 @@ struct ImageQuality {
     double sharpness = 0;         ///< variance of the Laplacian [grey^2]; low = blurred
     double mean_intensity = 0;    ///< mean grey level [0..255]
     double clipped_fraction = 0;  ///< share of pixels <= 2 or >= 253 [0..1]
+    bool usable = true;           ///< false: unreadable, empty or of the wrong size
 };
 
 /// Measures a grey or colour 8-bit image (colour is converted to grey first).

@@ -23,12 +23,13 @@ struct KeyframeSelection {
     std::vector<double> kept_travelled_m;    ///< distance travelled at each kept frame [m]
     std::size_t rejected_blur = 0;           ///< candidates skipped as blurred
     std::size_t rejected_exposure = 0;       ///< candidates skipped as badly exposed
+    std::size_t rejected_unusable = 0;       ///< candidates whose image is not usable
 };
 
 /// Keeps the first good frame, then the first good frame after each further
 /// `keyframe_spacing_m` of travel (path length of the vehicle positions). A frame due for
-/// keeping but blurred or badly exposed is skipped and the next good one is taken. `quality`
-/// is called only on frames due for keeping (it loads the image).
+/// keeping but unusable (ImageQuality::usable false), blurred or badly exposed is skipped and the
+/// next good one is taken. `quality` is called only on frames due for keeping (it loads the image).
 KeyframeSelection selectKeyframes(const std::vector<KeyframeCandidate>& candidates,
                                   const SurveyOptions& options,
                                   const std::function<ImageQuality(std::size_t)>& quality);

@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "lookup/common/config.h"
 #include "lookup/survey/laser_poses.h"
 #include "lookup/survey/pose_graph.h"
 #include "lookup/survey/survey_options.h"
@@ -60,8 +61,12 @@ struct TraverseReport {
     std::size_t references = 0;           ///< kept as references
     std::size_t rejected_blur = 0;
     std::size_t rejected_exposure = 0;
-    std::size_t without_forward = 0;  ///< references with no forward image in time
-    double localisation_time_s = 0;   ///< MCL (or ICP-SLAM) wall time for this traverse
+    std::size_t rejected_image = 0;    ///< ceiling images unreadable, empty or of the wrong size
+    std::size_t rejected_forward = 0;  ///< forward images unreadable, empty or of the wrong size
+    std::size_t without_forward = 0;   ///< references with no forward image in time
+    SkippedRecords skipped;            ///< sensor records refused while reading the rawlog
+    std::string first_image_problem;   ///< the first refused image: file and reason
+    double localisation_time_s = 0;    ///< MCL (or ICP-SLAM) wall time for this traverse
     bool has_ground_truth = false;
     PoseErrorStats error;                ///< over the references (when ground truth)
     std::vector<SegmentError> segments;  ///< error per 10 m of travel (when ground truth)
@@ -71,7 +76,9 @@ enum class SurveyStatus { Ok, Failed };
 
 struct SurveyResult {
     SurveyStatus status = SurveyStatus::Failed;
-    std::string reason;  ///< why it failed (file, record, reason)
+    std::string reason;  ///< why it failed (file, record, reason), one line
+    std::string detail;  ///< the full error text (MRPT call stack), for --verbose
+    int exit_code = 0;   ///< common::ExitCode of the failure
     std::string out_dir;
     std::string pose_source;  ///< "laser", "laser+map:<file>" or "file:<path>"
     std::size_t references = 0;
@@ -79,6 +86,9 @@ struct SurveyResult {
     PoseGraphReport pose_graph;    ///< keyframes = 0: no pose graph was optimised
     std::uint64_t size_bytes = 0;  ///< database folder size
     std::vector<TraverseReport> traverses;
+    /// Refused or skipped input, one line each (file, record, reason, count); lookup-survey
+    /// prints them on stderr.
+    std::vector<std::string> warnings;
 
     bool ok() const { return status == SurveyStatus::Ok; }
     /// The one-line summary lookup-survey prints.
@@ -100,7 +110,7 @@ class Survey {
   private:
     SurveyOptions options_;
     PoseGraphOptions graph_options_;
-    mrpt::config::CConfigFileMemory config_;
+    common::NamedConfigFile config_;  ///< a copy of the whole .ini, named as its source
 };
 
 }  // namespace lookup::survey

@@ -9,6 +9,7 @@
 
 #include <string>
 
+#include "lookup/common/config.h"
 #include "lookup/survey/survey.h"
 
 namespace lookup::survey {
@@ -18,7 +19,8 @@ class SurveyApp {
     /// Parses the command line and the .ini files. Returns false (after printing help or the
     /// error to stderr) when the program should exit; `exitCode()` then tells how.
     bool initialize(int argc, const char* const* argv);
-    /// Runs the survey, prints the summary line on stdout. Returns the process exit code.
+    /// Runs the survey, prints the summary line on stdout (on success) or the failure on stderr.
+    /// Returns the process exit code (common::ExitCode); never throws.
     int run();
 
     int exitCode() const { return exit_code_; }
@@ -28,9 +30,10 @@ class SurveyApp {
   private:
     SurveyInputs inputs_;
     SurveyOptions options_;
-    mrpt::config::CConfigFileMemory config_;
+    common::NamedConfigFile config_;  ///< the --ini file
     SurveyResult result_;
     int exit_code_ = 0;
+    bool verbose_ = false;
 };
 
 /// The default survey.ini: share/lookup/survey.ini from the source or install tree.
