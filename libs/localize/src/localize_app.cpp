@@ -4,6 +4,7 @@
 #include <mrpt/config/CConfigFileMemory.h>
 #include <mrpt/core/exceptions.h>
 #include <mrpt/hwdrivers/CGenericSensor.h>
+#include <mrpt/obs/CObservationOdometry.h>
 #include <mrpt/system/CTicTac.h>
 #include <mrpt/system/progress.h>
 
@@ -12,6 +13,7 @@
 #include <exception>
 #include <filesystem>
 #include <iostream>
+#include <optional>
 #include <thread>
 
 #include "lookup/coarse/camera_stream.h"
@@ -100,6 +102,41 @@ void checkCoverage(const coarse::CoarseSource& coarse, const std::string& file,
                   << int(100 * overlap / length) << " % of the query; frames outside are lost\n";
     }
 }
+
+/// --repeat: moves each pass after the previous one, in time (one second after its end) and in
+/// odometry (it continues from the previous pass's last pose, as on one long drive), so that
+/// every sensor agrees that time and travel go on.
+class PassShift {
+  public:
+    void nextPass() {
+        shift_s_ = last_s_ - first_s_ + 1.0;
+        origin_ = last_odometry_;
+        first_raw_.reset();
+    }
+    /// Shifts `obs`; returns its new time stamp.
+    double apply(mrpt::obs::CObservation& obs) {
+        if (shift_s_ > 0) {
+            obs.timestamp =
+                mrpt::Clock::fromDouble(mrpt::Clock::toDouble(obs.timestamp) + shift_s_);
+        }
+        if (auto* odo = dynamic_cast<mrpt::obs::CObservationOdometry*>(&obs)) {
+            if (origin_) {
+                if (!first_raw_) first_raw_ = odo->odometry;
+                odo->odometry = *origin_ + (odo->odometry - *first_raw_);
+            }
+            last_odometry_ = odo->odometry;
+        }
+        const double t = mrpt::Clock::toDouble(obs.timestamp);
+        if (first_s_ < 0) first_s_ = t;
+        last_s_ = std::max(last_s_, t);
+        return t;
+    }
+    double firstStamp() const { return first_s_; }
+
+  private:
+    double shift_s_ = 0, first_s_ = -1, last_s_ = -1;
+    std::optional<mrpt::poses::CPose2D> origin_, first_raw_, last_odometry_;
+};
 
 /// Refuses at the start a run that cannot work: no ceiling images, images that cannot be
 /// loaded (e.g. no `<name>_Images` folder), another image size than the references', no
@@ -256,6 +293,9 @@ class Session {
                   << " frames, " << timing_.frames_dropped << " dropped" << std::flush;
     }
 
+    /// The vehicle jumped (--repeat): the localiser starts again as at the first frame.
+    void restart() { localizer_->restart(); }
+
     bool done() const { return req_.max_frames > 0 && timing_.frames >= req_.max_frames; }
 
     RunTiming finish() {
@@ -304,20 +344,17 @@ RunTiming runLocalization(const LocalizeRequest& req) {
     Session session(req, req.rawlog);
     const auto& options = session.options();
     const std::size_t expected = session.expectedFrames();
-    double first_stamp = -1, pass_shift_s = 0, last_stamp = -1;
+    PassShift shift;
     for (int pass = 0; pass < req.repeat && !session.done(); ++pass) {
-        // Each pass starts one second after the previous one ended.
-        if (pass > 0) pass_shift_s = last_stamp - first_stamp + 1.0;
+        if (pass > 0) {
+            shift.nextPass();
+            session.restart();  // the vehicle jumped back to the start
+        }
         common::RawlogReader reader(req.rawlog);
         mrpt::obs::CObservation::Ptr obs;
         while (reader.next(obs)) {
-            if (pass_shift_s > 0) {
-                obs->timestamp =
-                    mrpt::Clock::fromDouble(mrpt::Clock::toDouble(obs->timestamp) + pass_shift_s);
-            }
-            const double stamp = mrpt::Clock::toDouble(obs->timestamp);
-            if (first_stamp < 0) first_stamp = stamp;
-            last_stamp = std::max(last_stamp, stamp);
+            const double stamp = shift.apply(*obs);
+            const double first_stamp = shift.firstStamp();
             double late_s = 0;
             if (options.realtime) {
                 // The observation arrives at its recorded time (relative to the first one).
