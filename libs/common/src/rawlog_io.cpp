@@ -76,6 +76,16 @@ void writeFileAtomically(const std::string& path, const std::string& content) {
     syncDirectory(fs::absolute(path).parent_path().string());
 }
 
+void syncFile(const std::string& path) {
+    const int fd = ::open(path.c_str(), O_RDONLY);
+    if (fd < 0 || ::fsync(fd) != 0) {
+        const int err = errno;
+        if (fd >= 0) ::close(fd);
+        throw WriteError(path, std::string("cannot sync: ") + std::strerror(err));
+    }
+    ::close(fd);
+}
+
 void syncDirectory(const std::string& dir) {
     const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY);
     if (fd < 0) throw WriteError(dir, std::string("cannot open folder: ") + std::strerror(errno));
@@ -214,13 +224,7 @@ void RawlogWriter::close() {
     file_.close();
     const std::string tmp = path_ + ".tmp";
     verifyWritten(tmp, records_);
-    const int fd = ::open(tmp.c_str(), O_RDONLY);
-    if (fd < 0 || ::fsync(fd) != 0) {
-        const int err = errno;
-        if (fd >= 0) ::close(fd);
-        throw WriteError(tmp, std::string("cannot sync: ") + std::strerror(err));
-    }
-    ::close(fd);
+    syncFile(tmp);
     std::error_code ec;
     fs::rename(tmp, path_, ec);
     if (ec) throw WriteError(path_, "cannot rename into place: " + ec.message());

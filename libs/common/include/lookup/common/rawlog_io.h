@@ -58,6 +58,9 @@ class OutputFile {
 /// file or the complete new one, never a part. Throws WriteError naming the file.
 void writeFileAtomically(const std::string& path, const std::string& content);
 
+/// fsync of a written file, before it is renamed into place. Throws WriteError.
+void syncFile(const std::string& path);
+
 /// fsync of a folder, so renames and new files in it survive a power cut. Throws WriteError.
 void syncDirectory(const std::string& dir);
 
