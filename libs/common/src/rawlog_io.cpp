@@ -135,8 +135,13 @@ bool RawlogReader::next(mrpt::obs::CObservation::Ptr& obs) {
         try {
             object = archive_->ReadObject();
         } catch (const mrpt::serialization::CExceptionEOF&) {
-            // Nothing consumed: a clean end between records. Otherwise a record was cut.
-            if (file_.getPosition() == position_before) return false;
+            // Nothing consumed at the end of the file: a clean end between records. Nothing
+            // consumed before it: the compressed stream is damaged. Otherwise a record was cut.
+            if (file_.getPosition() == position_before) {
+                if (file_.checkEOF()) return false;
+                throw RawlogError(path_, entry,
+                                  "unreadable from here: damaged compressed data (byte flip?)");
+            }
             throw RawlogError(path_, entry, "truncated record (unexpected end of file)");
         } catch (const std::exception& e) {
             throw RawlogError(path_, entry, std::string("corrupt record: ") + e.what());

@@ -57,13 +57,14 @@ coarse::CameraFrame firstImage(const std::string& rawlog, const std::string& lab
     try {
         stream.next(frame);
     } catch (const common::RawlogError& e) {
-        const std::string images = common::imagesDirectoryFor(rawlog);
+        const std::string what = e.what(), images = common::imagesDirectoryFor(rawlog);
+        const bool no_images =
+            !fs::is_directory(images) && what.find("cannot load the image") != std::string::npos;
+        const bool no_label = what.find("labelled '" + label + "'") != std::string::npos;
         throw common::RawlogError(
-            e.what() +
-            std::string(fs::is_directory(images)
-                            ? ""
-                            : " (its images folder " + images + " does not exist)") +
-            ": " + why_needed);
+            what +
+            (no_images ? " (its images folder " + images + " does not exist)" : std::string()) +
+            (no_label ? ": " + why_needed : std::string()));
     }
     return frame;
 }
