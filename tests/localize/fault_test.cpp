@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
 #include <csignal>
 #include <filesystem>
@@ -14,6 +15,7 @@
 #include <nlohmann/json.hpp>
 
 #include "localize_fixture.h"
+#include "lookup/common/pose_files.h"
 
 namespace fs = std::filesystem;
 using namespace lookup;
@@ -158,4 +160,69 @@ TEST(Fault, KillNineAtAnyPointKeepsTheCompleteRun) {
     ASSERT_EQ(localizeWithTimeout(req, dir / "after.log").code, 0);
     EXPECT_FALSE(fs::exists(partial));
     EXPECT_EQ(rows(req.out_dir), 20u);
+}
+
+TEST(Fault, LookupCoarseRefusesTruncatedAndFlippedQueriesOnOneLine) {
+    const auto dir = freshDir("fault_coarse");
+    const auto req = planarRun(dir, [](int, auto&, auto&) {});
+    std::ofstream(dir / "s5.ini") << "[coarse]\nsequence_length = 5\n";
+    const auto coarse = [&](const std::string& query) {
+        Outcome o;
+        o.code =
+            runProgram("lookup-coarse",
+                       {"--ref", req.rawlog, "--query", query, "--camera", "CEILING_CAM", "--ini",
+                        (dir / "s5.ini").string(), "--out", (dir / "m.csv").string(), "--quiet"},
+                       dir / "coarse.log");
+        o.log = readText(dir / "coarse.log");
+        return o;
+    };
+    ASSERT_EQ(coarse(req.rawlog).code, 0);
+    for (const auto& [name, damage] :
+         std::vector<std::pair<std::string, std::function<void(std::string&)>>>{
+             {"cut", [](std::string& b) { b.resize(b.size() / 2); }},
+             {"flip", [](std::string& b) { b[b.size() / 2] ^= 0x5a; }}}) {
+        const auto o = coarse(damagedCopy(dir, name, damage));
+        EXPECT_EQ(o.code, 2) << o.log;
+        EXPECT_NE(o.log.find(name + ".rawlog: record"), std::string::npos) << o.log;
+        EXPECT_EQ(std::count(o.log.begin(), o.log.end(), '\n'), 1) << o.log;
+        EXPECT_FALSE(fs::exists(dir / "m.csv.tmp"));
+    }
+}
+
+TEST(Fault, LookupEvalRefusesDamagedRunFilesNamingThem) {
+    const auto dir = freshDir("fault_eval");
+    const auto req = planarRun(dir, [](int, auto&, auto&) {});
+    ASSERT_EQ(localizeWithTimeout(req, dir / "ok.log").code, 0);
+    common::PoseTrack truth;
+    for (int i = 0; i < 20; ++i) {
+        truth.push_back({kT0 + 0.1 * i, mrpt::poses::CPose3D(-5 + 0.3 * i, 0.4, 0, 0.05, 0, 0)});
+    }
+    common::writeMrptPoseFile((dir / "gt.txt").string(), truth);
+    const fs::path run = dir / "damaged";
+    const auto eval = [&] {
+        Outcome o;
+        o.code = runProgram("lookup-eval",
+                            {"--gt", (dir / "gt.txt").string(), "--runs", run.string(), "--out",
+                             (dir / "report").string()},
+                            dir / "eval.log");
+        o.log = readText(dir / "eval.log");
+        return o;
+    };
+    const std::string csv = readText(fs::path(req.out_dir) / "frames.csv");
+    const std::string timing = readText(fs::path(req.out_dir) / "timing.json");
+    const std::vector<std::pair<std::string, std::string>> damages{
+        {csv.substr(0, csv.size() - 30), timing},      // frames.csv cut mid-row
+        {csv, timing.substr(0, timing.size() / 2)},    // timing.json cut
+        {csv, std::string("\0\xff garbage", 10)},      // timing.json garbage
+        {csv.substr(0, csv.find('\n') + 1), timing}};  // header only
+    for (const auto& [frames, json] : damages) {
+        fs::remove_all(run);
+        fs::create_directories(run);
+        std::ofstream(run / "frames.csv", std::ios::binary) << frames;
+        std::ofstream(run / "timing.json", std::ios::binary) << json;
+        const auto o = eval();
+        EXPECT_EQ(o.code, 2) << o.log;
+        EXPECT_NE(o.log.find(run.string()), std::string::npos) << o.log;
+        EXPECT_EQ(std::count(o.log.begin(), o.log.end(), '\n'), 1) << o.log;
+    }
 }

@@ -164,6 +164,8 @@ int CoarseTool::run(std::ostream& out, std::ostream& err) {
     } catch (const std::exception& e) {
         err << "lookup-coarse: error: " << common::errorText(e, verbose_) << "\n";
         exit_code_ = common::exitCodeFor(e);
+        std::error_code ec;  // no half-written output left behind
+        std::filesystem::remove(out_csv_ + ".tmp", ec);
     }
     return exit_code_;
 }
