@@ -13,6 +13,7 @@
 #include <cstdarg>
 #include <cstdio>
 #include <cstring>
+#include <exception>
 #include <filesystem>
 
 #include "lookup/common/errors.h"
@@ -190,12 +191,17 @@ RawlogWriter::RawlogWriter(const std::string& rawlog_path, int compress_level)
 
 RawlogWriter::~RawlogWriter() {
     if (closed_) return;
-    // Not close(): an unfinished rawlog must not be renamed into place; it stays as .tmp.
     try {
+        if (std::uncaught_exceptions() == exceptions_at_open_) {
+            close();
+            return;
+        }
+        // Destroyed by an exception: the rawlog is unfinished and must not be renamed into
+        // place; it stays as .tmp.
         archive_.reset();
         file_.close();
     } catch (...) {
-        // Destructors must not throw.
+        // Destructors must not throw; the .tmp file is left behind for inspection.
     }
 }
 

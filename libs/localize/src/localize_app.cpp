@@ -172,6 +172,7 @@ class Session {
   public:
     explicit Session(const LocalizeRequest& req, const std::string& source_name)
         : req_(req), source_(source_name) {
+        RunWriter::cleanLeftovers(req.out_dir);
         // Options: defaults, then the ini file, then command-line overrides.
         if (!req.ini_file.empty()) {
             mrpt::config::CConfigFile ini(req.ini_file);
