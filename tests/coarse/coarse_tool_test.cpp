@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -112,12 +113,12 @@ TEST(CoarseTool, EvaluatesWithPosesAndSavesDescriptors) {
 TEST(CoarseTool, BadInputIsReportedNotCrashed) {
     const auto f = writeFixture("bad");
     const std::string csv = (f.dir / "m.csv").string();
-    {  // absent camera label: exit 1, message lists the labels present
+    {  // absent camera label: exit 2 (bad input data), message lists the labels present
         CoarseTool tool;
         ASSERT_TRUE(tool.initialize({"lookup-coarse", "--ref", f.ref, "--query", f.query, "--out",
                                      csv, "--quiet", "--camera", "LEFT_CAM"}));
         std::ostringstream out, err;
-        EXPECT_EQ(tool.run(out, err), 1);
+        EXPECT_EQ(tool.run(out, err), 2);
         EXPECT_NE(err.str().find("LEFT_CAM"), std::string::npos) << err.str();
         EXPECT_NE(err.str().find("FORWARD_CAM"), std::string::npos) << err.str();
     }
@@ -143,8 +144,18 @@ TEST(CoarseTool, BadInputIsReportedNotCrashed) {
         CoarseTool missing;
         ASSERT_TRUE(missing.initialize({"lookup-coarse", "--ref", "/nonexistent/r.rawlog",
                                         "--query", f.query, "--out", csv, "--quiet"}));
-        EXPECT_EQ(missing.run(out, err), 1);
+        EXPECT_EQ(missing.run(out, err), 2);
         EXPECT_NE(err.str().find("/nonexistent/r.rawlog"), std::string::npos);
+    }
+    {  // an output that cannot be written: exit 3, naming it, on one line
+        CoarseTool tool;
+        ASSERT_TRUE(tool.initialize({"lookup-coarse", "--ref", f.ref, "--query", f.query, "--out",
+                                     "/nonexistent/m.csv", "--quiet"}));
+        std::ostringstream out, err;
+        EXPECT_EQ(tool.run(out, err), 3);
+        const std::string text = err.str();
+        EXPECT_NE(text.find("/nonexistent/m.csv.tmp: write error"), std::string::npos) << text;
+        EXPECT_EQ(std::count(text.begin(), text.end(), '\n'), 1) << text;
     }
     {  // both or neither reference inputs
         CoarseTool tool;

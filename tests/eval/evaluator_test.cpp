@@ -156,7 +156,7 @@ TEST(RunIo, RoundTripAndMalformedRowNamesFileAndLine) {
     try {
         loadRun(dir.string());
         FAIL();
-    } catch (const lookup::common::ConfigError& e) {
+    } catch (const lookup::eval::RunError& e) {
         EXPECT_NE(std::string(e.what()).find("frames.csv:4"), std::string::npos) << e.what();
     }
 }

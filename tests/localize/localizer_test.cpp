@@ -398,10 +398,18 @@ std::vector<FrameRow> readFrames(const fs::path& run) {
 
 // A query re-driving the survey line 0.1 m to its left from reference 10 on, one ceiling and
 // one forward frame per reference; the ceiling from `ceiling` (the survey's, or another).
-void writeStartUpQuery(const Scene& ceiling, const fs::path& path, int frames) {
+void writeStartUpQuery(const Scene& ceiling, const fs::path& path, int frames,
+                       bool odometry = false) {
     common::RawlogWriter rawlog(path.string());
     for (int k = 0; k < frames; ++k) {
         const double t = kT0 + 0.1 * k;
+        if (odometry) {
+            mrpt::obs::CObservationOdometry odo;
+            odo.sensorLabel = "ODOMETRY";
+            odo.timestamp = mrpt::Clock::fromDouble(t);
+            odo.odometry = mrpt::poses::CPose2D(-8 + 0.25 * (k + 10), 0.1, 0);
+            rawlog.write(odo);
+        }
         auto forward = forwardView(1, k + 10, t);
         rawlog.writeWithExternalImage(*forward, "forward_" + std::to_string(k) + ".png");
         const mrpt::poses::CPose3D vehicle(-8 + 0.25 * (k + 10), 0.1, 0, 0, 0, 0);
@@ -559,4 +567,26 @@ TEST(Localize, AForwardCameraLabelWithoutImagesIsRefusedNamingThePresentLabels) 
     EXPECT_NE(e.find("'FRONT_CAM'"), std::string::npos) << e;
     EXPECT_NE(e.find("FORWARD_CAM (mrpt::obs::CObservationImage)"), std::string::npos) << e;
     EXPECT_NE(e.find("forward_camera_label"), std::string::npos) << e;
+}
+
+TEST(Localize, RepeatedPassesRefineAsTheFirstOneDoes) {
+    const Scene scene;
+    const auto dir = freshDir("repeat_passes");
+    writeDatabase(scene, (dir / "db").string(), {{"survey", 65, 100.0, /*forward_seed=*/1}});
+    writeStartUpQuery(scene, dir / "query.rawlog", 32, /*odometry=*/true);
+    localize::LocalizeRequest req;
+    req.db_dir = (dir / "db").string();
+    req.rawlog = (dir / "query.rawlog").string();
+    req.out_dir = (dir / "run").string();
+    req.sampling = "grid";
+    req.progress = false;
+    req.repeat = 3;
+    EXPECT_EQ(localize::runLocalization(req).frames, 96u);
+    const auto rows = readFrames(req.out_dir);
+    ASSERT_EQ(rows.size(), 96u);
+    int refined[3] = {0, 0, 0};
+    for (std::size_t k = 0; k < rows.size(); ++k) refined[k / 32] += rows[k].status == "refined";
+    EXPECT_GE(refined[0], 27);
+    EXPECT_NEAR(refined[1], refined[0], 2);  // within a few points of pass 1
+    EXPECT_NEAR(refined[2], refined[0], 2);
 }

@@ -3,6 +3,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cctype>
 #include <csignal>
 #include <filesystem>
 #include <fstream>
@@ -183,4 +185,32 @@ TEST(RunFolder, EvalRefusesUnfinishedRunsFlagsThemOnRequestAndReportsAFullDisk) 
     EXPECT_EQ(eval(req.out_dir, dir / "report_full", 200), 3) << readText(dir / "eval.log");
     EXPECT_NE(readText(dir / "eval.log").find("write error"), std::string::npos);
     EXPECT_FALSE(fs::exists(dir / "report_full" / "report.md"));
+}
+
+TEST(RunFolder, ProgramsDocumentTheirExitCodesAndFailOnOneLine) {
+    const auto dir = freshDir("exit_codes");
+    for (const char* program : {"lookup-localize", "lookup-eval", "lookup-coarse"}) {
+        EXPECT_EQ(runProgram(program, {"--help"}, dir / "help.log"), 0) << program;
+        std::string help;  // TCLAP wraps lines: compare with whitespace collapsed
+        for (char c : readText(dir / "help.log")) {
+            if (!std::isspace(static_cast<unsigned char>(c))) {
+                help += c;
+            } else if (!help.empty() && help.back() != ' ') {
+                help += ' ';
+            }
+        }
+        EXPECT_NE(help.find("Exit codes: 0 success, 1 usage or options error"), std::string::npos)
+            << program << ": " << help;
+        EXPECT_NE(help.find("4 internal error"), std::string::npos) << program << ": " << help;
+    }
+    auto req = planarRun(dir, [](int, auto&, auto&) {});
+    auto args = localizeArgs(req);
+    args[1] = (dir / "nodb").string();  // --db
+    EXPECT_EQ(runProgram("lookup-localize", args, dir / "nodb.log"), 2);
+    const std::string log = readText(dir / "nodb.log");
+    EXPECT_EQ(std::count(log.begin(), log.end(), '\n'), 1) << log;
+    EXPECT_NE(log.find("nodb"), std::string::npos) << log;
+    args.insert(args.end(), {"--sampling", "nonsense", "--max-frames", "x"});
+    EXPECT_EQ(runProgram("lookup-localize", args, dir / "usage.log"), 1)
+        << readText(dir / "usage.log");
 }

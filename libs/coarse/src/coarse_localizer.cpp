@@ -161,6 +161,7 @@ CoarseLocalizer::CoarseLocalizer(std::shared_ptr<const ReferenceDescriptors> ref
 
 void CoarseLocalizer::reset() {
     columns_.clear();
+    queries_ = 0;
     unconfident_searches_ = 0;
     tracking_ = false;
     coasted_m_ = 0;

@@ -21,6 +21,8 @@
 #include "lookup/coarse/confusion_image.h"
 #include "lookup/common/cli.h"
 #include "lookup/common/config.h"
+#include "lookup/common/errors.h"
+#include "lookup/common/rawlog_io.h"
 
 namespace lookup::coarse {
 namespace {
@@ -80,10 +82,11 @@ bool CoarseTool::initialize(const std::vector<std::string>& args) {
 }
 
 bool CoarseTool::initialize(int argc, const char* const* argv) {
-    TCLAP::CmdLine cmd(
-        "lookup-coarse: online SeqSLAM coarse localisation of a query rawlog's forward-camera "
-        "images against a reference rawlog; one CSV row per query image.",
-        ' ', "0.1");
+    TCLAP::CmdLine cmd(std::string("lookup-coarse: online SeqSLAM coarse localisation of a query "
+                                   "rawlog's forward-camera images against a reference rawlog; "
+                                   "one CSV row per query image. ") +
+                           common::kExitCodesHelp,
+                       ' ', "0.1");
     TCLAP::ValueArg<std::string> ref("", "ref", "Reference rawlog", false, "", "REF.rawlog", cmd);
     TCLAP::ValueArg<std::string> ref_desc("", "ref-descriptors",
                                           "Reference descriptors saved before (instead of --ref)",
@@ -120,6 +123,8 @@ bool CoarseTool::initialize(int argc, const char* const* argv) {
                                    "altered copies",
                                    false, 1, "N", cmd);
     TCLAP::SwitchArg quiet("", "quiet", "No progress bar", cmd, false);
+    TCLAP::SwitchArg verbose("", "verbose", "On errors, print MRPT's full exception dump", cmd,
+                             false);
 
     if (!cmd.parse(argc, const_cast<const char**>(argv))) {
         exit_code_ = common::parseFailureExitCode(argc, argv);
@@ -139,6 +144,7 @@ bool CoarseTool::initialize(int argc, const char* const* argv) {
     confusion_png_ = png.getValue();
     replicate_ = replicate.getValue();
     quiet_ = quiet.getValue();
+    verbose_ = verbose.getValue();
     if (ref_rawlog_.empty() == ref_descriptors_.empty()) {
         std::cerr << "lookup-coarse: give exactly one of --ref and --ref-descriptors\n";
         exit_code_ = 1;
@@ -156,8 +162,10 @@ int CoarseTool::run(std::ostream& out, std::ostream& err) {
     try {
         exit_code_ = runOrThrow(out, err);
     } catch (const std::exception& e) {
-        err << "lookup-coarse: error: " << e.what() << "\n";
-        exit_code_ = 1;
+        err << "lookup-coarse: error: " << common::errorText(e, verbose_) << "\n";
+        exit_code_ = common::exitCodeFor(e);
+        std::error_code ec;  // no half-written output left behind
+        std::filesystem::remove(out_csv_ + ".tmp", ec);
     }
     return exit_code_;
 }
@@ -210,7 +218,7 @@ int CoarseTool::runOrThrow(std::ostream& out, std::ostream& err) {
 
     const std::string tmp = out_csv_ + ".tmp";
     std::ofstream csv(tmp);
-    if (!csv) throw std::runtime_error(out_csv_ + ": cannot open for writing");
+    if (!csv) throw common::WriteError(tmp, "cannot open for writing");
     const bool evaluate = query_truth && refs->hasPoses();
     csv << "query_index,query_time_s,reference_index,reference_time_s,confidence,status"
         << (evaluate ? ",error_m" : "") << ",reason\n";
@@ -297,8 +305,12 @@ int CoarseTool::runOrThrow(std::ostream& out, std::ostream& err) {
         }
     }
     csv.close();
-    if (!csv) throw std::runtime_error(out_csv_ + ": write failed");
-    std::filesystem::rename(tmp, out_csv_);
+    if (!csv) throw common::WriteError(tmp, "write failed (disk full?)");
+    common::syncFile(tmp);  // a power cut leaves the old file or the whole new one
+    std::error_code ec;
+    std::filesystem::rename(tmp, out_csv_, ec);
+    if (ec)
+        throw common::WriteError(out_csv_, "cannot rename " + tmp + " into place: " + ec.message());
     if (!quiet_) err << "\n";
 
     summary_.mean_frame_ms = mean(frame_ms);

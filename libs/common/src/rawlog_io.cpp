@@ -13,6 +13,7 @@
 #include <cstdarg>
 #include <cstdio>
 #include <cstring>
+#include <exception>
 #include <filesystem>
 
 #include "lookup/common/errors.h"
@@ -76,6 +77,16 @@ void writeFileAtomically(const std::string& path, const std::string& content) {
     syncDirectory(fs::absolute(path).parent_path().string());
 }
 
+void syncFile(const std::string& path) {
+    const int fd = ::open(path.c_str(), O_RDONLY);
+    if (fd < 0 || ::fsync(fd) != 0) {
+        const int err = errno;
+        if (fd >= 0) ::close(fd);
+        throw WriteError(path, std::string("cannot sync: ") + std::strerror(err));
+    }
+    ::close(fd);
+}
+
 void syncDirectory(const std::string& dir) {
     const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY);
     if (fd < 0) throw WriteError(dir, std::string("cannot open folder: ") + std::strerror(errno));
@@ -125,8 +136,13 @@ bool RawlogReader::next(mrpt::obs::CObservation::Ptr& obs) {
         try {
             object = archive_->ReadObject();
         } catch (const mrpt::serialization::CExceptionEOF&) {
-            // Nothing consumed: a clean end between records. Otherwise a record was cut.
-            if (file_.getPosition() == position_before) return false;
+            // Nothing consumed at the end of the file: a clean end between records. Nothing
+            // consumed before it: the compressed stream is damaged. Otherwise a record was cut.
+            if (file_.getPosition() == position_before) {
+                if (file_.checkEOF()) return false;
+                throw RawlogError(path_, entry,
+                                  "unreadable from here: damaged compressed data (byte flip?)");
+            }
             throw RawlogError(path_, entry, "truncated record (unexpected end of file)");
         } catch (const std::exception& e) {
             throw RawlogError(path_, entry, std::string("corrupt record: ") + e.what());
@@ -175,12 +191,17 @@ RawlogWriter::RawlogWriter(const std::string& rawlog_path, int compress_level)
 
 RawlogWriter::~RawlogWriter() {
     if (closed_) return;
-    // Not close(): an unfinished rawlog must not be renamed into place; it stays as .tmp.
     try {
+        if (std::uncaught_exceptions() == exceptions_at_open_) {
+            close();
+            return;
+        }
+        // Destroyed by an exception: the rawlog is unfinished and must not be renamed into
+        // place; it stays as .tmp.
         archive_.reset();
         file_.close();
     } catch (...) {
-        // Destructors must not throw.
+        // Destructors must not throw; the .tmp file is left behind for inspection.
     }
 }
 
@@ -214,13 +235,7 @@ void RawlogWriter::close() {
     file_.close();
     const std::string tmp = path_ + ".tmp";
     verifyWritten(tmp, records_);
-    const int fd = ::open(tmp.c_str(), O_RDONLY);
-    if (fd < 0 || ::fsync(fd) != 0) {
-        const int err = errno;
-        if (fd >= 0) ::close(fd);
-        throw WriteError(tmp, std::string("cannot sync: ") + std::strerror(err));
-    }
-    ::close(fd);
+    syncFile(tmp);
     std::error_code ec;
     fs::rename(tmp, path_, ec);
     if (ec) throw WriteError(path_, "cannot rename into place: " + ec.message());

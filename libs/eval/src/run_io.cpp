@@ -17,7 +17,7 @@
 
 namespace lookup::eval {
 namespace fs = std::filesystem;
-using common::ConfigError;
+using ConfigError = RunError;  // bad run data: exit 2, not an options error
 
 namespace {
 

@@ -4,6 +4,7 @@
 #include <mrpt/config/CConfigFileMemory.h>
 #include <mrpt/core/exceptions.h>
 #include <mrpt/hwdrivers/CGenericSensor.h>
+#include <mrpt/obs/CObservationOdometry.h>
 #include <mrpt/system/CTicTac.h>
 #include <mrpt/system/progress.h>
 
@@ -63,13 +64,14 @@ coarse::CameraFrame firstImage(const std::string& rawlog, const std::string& lab
     try {
         stream.next(frame);
     } catch (const common::RawlogError& e) {
-        const std::string images = common::imagesDirectoryFor(rawlog);
+        const std::string what = e.what(), images = common::imagesDirectoryFor(rawlog);
+        const bool no_images =
+            !fs::is_directory(images) && what.find("cannot load the image") != std::string::npos;
+        const bool no_label = what.find("labelled '" + label + "'") != std::string::npos;
         throw common::RawlogError(
-            e.what() +
-            std::string(fs::is_directory(images)
-                            ? ""
-                            : " (its images folder " + images + " does not exist)") +
-            ": " + why_needed);
+            what +
+            (no_images ? " (its images folder " + images + " does not exist)" : std::string()) +
+            (no_label ? ": " + why_needed : std::string()));
     }
     return frame;
 }
@@ -109,6 +111,41 @@ void checkCoverage(const coarse::CoarseSource& coarse, const std::string& file,
     }
 }
 
+/// --repeat: moves each pass after the previous one, in time (one second after its end) and in
+/// odometry (it continues from the previous pass's last pose, as on one long drive), so that
+/// every sensor agrees that time and travel go on.
+class PassShift {
+  public:
+    void nextPass() {
+        shift_s_ = last_s_ - first_s_ + 1.0;
+        origin_ = last_odometry_;
+        first_raw_.reset();
+    }
+    /// Shifts `obs`; returns its new time stamp.
+    double apply(mrpt::obs::CObservation& obs) {
+        if (shift_s_ > 0) {
+            obs.timestamp =
+                mrpt::Clock::fromDouble(mrpt::Clock::toDouble(obs.timestamp) + shift_s_);
+        }
+        if (auto* odo = dynamic_cast<mrpt::obs::CObservationOdometry*>(&obs)) {
+            if (origin_) {
+                if (!first_raw_) first_raw_ = odo->odometry;
+                odo->odometry = *origin_ + (odo->odometry - *first_raw_);
+            }
+            last_odometry_ = odo->odometry;
+        }
+        const double t = mrpt::Clock::toDouble(obs.timestamp);
+        if (first_s_ < 0) first_s_ = t;
+        last_s_ = std::max(last_s_, t);
+        return t;
+    }
+    double firstStamp() const { return first_s_; }
+
+  private:
+    double shift_s_ = 0, first_s_ = -1, last_s_ = -1;
+    std::optional<mrpt::poses::CPose2D> origin_, first_raw_, last_odometry_;
+};
+
 /// Refuses at the start a run that cannot work: no ceiling images, images that cannot be
 /// loaded (e.g. no `<name>_Images` folder), another image size than the references', no
 /// forward images under the label the coarse stage reads, a coarse file that does not cover
@@ -142,6 +179,7 @@ class Session {
   public:
     explicit Session(const LocalizeRequest& req, const std::string& source_name)
         : req_(req), source_(source_name) {
+        RunWriter::cleanLeftovers(req.out_dir);
         // Options: defaults, then the ini file, then command-line overrides.
         if (!req.ini_file.empty()) {
             mrpt::config::CConfigFile ini(req.ini_file);
@@ -296,6 +334,9 @@ class Session {
                   << " frames, " << timing_.frames_dropped << " dropped" << std::flush;
     }
 
+    /// The vehicle jumped (--repeat): the localiser starts again as at the first frame.
+    void restart() { localizer_->restart(); }
+
     bool done() const { return req_.max_frames > 0 && timing_.frames >= req_.max_frames; }
 
     RunTiming finish() {
@@ -349,22 +390,20 @@ RunTiming runLocalization(const LocalizeRequest& req) {
     Session session(req, req.rawlog);
     const auto& options = session.options();
     const std::size_t expected = session.expectedFrames();
-    double first_stamp = -1, pass_shift_s = 0, last_stamp = -1;
+    PassShift shift;
     double clock_shift_s = 0;                       // realtime replay across clock jumps
     std::map<std::string, double> last_arrival_of;  // per sensor
     for (int pass = 0; pass < req.repeat && !session.done() && !stop_requested; ++pass) {
-        // Each pass starts one second after the previous one ended.
-        if (pass > 0) pass_shift_s = last_stamp - first_stamp + 1.0;
+        if (pass > 0) {
+            shift.nextPass();
+            session.restart();  // the vehicle jumped back to the start
+            last_arrival_of.clear();
+        }
         common::RawlogReader reader(req.rawlog);
         mrpt::obs::CObservation::Ptr obs;
         while (!stop_requested && reader.next(obs)) {
-            if (pass_shift_s > 0) {
-                obs->timestamp =
-                    mrpt::Clock::fromDouble(mrpt::Clock::toDouble(obs->timestamp) + pass_shift_s);
-            }
-            const double stamp = mrpt::Clock::toDouble(obs->timestamp);
-            if (first_stamp < 0) first_stamp = stamp;
-            last_stamp = std::max(last_stamp, stamp);
+            const double stamp = shift.apply(*obs);
+            const double first_stamp = shift.firstStamp();
             double late_s = 0;
             if (options.realtime) {
                 // The observation arrives at its recorded time (relative to the first one); a

@@ -32,7 +32,7 @@ std::string withoutSlash(std::string dir) {
 /// What an interrupted run may have left beside `out`: a half-written `.partial` run (removed)
 /// and, after a kill between the two renames of RunWriter::publish, the previous run as
 /// `.old` with nothing at `out` (restored).
-void cleanLeftovers(const std::string& out) {
+void removeLeftovers(const std::string& out) {
     std::error_code ec;
     const std::string old = out + ".old", partial = out + ".partial";
     if (fs::exists(old)) {
@@ -105,7 +105,7 @@ RunWriter::RunWriter(const std::string& out_dir, const std::string& run_ini_text
       dir_(final_dir_ + ".partial"),
       debug_images_(write_debug_images),
       debug_every_(debug_image_every) {
-    cleanLeftovers(final_dir_);
+    removeLeftovers(final_dir_);
     checkReplaceable(final_dir_);
     std::error_code ec;
     fs::create_directories(dir_, ec);
@@ -122,6 +122,10 @@ RunWriter::RunWriter(const std::string& out_dir, const std::string& run_ini_text
 }
 
 RunWriter::~RunWriter() = default;
+
+void RunWriter::cleanLeftovers(const std::string& out_dir) {
+    removeLeftovers(withoutSlash(out_dir));
+}
 
 void RunWriter::write(const FrameResult& frame, const mrpt::obs::CObservationImage* query) {
     eval::FrameRow row;

@@ -52,7 +52,7 @@ class CoarseLocalizer : public CoarseSource {
                                    std::optional<double> travelled_m = std::nullopt,
                                    bool search = true, bool audit = true);
 
-    /// Forgets the query history (next frame starts a global search).
+    /// Forgets the query history (the next frame is query 0 and starts a global search).
     void reset();
     /// CoarseSource: drops the track (the next search is global), keeps the history.
     void rejectLastMatch() override;

@@ -46,8 +46,9 @@ class CoarseTool {
     bool initialize(int argc, const char* const* argv);
     bool initialize(const std::vector<std::string>& args);
 
-    /// Runs; returns the exit code. Errors (bad rawlogs, options, ...) are printed to `err`
-    /// naming the file and record, never thrown.
+    /// Runs; returns the exit code (common::ExitCode: 1 options, 2 bad input data, 3 write
+    /// error). Errors (bad rawlogs, options, ...) are printed to `err` on one line naming the
+    /// file and record (MRPT's dump only with --verbose), never thrown.
     int run(std::ostream& out, std::ostream& err);
 
     int exitCode() const { return exit_code_; }
@@ -61,6 +62,7 @@ class CoarseTool {
         odometry_label_ = "ODOMETRY";
     int replicate_ = 1;
     bool quiet_ = false;
+    bool verbose_ = false;
     int exit_code_ = 0;
     CoarseRunSummary summary_;
 };

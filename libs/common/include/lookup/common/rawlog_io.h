@@ -14,6 +14,7 @@
 #include <cstddef>
 #include <cstdio>
 #include <deque>
+#include <exception>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -57,6 +58,9 @@ class OutputFile {
 /// Writes `content` to `<path>.tmp`, fsyncs it and renames it over `path`: readers see the old
 /// file or the complete new one, never a part. Throws WriteError naming the file.
 void writeFileAtomically(const std::string& path, const std::string& content);
+
+/// fsync of a written file, before it is renamed into place. Throws WriteError.
+void syncFile(const std::string& path);
 
 /// fsync of a folder, so renames and new files in it survive a power cut. Throws WriteError.
 void syncDirectory(const std::string& dir);
@@ -118,8 +122,9 @@ class RawlogWriter {
 
     /// Flushes, closes, reads the file back (a full disk can cut the compressed stream on
     /// close, unreported by zlib), fsyncs and renames into place. Called by the destructor
-    /// only if not called before, and then the file is left as `<path>.tmp`; a WriteError
-    /// (e.g. a full disk) propagates from here but not from the destructor.
+    /// if not called before, unless the writer is destroyed by an exception: then the
+    /// unfinished file stays as `<path>.tmp`. A WriteError (e.g. a full disk) propagates from
+    /// here but not from the destructor (which leaves the .tmp file).
     void close();
 
     std::size_t recordsWritten() const { return records_; }
@@ -135,6 +140,7 @@ class RawlogWriter {
     std::unique_ptr<mrpt::serialization::CArchive> archive_;
     std::size_t records_ = 0;
     bool closed_ = false;
+    int exceptions_at_open_ = std::uncaught_exceptions();
 };
 
 }  // namespace lookup::common

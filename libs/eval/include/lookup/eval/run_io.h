@@ -1,10 +1,17 @@
 #pragma once
 // Reading the per-frame output of a localisation run (docs/run-format.md).
 
+#include <stdexcept>
 #include <string>
 #include <vector>
 
 namespace lookup::eval {
+
+/// A run folder whose files cannot be read: the message names the file, line and reason.
+class RunError : public std::runtime_error {
+  public:
+    using std::runtime_error::runtime_error;
+};
 
 /// One row of a run's frames.csv.
 struct FrameRow {
@@ -40,7 +47,7 @@ struct Run {
     std::string flagged;
 };
 
-/// Loads RUN/frames.csv (+ run.ini and timing.json when present). Throws ConfigError naming
+/// Loads RUN/frames.csv (+ run.ini and timing.json when present). Throws RunError naming
 /// the file and line for a missing file, a missing column or a malformed value. A pose with a
 /// non-finite number is dropped (the frame counts as without pose) and counted.
 Run loadRun(const std::string& directory);

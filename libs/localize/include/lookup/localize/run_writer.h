@@ -43,6 +43,10 @@ class RunWriter {
     /// a run folder (it would be replaced), common::WriteError when a file cannot be written.
     RunWriter(const std::string& out_dir, const std::string& run_ini_text, bool write_debug_images,
               int debug_image_every);
+    /// What an interrupted run left beside `out_dir` (see the constructor), handled before a
+    /// run reads its inputs, so a run refused at the start still restores `out_dir`.
+    static void cleanLeftovers(const std::string& out_dir);
+
     /// Without finish(): closes the files and leaves the staging folder as it is.
     ~RunWriter();
 
