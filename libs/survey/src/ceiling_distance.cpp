@@ -1,6 +1,7 @@
 #include "lookup/survey/ceiling_distance.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <optional>
@@ -128,6 +129,7 @@ void summarise(std::vector<double> hs, CeilingDistanceEstimate& out) {
 
 CeilingDistanceEstimate estimateCeilingDistance(const std::vector<CeilingTraverse>& traverses,
                                                 const SurveyOptions& o) {
+    const auto started = std::chrono::steady_clock::now();
     CeilingDistanceEstimate out;
     out.prior_m = o.ceiling_height_m;
     for (const auto& t : traverses) {
@@ -138,6 +140,8 @@ CeilingDistanceEstimate estimateCeilingDistance(const std::vector<CeilingTravers
     }
     const auto finish = [&] {
         out.camera_to_ceiling_m = out.ceiling_height_m - out.camera_z_m;
+        out.time_s =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
         return out;
     };
     // A short baseline first: the matcher searches around where the prior h predicts each
@@ -156,7 +160,9 @@ CeilingDistanceEstimate estimateCeilingDistance(const std::vector<CeilingTravers
         first = pass;
     }
     if (first) {
+        const double z = out.camera_z_m;
         out = *first;
+        out.camera_z_m = z;
         return finish();
     }
     out.ceiling_height_m = o.ceiling_height_m;
@@ -175,10 +181,10 @@ std::string ceilingJson(const CeilingDistanceEstimate& e, const std::string& sou
                   "{\"source\": \"%s\", \"ceiling_height_m\": %.4f, \"camera_to_ceiling_m\": "
                   "%.4f, \"camera_z_m\": %.4f, \"spread_m\": %.4f, \"prior_m\": %.4f, "
                   "\"triples_tried\": %zu, \"triples_used\": %zu, \"triples_rejected\": %zu, "
-                  "\"estimated\": %s}",
+                  "\"estimated\": %s, \"time_s\": %.2f}",
                   source.c_str(), e.ceiling_height_m, e.camera_to_ceiling_m, e.camera_z_m,
                   e.spread_m, e.prior_m, e.tried, e.used, e.rejected,
-                  e.estimated ? "true" : "false");
+                  e.estimated ? "true" : "false", e.time_s);
     return buf;
 }
 

@@ -37,6 +37,7 @@ struct CeilingDistanceEstimate {
     std::size_t used = 0;            ///< accepted and within 3 spreads of the median
     std::size_t rejected = 0;        ///< refused by the refiner, or outliers
     std::string warning;             ///< set when not estimated (also a survey warning)
+    double time_s = 0;               ///< wall time of the estimate [s]
 };
 
 /// Estimates h from the traverses' images (options: ceiling_* of SurveyOptions). Never
