@@ -226,3 +226,25 @@ TEST(DatasetIni, WithoutCeilingHeightWorksAndAStatedOneIsIgnored) {
         EXPECT_EQ(noted, !extra.empty());
     }
 }
+
+TEST(DatasetIni, MalformedStartPoseRefusedNamingTheKey) {
+    const auto dir = tempDir("badstart");
+    const auto f = lookup::test::makeSurveyRawlog(dir.string(), "corridor", 2.0);
+    {
+        std::ofstream d(dir / "dataset.ini");
+        d << "[dataset]\ntraverse_count = 1\n[traverse_0]\nrawlog = corridor.rawlog\n"
+          << "start_pose = 1 2\n";
+    }
+    const std::string ds = (dir / "dataset.ini").string(), out = (dir / "db").string();
+    const char* argv[] = {"lookup-survey", "--dataset", ds.c_str(), "--out", out.c_str(), "-q"};
+    SurveyApp app;
+    testing::internal::CaptureStderr();
+    EXPECT_FALSE(app.initialize(6, argv));
+    const std::string err = testing::internal::GetCapturedStderr();
+    EXPECT_NE(app.exitCode(), 0);
+    EXPECT_NE(err.find("start_pose"), std::string::npos) << err;
+    EXPECT_NE(err.find("traverse_0"), std::string::npos) << err;
+    SurveyOptions o;
+    o.start_pose = "1 2 x";
+    EXPECT_THROW(o.check(), std::exception);
+}
