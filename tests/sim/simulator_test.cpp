@@ -2,6 +2,7 @@
 // ground truth, drifting odometry, same seed same bytes, and the mini presets' size budget.
 
 #include <gtest/gtest.h>
+
 #include <lookup/common/pose_files.h>
 #include <lookup/common/rawlog_io.h>
 #include <lookup/sim/simulator.h>
@@ -12,6 +13,7 @@
 #include <mrpt/obs/CObservationImage.h>
 #include <mrpt/obs/CObservationOdometry.h>
 #include <mrpt/serialization/CArchive.h>
+#include <sstream>
 
 #include <chrono>
 #include <filesystem>
@@ -97,7 +99,20 @@ TEST(Simulator, WritesTheDatasetLayout) {
     EXPECT_EQ(ini.read_string("dataset", "ceiling_camera_label", ""), "CEILING_CAM");
     EXPECT_EQ(ini.read_string("traverse_1", "rawlog", ""), "zigzag.rawlog");
     EXPECT_EQ(ini.read_string("traverse_1", "roles", ""), "query");
-    EXPECT_DOUBLE_EQ(ini.read_double("dataset", "ceiling_height_m", 0), 5.0);
+    // No truth for the survey: no ceiling height, and the mapping traverse's start pose as an
+    // operator gives it (within 0.05 m and 0.1 deg of the truth, never exactly it).
+    EXPECT_FALSE(ini.keyExists("dataset", "ceiling_height_m"));
+    EXPECT_FALSE(ini.keyExists("traverse_1", "start_pose"));
+    {
+        std::istringstream in(ini.read_string("traverse_0", "start_pose", ""));
+        double x = 0, y = 0, yaw_deg = 0;
+        ASSERT_TRUE(in >> x >> y >> yaw_deg);
+        const auto& truth = sim.groundTruth(0).front().pose;
+        const double d = std::hypot(x - truth.x(), y - truth.y());
+        EXPECT_GT(d, 0.01);
+        EXPECT_LT(d, 0.06);
+        EXPECT_LT(std::abs(yaw_deg - mrpt::RAD2DEG(truth.yaw())), 0.11);
+    }
     // The map is an MRPT occupancy grid: free along the route, occupied rock beside it.
     mrpt::maps::COccupancyGridMap2D grid;
     {

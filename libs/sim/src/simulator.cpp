@@ -300,7 +300,30 @@ void drivePlan(const std::vector<PlanLeg>& legs, double s, double length, double
     }
 }
 
-void writeDatasetIni(const std::string& path, const ScenarioOptions& sc) {
+// Bounds of the error of the start pose lookup-sim hands the survey: a vehicle parked over a
+// surveyed mark at the portal, aligned by eye with a painted line (docs/survey.md).
+constexpr double kStartErrorMaxM = 0.05;
+constexpr double kStartErrorMaxDeg = 0.1;
+
+// The operator's start pose of a traverse, "x y yaw_deg": its true pose at the first lidar
+// scan with a seeded error within the bounds above, never the exact truth.
+std::string operatorStartPose(const ScenarioOptions& sc, const common::PoseTrack& track,
+                              std::size_t index) {
+    const mrpt::poses::CPose3D p = poseAt(track, track.front().time_s + sc.lidar.phase_s);
+    const uint32_t seed = hash3(static_cast<uint32_t>(sc.seed),
+                                static_cast<uint32_t>(sc.seed >> 32), 0x57a27u + uint32_t(index));
+    const double r = kStartErrorMaxM * (0.5 + 0.5 * unit(hash3(seed, 1, 0)));
+    const double dir = 2 * M_PI * unit(hash3(seed, 2, 0));
+    const double sign = unit(hash3(seed, 3, 0)) < 0.5 ? -1.0 : 1.0;
+    const double dyaw = sign * kStartErrorMaxDeg * (0.5 + 0.5 * unit(hash3(seed, 4, 0)));
+    char buf[96];
+    std::snprintf(buf, sizeof(buf), "%.3f %.3f %.3f", p.x() + r * std::cos(dir),
+                  p.y() + r * std::sin(dir), mrpt::RAD2DEG(p.yaw()) + dyaw);
+    return buf;
+}
+
+void writeDatasetIni(const std::string& path, const ScenarioOptions& sc,
+                     const std::vector<common::PoseTrack>& tracks) {
     std::ofstream f(path);
     f << "# Written by lookup-sim; see docs/dataset-format.md\n"
       << "[dataset]\n"
@@ -310,8 +333,10 @@ void writeDatasetIni(const std::string& path, const ScenarioOptions& sc) {
       << "ceiling_camera_label = " << sc.ceiling_camera.label << "\n"
       << "forward_camera_label = " << sc.forward_camera.label << "\n"
       << "lidar_label = " << sc.lidar.label << "\n"
-      << "odometry_label = " << sc.odometry.label << "\n"
-      << "ceiling_height_m = " << sc.world.ceiling_height_m << "\n";
+      << "odometry_label = " << sc.odometry.label << "\n";
+    // No ceiling height and no exact start: the survey measures the one and is given the
+    // other as an operator would give it.
+    bool start_written = false;
     for (std::size_t i = 0; i < sc.traverses.size(); ++i) {
         const auto& t = sc.traverses[i];
         f << "\n[traverse_" << i << "]\n"
@@ -319,6 +344,10 @@ void writeDatasetIni(const std::string& path, const ScenarioOptions& sc) {
           << "rawlog = " << t.name << ".rawlog\n"
           << "ground_truth = " << t.name << ".rawlog.GT.txt\n"
           << "roles = " << t.roles << "\n";
+        if (!start_written && t.roles.find("mapping") != std::string::npos) {
+            f << "start_pose = " << operatorStartPose(sc, tracks[i], i) << "\n";
+            start_written = true;
+        }
     }
     if (!f) throw common::ConfigError(path + ": cannot write");
 }
@@ -537,7 +566,7 @@ SimulationResult Simulator::run(const std::string& out_dir, const Progress& prog
             f << scenario_.toIniText();
             if (!f) throw common::ConfigError(out_dir + "/scenario.ini: cannot write");
         }
-        writeDatasetIni(out_dir + "/dataset.ini", scenario_);
+        writeDatasetIni(out_dir + "/dataset.ini", scenario_, tracks_);
 
         mrpt::maps::COccupancyGridMap2D grid;
         world_->fillGridMap(grid);

@@ -21,6 +21,7 @@
 #include "lookup/database/database_writer.h"
 #include "lookup/survey/keyframes.h"
 #include "lookup/survey/mrpt_sections.h"
+#include "lookup/survey/start_search.h"
 #include "lookup/survey/traverse.h"
 
 namespace lookup::survey {
@@ -179,6 +180,44 @@ std::string statsJson(const PoseErrorStats& s) {
     return buf;
 }
 
+struct TraverseStart {
+    std::string source;         ///< "map origin", "ground truth" or "scan match"
+    mrpt::poses::CPose2D pose;  ///< grid frame while the laser stage runs, then map frame
+    double goodness = 0;        ///< of the scan match
+};
+
+// The operator's start pose of the mapping traverse ([survey] start_pose, else the dataset's),
+// the origin when neither gives one.
+mrpt::poses::CPose2D operatorStart(const SurveyOptions& o, const SurveyInputs& in) {
+    const std::string& text = o.start_pose.empty() ? in.start_pose : o.start_pose;
+    if (text.empty()) return {};
+    if (auto p = parseStartPose(text)) return *p;
+    throw common::ConfigError("start_pose '" + text + "': expected three numbers: x y yaw_deg");
+}
+
+// Where MCL starts a traverse on the grid: the map's own origin for the traverse that built
+// it, the ground truth only as a diagnostic, else its first scans matched against the map.
+TraverseStart startInGrid(bool own_map, bool use_gt, const mrpt::poses::CPose2D& gt_start,
+                          const mrpt::poses::CPose2D& fallback, const TraverseData& d,
+                          const mrpt::maps::COccupancyGridMap2D& grid,
+                          const common::PoseTrack& mapping_track, const SurveyOptions& o) {
+    if (use_gt) return {"ground truth", gt_start, 0};
+    if (own_map) return {"map origin", mrpt::poses::CPose2D(), 0};
+    const StartFix fix = findStartInMap(d, grid, mapping_track, fallback, o);
+    return {"scan match", fix.pose, fix.goodness};
+}
+
+std::string startJson(const TraverseReport& t) {
+    if (t.start_source.empty()) return "";
+    char buf[200];
+    std::snprintf(buf, sizeof(buf),
+                  ", \"start\": {\"source\": \"%s\", \"x\": %.3f, \"y\": %.3f, "
+                  "\"yaw_deg\": %.2f, \"goodness\": %.3f}",
+                  t.start_source.c_str(), t.start.x(), t.start.y(), mrpt::RAD2DEG(t.start.phi()),
+                  t.start_goodness);
+    return buf;
+}
+
 }  // namespace
 
 std::string SurveyResult::summaryLine() const {
@@ -191,6 +230,10 @@ std::string SurveyResult::summaryLine() const {
     o.precision(2);
     o << "lookup-survey: " << references << " references in " << out_dir << " ("
       << size_bytes / 1.0e6 << " MB, " << total_time_s << " s, poses: " << pose_source << ")";
+    if (!ceiling_source.empty()) {
+        o.precision(3);
+        o << "; ceiling " << ceiling.ceiling_height_m << " m (" << ceiling_source << ")";
+    }
     for (const auto& t : traverses) {
         if (!t.has_ground_truth) continue;
         o.precision(3);
@@ -222,6 +265,9 @@ std::string SurveyResult::toJson() const {
           << ", \"covariance\": " << (g.covariance_ok ? "true" : "false")
           << ", \"covariance_time_s\": " << g.covariance_time_s << "},\n";
     }
+    if (!ceiling_source.empty()) {
+        o << "  \"ceiling\": " << ceilingJson(ceiling, ceiling_source) << ",\n";
+    }
     o << "  \"traverses\": [";
     for (std::size_t i = 0; i < traverses.size(); ++i) {
         const auto& t = traverses[i];
@@ -239,7 +285,7 @@ std::string SurveyResult::toJson() const {
           << ", \"forward_intrinsics\": " << t.skipped.forward_intrinsics << ", \"first\": \""
           << jsonEscape(t.skipped.first) << "\", \"first_image\": \""
           << jsonEscape(t.first_image_problem) << "\"}"
-          << ", \"localisation_time_s\": " << t.localisation_time_s
+          << ", \"localisation_time_s\": " << t.localisation_time_s << startJson(t)
           << ", \"has_ground_truth\": " << (t.has_ground_truth ? "true" : "false");
         if (t.has_ground_truth) {
             o << ",\n     \"error\": " << statsJson(t.error) << ",\n     \"segments\": [";
@@ -275,6 +321,41 @@ Survey::Survey(SurveyOptions options, const mrpt::config::CConfigFileBase& confi
     }
 }
 
+double Survey::ceilingHeight(const SurveyInputs& in, const std::vector<TraverseData>& data,
+                             const std::vector<LaserTrack>& tracks, SurveyResult& result) const {
+    if (in.ceiling_height_m > 0 && options_.use_dataset_ceiling_height) {
+        result.ceiling_source = "dataset";
+        result.ceiling.ceiling_height_m = in.ceiling_height_m;
+        result.warnings.push_back("ceiling height taken from the dataset (" +
+                                  std::to_string(in.ceiling_height_m) +
+                                  " m; [survey] use_dataset_ceiling_height = true), not measured");
+        return in.ceiling_height_m;
+    }
+    if (in.ceiling_height_m > 0) {
+        result.warnings.push_back(
+            "the dataset states ceiling_height_m = " + std::to_string(in.ceiling_height_m) +
+            " m: ignored (the survey measures it; [survey] "
+            "use_dataset_ceiling_height = true uses it)");
+    }
+    if (!options_.ceiling_estimate) {
+        result.ceiling_source = "configured";
+        result.ceiling.ceiling_height_m = result.ceiling.prior_m = options_.ceiling_height_m;
+        return options_.ceiling_height_m;
+    }
+    std::vector<mrpt::poses::CPose3DInterpolator> interps;
+    interps.reserve(data.size());
+    std::vector<CeilingTraverse> traverses;
+    for (std::size_t i = 0; i < data.size(); ++i) {
+        interps.push_back(common::makeInterpolator(tracks[i].poses, options_.max_pose_gap_s));
+        if (!in.traverses[i].reference || tracks[i].poses.empty()) continue;
+        traverses.push_back({in.traverses[i].name, &data[i].ceiling, &interps.back()});
+    }
+    result.ceiling = estimateCeilingDistance(traverses, options_);
+    result.ceiling_source = result.ceiling.estimated ? "estimated" : "configured";
+    if (!result.ceiling.warning.empty()) result.warnings.push_back(result.ceiling.warning);
+    return result.ceiling.ceiling_height_m;
+}
+
 SurveyResult Survey::run(const SurveyInputs& in) const {
     SurveyResult result;
     mrpt::system::CTicTac total;
@@ -303,6 +384,7 @@ SurveyResult Survey::run(const SurveyInputs& in) const {
 
         // 2. Vehicle poses per traverse.
         std::vector<LaserTrack> tracks(data.size());
+        std::vector<TraverseStart> result_starts(data.size());
         std::vector<double> localisation_time(data.size(), 0.0);
         std::optional<mrpt::maps::COccupancyGridMap2D> grid;
         mrpt::system::CTicTac timer;
@@ -351,6 +433,8 @@ SurveyResult Survey::run(const SurveyInputs& in) const {
                 }
             }
             mrpt::poses::CPose2D map_origin;
+            common::PoseTrack mapping_track;  // grid frame: where other traverses are sought
+            std::vector<TraverseStart> starts(data.size());
             // Pose-graph tracks per traverse (grid frame), where the graph optimised them.
             std::vector<std::optional<common::PoseTrack>> graph_tracks(data.size());
             std::vector<std::vector<mrpt::math::CMatrixDouble33>> graph_covs(data.size());
@@ -367,7 +451,7 @@ SurveyResult Survey::run(const SurveyInputs& in) const {
                 // ICP-SLAM runs in its own frame (its start = identity: MRPT 2.5.8's pose
                 // extrapolator stalls when initialize() is given a start pose); poses are moved
                 // into the ground-truth frame by map_origin afterwards.
-                map_origin = startOf(mapping, mrpt::poses::CPose2D());
+                map_origin = startOf(mapping, operatorStart(options_, in));
                 timer.Tic();
                 ProgressBar bar(in.show_progress, "ICP-SLAM " + in.traverses[mapping].name);
                 LaserMap icp = buildMapIcpSlam(data[mapping], config_, mrpt::poses::CPose2D(), bar,
@@ -390,6 +474,8 @@ SurveyResult Survey::run(const SurveyInputs& in) const {
                 } else {
                     grid = std::move(icp.grid);
                 }
+                mapping_track =
+                    graph_tracks[mapping] ? *graph_tracks[mapping] : icp.icp_track.poses;
                 result.mapping_time_s = timer.Tac();
             }
             // Poses in the grid's frame first; moved into the map frame at the end.
@@ -398,8 +484,13 @@ SurveyResult Survey::run(const SurveyInputs& in) const {
                 if (!in.traverses[i].reference || (joint && i == mapping)) continue;
                 timer.Tic();
                 ProgressBar bar(in.show_progress, "MCL " + in.traverses[i].name);
-                const mrpt::poses::CPose2D start_in_grid = startOf(i, map_origin) - map_origin;
-                tracks[i] = localizeMcl(data[i], *grid, config_, options_, start_in_grid, bar);
+                const bool own_map = i == mapping && in.map_file.empty();
+                const bool use_gt = options_.start_at_ground_truth && gt[i].has_value();
+                starts[i] = startInGrid(
+                    own_map, use_gt, startOf(i, map_origin) - map_origin,
+                    in.map_file.empty() ? mrpt::poses::CPose2D() : operatorStart(options_, in),
+                    data[i], *grid, mapping_track, options_);
+                tracks[i] = localizeMcl(data[i], *grid, config_, options_, starts[i].pose, bar);
                 localisation_time[i] = timer.Tac();
                 result.localisation_time_s += localisation_time[i];
             }
@@ -441,6 +532,10 @@ SurveyResult Survey::run(const SurveyInputs& in) const {
                     }
                 }
             }
+            if (joint) starts[mapping] = {"map origin", mrpt::poses::CPose2D(), 0};
+            for (std::size_t i = 0; i < data.size(); ++i)
+                starts[i].pose = map_origin + starts[i].pose;
+            result_starts = std::move(starts);
             // Into the map frame: poses composed with its origin, (x, y) covariances rotated.
             const mrpt::poses::CPose3D origin3(map_origin);
             mrpt::math::CMatrixDouble33 rotation;
@@ -465,8 +560,7 @@ SurveyResult Survey::run(const SurveyInputs& in) const {
         info.name = in.name;
         info.ceiling_camera_label = options_.ceiling_camera_label;
         info.forward_camera_label = options_.forward_camera_label;
-        info.ceiling_height_m =
-            in.ceiling_height_m > 0 ? in.ceiling_height_m : options_.ceiling_height_m;
+        info.ceiling_height_m = ceilingHeight(in, data, tracks, result);
         info.pose_source = result.pose_source;
         {
             mrpt::config::CConfigFileMemory used;
@@ -484,6 +578,9 @@ SurveyResult Survey::run(const SurveyInputs& in) const {
             rep.ceiling_frames = d.ceiling.size();
             rep.has_ground_truth = gt[i].has_value();
             rep.localisation_time_s = localisation_time[i];
+            rep.start_source = result_starts[i].source;
+            rep.start = result_starts[i].pose;
+            rep.start_goodness = result_starts[i].goodness;
             const auto& track = tracks[i];
             if (track.poses.empty()) {
                 throw common::RawlogError(d.rawlog, "no vehicle poses (no lidar scans localised)");

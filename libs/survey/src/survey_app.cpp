@@ -44,6 +44,8 @@ void readDataset(const std::string& path, SurveyInputs& inputs, SurveyOptions& o
     common::IniSection ds(cfg, "dataset", path);
     if (!ds.exists()) throw common::ConfigError(path + ": no [dataset] section");
     inputs.name = ds.getString("name", "");
+    // Old lookup-sim output states the simulator's own ceiling height: the survey measures it
+    // instead and uses this only when asked (use_dataset_ceiling_height).
     inputs.ceiling_height_m = ds.getDouble("ceiling_height_m", 0);
     options.ceiling_camera_label =
         ds.getString("ceiling_camera_label", options.ceiling_camera_label);
@@ -69,6 +71,15 @@ void readDataset(const std::string& path, SurveyInputs& inputs, SurveyOptions& o
             if (r != "mapping" && r != "reference" && r != "query") {
                 throw common::ConfigError(t.where("roles") + "unknown role '" + r + "'");
             }
+        }
+        // The operator's start pose of the mapping traverse (the first one that has one).
+        const std::string start = t.getString("start_pose", "");
+        if (!start.empty()) {
+            if (!parseStartPose(start)) {
+                throw common::ConfigError(t.where("start_pose") +
+                                          "expected three numbers: x y yaw_deg");
+            }
+            if (spec.mapping && inputs.start_pose.empty()) inputs.start_pose = start;
         }
         if (spec.mapping || spec.reference) inputs.traverses.push_back(spec);
     }

@@ -2,20 +2,59 @@
 
 #include "lookup/common/config.h"
 
+#include <mrpt/core/bits_math.h>
+
+#include <cmath>
+#include <sstream>
+
 namespace lookup::survey {
+
+std::optional<mrpt::poses::CPose2D> parseStartPose(const std::string& text) {
+    std::istringstream in(text);
+    double x, y, yaw_deg;
+    std::string rest;
+    if (!(in >> x >> y >> yaw_deg) || (in >> rest)) return std::nullopt;
+    if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(yaw_deg)) return std::nullopt;
+    return mrpt::poses::CPose2D(x, y, mrpt::DEG2RAD(yaw_deg));
+}
 
 void SurveyOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
                                        const std::string& section) {
     common::IniSection s(source, section);
-    s.rejectUnknownKeys(
-        {"ceiling_camera_label",  "forward_camera_label",  "lidar_label",
-         "odometry_label",        "keyframe_spacing_m",    "min_sharpness",
-         "min_mean_intensity",    "max_mean_intensity",    "max_clipped_fraction",
-         "forward_max_dt_s",      "max_pose_gap_s",        "max_outside_fraction",
-         "ceiling_height_m",      "mcl_particles",         "mcl_init_std_xy_m",
-         "mcl_init_std_yaw_deg",  "odometry_min_std_xy_m", "odometry_min_std_yaw_deg",
-         "start_at_ground_truth", "icp_max_range_m",       "map_std_xy_m",
-         "map_std_yaw_deg",       "pose_file_std_xy_m",    "pose_file_std_yaw_deg"});
+    s.rejectUnknownKeys({"ceiling_camera_label",
+                         "forward_camera_label",
+                         "lidar_label",
+                         "odometry_label",
+                         "keyframe_spacing_m",
+                         "min_sharpness",
+                         "min_mean_intensity",
+                         "max_mean_intensity",
+                         "max_clipped_fraction",
+                         "forward_max_dt_s",
+                         "max_pose_gap_s",
+                         "max_outside_fraction",
+                         "ceiling_height_m",
+                         "mcl_particles",
+                         "mcl_init_std_xy_m",
+                         "mcl_init_std_yaw_deg",
+                         "odometry_min_std_xy_m",
+                         "odometry_min_std_yaw_deg",
+                         "start_at_ground_truth",
+                         "icp_max_range_m",
+                         "map_std_xy_m",
+                         "map_std_yaw_deg",
+                         "pose_file_std_xy_m",
+                         "pose_file_std_yaw_deg",
+                         "ceiling_estimate",
+                         "ceiling_sample_spacing_m",
+                         "ceiling_baseline_m",
+                         "ceiling_prior_sigma_m",
+                         "ceiling_min_pairs",
+                         "use_dataset_ceiling_height",
+                         "start_pose",
+                         "start_search_spacing_m",
+                         "start_match_travel_m",
+                         "start_min_goodness"});
     ceiling_camera_label = s.getString("ceiling_camera_label", ceiling_camera_label);
     forward_camera_label = s.getString("forward_camera_label", forward_camera_label);
     lidar_label = s.getString("lidar_label", lidar_label);
@@ -29,6 +68,17 @@ void SurveyOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& sour
     max_pose_gap_s = s.getDouble("max_pose_gap_s", max_pose_gap_s);
     max_outside_fraction = s.getDouble("max_outside_fraction", max_outside_fraction);
     ceiling_height_m = s.getDouble("ceiling_height_m", ceiling_height_m);
+    ceiling_estimate = s.getBool("ceiling_estimate", ceiling_estimate);
+    ceiling_sample_spacing_m = s.getDouble("ceiling_sample_spacing_m", ceiling_sample_spacing_m);
+    ceiling_baseline_m = s.getDouble("ceiling_baseline_m", ceiling_baseline_m);
+    ceiling_prior_sigma_m = s.getDouble("ceiling_prior_sigma_m", ceiling_prior_sigma_m);
+    ceiling_min_pairs = s.getInt("ceiling_min_pairs", ceiling_min_pairs, 1, 1000000);
+    use_dataset_ceiling_height =
+        s.getBool("use_dataset_ceiling_height", use_dataset_ceiling_height);
+    start_pose = s.getString("start_pose", start_pose);
+    start_search_spacing_m = s.getDouble("start_search_spacing_m", start_search_spacing_m);
+    start_match_travel_m = s.getDouble("start_match_travel_m", start_match_travel_m);
+    start_min_goodness = s.getDouble("start_min_goodness", start_min_goodness);
     mcl_particles = s.getInt("mcl_particles", mcl_particles, 10, 10000000);
     mcl_init_std_xy_m = s.getDouble("mcl_init_std_xy_m", mcl_init_std_xy_m);
     mcl_init_std_yaw_deg = s.getDouble("mcl_init_std_yaw_deg", mcl_init_std_yaw_deg);
@@ -58,6 +108,16 @@ void SurveyOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
     c.write(section, "max_pose_gap_s", max_pose_gap_s);
     c.write(section, "max_outside_fraction", max_outside_fraction);
     c.write(section, "ceiling_height_m", ceiling_height_m);
+    c.write(section, "ceiling_estimate", ceiling_estimate);
+    c.write(section, "ceiling_sample_spacing_m", ceiling_sample_spacing_m);
+    c.write(section, "ceiling_baseline_m", ceiling_baseline_m);
+    c.write(section, "ceiling_prior_sigma_m", ceiling_prior_sigma_m);
+    c.write(section, "ceiling_min_pairs", ceiling_min_pairs);
+    c.write(section, "use_dataset_ceiling_height", use_dataset_ceiling_height);
+    c.write(section, "start_pose", start_pose);
+    c.write(section, "start_search_spacing_m", start_search_spacing_m);
+    c.write(section, "start_match_travel_m", start_match_travel_m);
+    c.write(section, "start_min_goodness", start_min_goodness);
     c.write(section, "mcl_particles", mcl_particles);
     c.write(section, "mcl_init_std_xy_m", mcl_init_std_xy_m);
     c.write(section, "mcl_init_std_yaw_deg", mcl_init_std_yaw_deg);
@@ -86,6 +146,16 @@ void SurveyOptions::check() const {
     c.require(max_outside_fraction >= 0 && max_outside_fraction <= 1, "max_outside_fraction",
               "in [0, 1]");
     c.require(ceiling_height_m > 0, "ceiling_height_m", "> 0");
+    c.require(ceiling_sample_spacing_m > 0, "ceiling_sample_spacing_m", "> 0");
+    c.require(ceiling_baseline_m > 0 && ceiling_baseline_m <= 5, "ceiling_baseline_m", "in (0, 5]");
+    c.require(ceiling_prior_sigma_m > 0, "ceiling_prior_sigma_m", "> 0");
+    c.require(ceiling_min_pairs >= 1, "ceiling_min_pairs", ">= 1");
+    c.require(start_pose.empty() || parseStartPose(start_pose).has_value(), "start_pose",
+              "three numbers: x y yaw_deg");
+    c.require(start_search_spacing_m > 0, "start_search_spacing_m", "> 0");
+    c.require(start_match_travel_m >= 0, "start_match_travel_m", ">= 0");
+    c.require(start_min_goodness >= 0 && start_min_goodness <= 1, "start_min_goodness",
+              "in [0, 1]");
     c.require(mcl_particles >= 10, "mcl_particles", ">= 10");
     c.require(mcl_init_std_xy_m >= 0, "mcl_init_std_xy_m", ">= 0");
     c.require(mcl_init_std_yaw_deg >= 0, "mcl_init_std_yaw_deg", ">= 0");

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "lookup/common/config.h"
+#include "lookup/survey/ceiling_distance.h"
 #include "lookup/survey/laser_poses.h"
 #include "lookup/survey/pose_graph.h"
 #include "lookup/survey/survey_options.h"
@@ -31,13 +32,18 @@ inline constexpr const char* kPosesFromGroundTruth = "ground-truth";
 
 struct SurveyInputs {
     std::vector<TraverseSpec> traverses;
-    std::string out_dir;          ///< database folder to (re)create
-    std::string poses_file;       ///< surveyed poses replacing the laser stage ("" = laser,
-                                  ///< kPosesFromGroundTruth = each traverse's ground truth)
-    std::string map_file;         ///< existing grid map replacing ICP-SLAM ("" = build one)
-    std::string name;             ///< database name (e.g. the dataset's)
-    double ceiling_height_m = 0;  ///< from the dataset; 0 = SurveyOptions::ceiling_height_m
-    bool show_progress = false;   ///< progress bar on stderr
+    std::string out_dir;     ///< database folder to (re)create
+    std::string poses_file;  ///< surveyed poses replacing the laser stage ("" = laser,
+                             ///< kPosesFromGroundTruth = each traverse's ground truth)
+    std::string map_file;    ///< existing grid map replacing ICP-SLAM ("" = build one)
+    std::string name;        ///< database name (e.g. the dataset's)
+    /// A dataset's stated ceiling height (0 = none): used only with
+    /// SurveyOptions::use_dataset_ceiling_height, else ignored with a note.
+    double ceiling_height_m = 0;
+    /// The dataset's operator start pose of the mapping traverse ("x y yaw_deg", "" = none);
+    /// SurveyOptions::start_pose overrides it.
+    std::string start_pose;
+    bool show_progress = false;  ///< progress bar on stderr
 };
 
 /// Reference-pose error against ground truth (planar position and heading).
@@ -67,6 +73,9 @@ struct TraverseReport {
     SkippedRecords skipped;            ///< sensor records refused while reading the rawlog
     std::string first_image_problem;   ///< the first refused image: file and reason
     double localisation_time_s = 0;    ///< MCL (or ICP-SLAM) wall time for this traverse
+    std::string start_source;          ///< "map origin", "ground truth" or "scan match"
+    mrpt::poses::CPose2D start;        ///< first scan's pose in the map frame
+    double start_goodness = 0;         ///< ICP goodness of the scan-matched start
     bool has_ground_truth = false;
     PoseErrorStats error;                ///< over the references (when ground truth)
     std::vector<SegmentError> segments;  ///< error per 10 m of travel (when ground truth)
@@ -86,6 +95,8 @@ struct SurveyResult {
     PoseGraphReport pose_graph;    ///< keyframes = 0: no pose graph was optimised
     std::uint64_t size_bytes = 0;  ///< database folder size
     std::vector<TraverseReport> traverses;
+    CeilingDistanceEstimate ceiling;  ///< the database's ceiling height and how it was found
+    std::string ceiling_source;       ///< "estimated", "configured" or "dataset"
     /// Refused or skipped input, one line each (file, record, reason, count); lookup-survey
     /// prints them on stderr.
     std::vector<std::string> warnings;
@@ -108,6 +119,11 @@ class Survey {
     SurveyResult run(const SurveyInputs& inputs) const;
 
   private:
+    /// The database's ceiling height: estimated from the images (ceiling_distance.h), or the
+    /// configured / dataset value as the options say; recorded in `result`.
+    double ceilingHeight(const SurveyInputs& in, const std::vector<TraverseData>& data,
+                         const std::vector<LaserTrack>& tracks, SurveyResult& result) const;
+
     SurveyOptions options_;
     PoseGraphOptions graph_options_;
     common::NamedConfigFile config_;  ///< a copy of the whole .ini, named as its source

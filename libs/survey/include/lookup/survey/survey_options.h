@@ -6,6 +6,9 @@
 // [KLD_options] (TKLDParams) and [LikelihoodOptions] (the grid's scan likelihood for MCL).
 
 #include <mrpt/config/CLoadableOptions.h>
+#include <mrpt/poses/CPose2D.h>
+
+#include <optional>
 
 #include <string>
 
@@ -33,7 +36,18 @@ struct SurveyOptions : public mrpt::config::CLoadableOptions {
     double max_outside_fraction = 0.2;
 
     // --- geometry -------------------------------------------------------------------------
-    double ceiling_height_m = 5.0;  ///< ceiling above the floor if the dataset gives none [m]
+    /// Prior of the ceiling plane's height above the vehicle base (the refiner's h, so the
+    /// camera-to-ceiling distance is h minus the camera mount's z) [m]. The survey estimates h
+    /// from the images (ceiling_distance.h) and uses this value only when that fails.
+    double ceiling_height_m = 5.0;
+    bool ceiling_estimate = true;           ///< estimate h from image triples (else: the prior)
+    double ceiling_sample_spacing_m = 2.0;  ///< travel between sampled frames [m]
+    double ceiling_baseline_m = 1.0;        ///< travel to each of the two neighbours [m]
+    double ceiling_prior_sigma_m = 1.0;     ///< h prior of the estimates (weak: images decide) [m]
+    int ceiling_min_pairs = 8;              ///< fewer accepted estimates = warning, prior used
+    /// A dataset.ini's `ceiling_height_m` (old lookup-sim output: the simulator's truth) is
+    /// ignored with a note unless this is set; then it replaces the estimate.
+    bool use_dataset_ceiling_height = false;
 
     // --- laser stage (ICP-SLAM map, then MCL per traverse) ---------------------------------
     int mcl_particles = 600;              ///< particles of CMonteCarloLocalization2D
@@ -41,9 +55,16 @@ struct SurveyOptions : public mrpt::config::CLoadableOptions {
     double mcl_init_std_yaw_deg = 3.0;    ///< ... and in yaw [deg]
     double odometry_min_std_xy_m = 0.04;  ///< CActionRobotMovement2D gaussian minStdXY [m]
     double odometry_min_std_yaw_deg = 2.0;  ///< ... minStdPHI [deg]
-    /// Start ICP-SLAM (and MCL) at the first ground-truth pose when a GT file exists, so the
-    /// map frame is the dataset's; otherwise the map frame is the mapping traverse's start.
-    bool start_at_ground_truth = true;
+    /// Diagnostic only: start ICP-SLAM and every MCL at the first ground-truth pose when a GT
+    /// file exists. Off: the map frame is `start_pose` (or the dataset's) and every other
+    /// traverse is found in the map by scan matching (start_search.h).
+    bool start_at_ground_truth = false;
+    /// Operator's start pose of the mapping traverse, "x y yaw_deg" in mine coordinates
+    /// ("" = the dataset's `start_pose`, else the origin). Defines the map frame.
+    std::string start_pose;
+    double start_search_spacing_m = 1.0;  ///< spacing of the start guesses along the map [m]
+    double start_match_travel_m = 4.0;    ///< scans of the first metres matched together [m]
+    double start_min_goodness = 0.5;      ///< a start with a lower ICP goodness is an error
     /// Lidar returns farther than this are dropped before ICP-SLAM [m] (0 = keep all). Far
     /// returns graze the walls of a long drive sparsely and match the frontier of the map
     /// built so far, which pulls every scan back and shrinks the map along the drive.
@@ -65,5 +86,8 @@ struct SurveyOptions : public mrpt::config::CLoadableOptions {
     /// Throws common::ConfigError naming every invalid field.
     void check() const;
 };
+
+/// "x y yaw_deg" (blank-separated, finite) as a pose; nullopt when malformed.
+std::optional<mrpt::poses::CPose2D> parseStartPose(const std::string& text);
 
 }  // namespace lookup::survey

@@ -1,0 +1,34 @@
+#pragma once
+// Where a traverse starts in the survey's own map, without ground truth: the scans of its
+// first metres (placed by odometry) are matched as one local cloud against the map's occupied
+// cells with MRPT's ICP (mrpt::slam::CICP) from guesses along the mapping traverse (every few
+// metres, both headings), and the guess with the best ICP goodness wins. A tunnel is
+// self-similar along its axis, so among near-equal goodness the guess closest to the mapping
+// traverse's start (where survey traverses usually begin) is taken.
+
+#include <mrpt/maps/COccupancyGridMap2D.h>
+#include <mrpt/poses/CPose2D.h>
+
+#include <string>
+#include <vector>
+
+#include "lookup/common/pose_files.h"
+#include "lookup/survey/survey_options.h"
+#include "lookup/survey/traverse.h"
+
+namespace lookup::survey {
+
+struct StartFix {
+    mrpt::poses::CPose2D pose;  ///< vehicle pose at the traverse's first scan, grid frame
+    double goodness = 0;        ///< CICP goodness of the winning match [0..1]
+    std::size_t guesses = 0;    ///< initial guesses tried
+};
+
+/// Throws common::RawlogError naming the traverse when it has no scans or no guess reaches
+/// SurveyOptions::start_min_goodness. `guesses_along` (grid frame) is the mapping traverse's
+/// track; empty: `fallback` and its reverse are the only guesses.
+StartFix findStartInMap(const TraverseData& traverse, const mrpt::maps::COccupancyGridMap2D& grid,
+                        const common::PoseTrack& guesses_along,
+                        const mrpt::poses::CPose2D& fallback, const SurveyOptions& options);
+
+}  // namespace lookup::survey

@@ -1,0 +1,191 @@
+#include "lookup/survey/ceiling_distance.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <optional>
+
+#include "lookup/refine/refiner.h"
+
+namespace lookup::survey {
+namespace {
+
+struct Frame {
+    double travel_m = 0;
+    mrpt::poses::CPose3D pose;
+    std::size_t index = 0;  ///< into CeilingTraverse::ceiling
+};
+
+std::vector<Frame> framesWithPose(const CeilingTraverse& t) {
+    std::vector<Frame> out;
+    for (std::size_t i = 0; i < t.ceiling->size(); ++i) {
+        mrpt::math::TPose3D p;
+        bool valid = false;
+        t.poses->interpolate((*t.ceiling)[i]->timestamp, p, valid);
+        if (!valid) continue;
+        Frame f{0, mrpt::poses::CPose3D(p), i};
+        if (!out.empty()) {
+            const auto& q = out.back().pose;
+            f.travel_m = out.back().travel_m + std::hypot(f.pose.x() - q.x(), f.pose.y() - q.y());
+        }
+        out.push_back(f);
+    }
+    return out;
+}
+
+std::size_t nearestTravel(const std::vector<Frame>& f, double target) {
+    const auto it = std::lower_bound(f.begin(), f.end(), target,
+                                     [](const Frame& a, double t) { return a.travel_m < t; });
+    if (it == f.end()) return f.size() - 1;
+    if (it == f.begin()) return 0;
+    const auto hi = static_cast<std::size_t>(it - f.begin());
+    return (target - f[hi - 1].travel_m <= f[hi].travel_m - target) ? hi - 1 : hi;
+}
+
+// h from frame j refined against the frames `baseline_m` behind and ahead (nullopt when the
+// neighbours are missing or the refiner refuses the triple).
+std::optional<double> estimateAt(const refine::Refiner& refiner, const CeilingTraverse& t,
+                                 const std::vector<Frame>& f, std::size_t j, double baseline_m,
+                                 double prior_m) {
+    const std::size_t a = nearestTravel(f, f[j].travel_m - baseline_m);
+    const std::size_t b = nearestTravel(f, f[j].travel_m + baseline_m);
+    const auto near = [&](std::size_t k) {
+        return std::abs(std::abs(f[k].travel_m - f[j].travel_m) - baseline_m) < 0.3 * baseline_m;
+    };
+    if (!near(a) || !near(b)) return std::nullopt;
+    const auto& images = *t.ceiling;
+    std::optional<double> h;
+    try {
+        std::vector<refine::Reference> refs;
+        refs.push_back(refine::Reference::fromObservation(0, *images[f[a].index], f[a].pose));
+        refs.push_back(refine::Reference::fromObservation(1, *images[f[b].index], f[b].pose));
+        refine::CoarseHint hint;
+        hint.vehicle_pose = f[j].pose;
+        hint.ceiling_height_m = prior_m;
+        const auto r = refiner.refine(*images[f[j].index], hint, refs);
+        if (r.accepted() && r.estimate.ok && std::isfinite(r.estimate.ceiling_height_m)) {
+            h = r.estimate.ceiling_height_m;
+        }
+    } catch (const std::exception&) {
+        // An unreadable image: this triple is rejected.
+    }
+    // External images are loaded on access; the survey keeps only headers in memory.
+    for (std::size_t k : {a, j, b}) images[f[k].index]->image.unload();
+    return h;
+}
+
+double median(std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    const std::size_t n = v.size();
+    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+// One pass over every traverse at one baseline: the accepted values, with counts in `out`.
+std::vector<double> onePass(const std::vector<CeilingTraverse>& traverses, const SurveyOptions& o,
+                            double baseline_m, double prior_m, CeilingDistanceEstimate& out) {
+    refine::RefinerOptions ro;
+    ro.estimator.ceiling_height_m = prior_m;
+    ro.estimator.ceiling_height_sigma_m = o.ceiling_prior_sigma_m;
+    const refine::Refiner refiner(ro);
+    std::vector<double> hs;
+    out.tried = out.rejected = 0;
+    for (const auto& t : traverses) {
+        const auto f = framesWithPose(t);
+        if (f.size() < 3) continue;
+        for (double s = baseline_m; s <= f.back().travel_m - baseline_m;
+             s += o.ceiling_sample_spacing_m) {
+            const std::size_t j = nearestTravel(f, s);
+            ++out.tried;
+            if (auto h = estimateAt(refiner, t, f, j, baseline_m, prior_m)) {
+                hs.push_back(*h);
+            } else {
+                ++out.rejected;
+            }
+        }
+    }
+    return hs;
+}
+
+// Median and spread of `hs`, outliers (beyond 3 spreads, at least 0.1 m) dropped.
+void summarise(std::vector<double> hs, CeilingDistanceEstimate& out) {
+    const double m0 = median(hs);
+    std::vector<double> dev;
+    for (double h : hs) dev.push_back(std::abs(h - m0));
+    const double gate = std::max(0.1, 3.0 * 1.4826 * median(dev));
+    std::vector<double> kept;
+    for (double h : hs) {
+        if (std::abs(h - m0) <= gate) kept.push_back(h);
+    }
+    out.rejected += hs.size() - kept.size();
+    out.used = kept.size();
+    out.ceiling_height_m = median(kept);
+    dev.clear();
+    for (double h : kept) dev.push_back(std::abs(h - out.ceiling_height_m));
+    out.spread_m = 1.4826 * median(dev);
+}
+
+}  // namespace
+
+CeilingDistanceEstimate estimateCeilingDistance(const std::vector<CeilingTraverse>& traverses,
+                                                const SurveyOptions& o) {
+    const auto started = std::chrono::steady_clock::now();
+    CeilingDistanceEstimate out;
+    out.prior_m = o.ceiling_height_m;
+    for (const auto& t : traverses) {
+        if (!t.ceiling->empty()) {
+            out.camera_z_m = t.ceiling->front()->cameraPose.z();
+            break;
+        }
+    }
+    const auto finish = [&] {
+        out.camera_to_ceiling_m = out.ceiling_height_m - out.camera_z_m;
+        out.time_s =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+        return out;
+    };
+    // A short baseline first: the matcher searches around where the prior h predicts each
+    // point, and a wrong h shifts that prediction in proportion to the baseline. Its median
+    // is the prior of the full-baseline pass.
+    double prior = o.ceiling_height_m;
+    std::optional<CeilingDistanceEstimate> first;
+    for (double baseline : {0.5 * o.ceiling_baseline_m, o.ceiling_baseline_m}) {
+        CeilingDistanceEstimate pass = out;
+        const auto hs = onePass(traverses, o, baseline, prior, pass);
+        if (hs.size() < std::size_t(o.ceiling_min_pairs)) continue;
+        summarise(hs, pass);
+        if (pass.used < std::size_t(o.ceiling_min_pairs)) continue;
+        pass.estimated = true;
+        prior = pass.ceiling_height_m;
+        first = pass;
+    }
+    if (first) {
+        const double z = out.camera_z_m;
+        out = *first;
+        out.camera_z_m = z;
+        return finish();
+    }
+    out.ceiling_height_m = o.ceiling_height_m;
+    char buf[300];
+    std::snprintf(buf, sizeof(buf),
+                  "ceiling height not estimated: fewer than %d image triples accepted (ceiling_"
+                  "min_pairs); the configured [survey] ceiling_height_m = %.3f m is used",
+                  o.ceiling_min_pairs, o.ceiling_height_m);
+    out.warning = buf;
+    return finish();
+}
+
+std::string ceilingJson(const CeilingDistanceEstimate& e, const std::string& source) {
+    char buf[600];
+    std::snprintf(buf, sizeof(buf),
+                  "{\"source\": \"%s\", \"ceiling_height_m\": %.4f, \"camera_to_ceiling_m\": "
+                  "%.4f, \"camera_z_m\": %.4f, \"spread_m\": %.4f, \"prior_m\": %.4f, "
+                  "\"triples_tried\": %zu, \"triples_used\": %zu, \"triples_rejected\": %zu, "
+                  "\"estimated\": %s, \"time_s\": %.2f}",
+                  source.c_str(), e.ceiling_height_m, e.camera_to_ceiling_m, e.camera_z_m,
+                  e.spread_m, e.prior_m, e.tried, e.used, e.rejected,
+                  e.estimated ? "true" : "false", e.time_s);
+    return buf;
+}
+
+}  // namespace lookup::survey
