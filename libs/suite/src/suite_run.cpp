@@ -77,7 +77,10 @@ JobResult collect(const SuiteOptions& suite, const PendingJob& job, int status) 
     if (WIFEXITED(status) && WEXITSTATUS(status) == 0) {
         try {
             std::ifstream in(job.dir + "/result.json");
-            return jobFromJson(nlohmann::json::parse(in));
+            JobResult done = jobFromJson(nlohmann::json::parse(in));
+            // A step's own message is often only in the log (an app's refusal, say).
+            if (!done.ok) done.reason += " (log.txt: " + lastLine(job.dir + "/log.txt") + ")";
+            return done;
         } catch (const std::exception& e) {
             r.reason = job.dir + "/result.json: unreadable: " + e.what();
             return r;
