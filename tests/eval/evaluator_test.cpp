@@ -7,6 +7,7 @@
 
 #include "lookup/common/config.h"
 #include "lookup/eval/evaluator.h"
+#include "lookup/eval/report_json.h"
 
 namespace fs = std::filesystem;
 using namespace lookup::eval;
@@ -227,4 +228,21 @@ TEST(RunIo, IncompleteEmptyAndNonFiniteRunsAreNamedProblems) {
     EXPECT_EQ(back.non_finite_rows, 1u);
     EXPECT_FALSE(back.frames[1].has_pose);  // never scored as a position
     EXPECT_NE(runProblem(back).find("non-finite"), std::string::npos);
+}
+
+TEST(Report, RowRoundTripsThroughJson) {
+    auto run = runWithOffsets({0.05, 0.6, 0.1}, 1.0);
+    run.frames[0].status = "lost";
+    run.frames[0].has_pose = false;
+    run.frames_per_s = 42.5;
+    run.flagged = "partial: no timing.json";
+    const auto row = evaluate({straightTruth()}, {run}, {}).rows[1];
+    const auto back = methodResultFromJson(nlohmann::json::parse(toJson(row).dump()));
+    EXPECT_EQ(toJson(back), toJson(row));
+    EXPECT_EQ(back.first_fix_frame, 1);
+    EXPECT_EQ(back.confident_wrong, 1u);
+    EXPECT_EQ(back.flagged, run.flagged);
+    auto broken = toJson(row);
+    broken.erase("confident_wrong");
+    EXPECT_THROW(methodResultFromJson(broken), nlohmann::json::exception);
 }

@@ -11,6 +11,7 @@
 #include "lookup/common/errors.h"
 #include "lookup/common/rawlog_io.h"
 #include "lookup/eval/evaluator.h"
+#include "lookup/eval/report_json.h"
 
 namespace lookup::eval {
 namespace fs = std::filesystem;
@@ -69,30 +70,7 @@ void writeJson(const Report& r, const std::string& path) {
     j["confident_wrong_min_error_m"] = r.options.confident_wrong_min_error_m;
     j["warnings"] = r.warnings;
     for (const auto& m : r.rows) {
-        j["rows"].push_back({{"traverse", m.traverse},
-                             {"method", m.method},
-                             {"run", m.run_directory},
-                             {"frames", m.frames},
-                             {"excluded", m.excluded},
-                             {"without_pose", m.without_pose},
-                             {"evaluated", m.error.count},
-                             {"mean_m", m.error.mean_m},
-                             {"median_m", m.error.median_m},
-                             {"p95_m", m.error.p95_m},
-                             {"max_m", m.error.max_m},
-                             {"yaw_error_mean_deg", m.yaw_error_mean_deg},
-                             {"acceptance_share", m.acceptance_share},
-                             {"inside_95_ellipse_share", m.inside_95_share},
-                             {"frames_per_s", m.frames_per_s},
-                             {"match_ms_per_frame", m.match_ms_per_frame},
-                             {"frames_dropped", m.frames_dropped},
-                             {"first_fix_frame", m.first_fix_frame},
-                             {"first_fix_s", m.first_fix_s},
-                             {"first_fix_distance_m", m.first_fix_distance_m},
-                             {"refined_after_first_fix_share", m.refined_after_first_fix_share},
-                             {"confident_wrong", m.confident_wrong},
-                             {"frame_ms_p99", m.frame_ms_p99},
-                             {"flagged", m.flagged}});
+        j["rows"].push_back(toJson(m));
     }
     common::writeFileAtomically(path, j.dump(2) + "\n");
 }
@@ -158,6 +136,62 @@ bool plotMeanErrors(const Report& r, const std::string& out_dir, std::string& wa
 }
 
 }  // namespace
+
+nlohmann::json toJson(const MethodResult& m) {
+    return {{"traverse", m.traverse},
+            {"method", m.method},
+            {"run", m.run_directory},
+            {"frames", m.frames},
+            {"excluded", m.excluded},
+            {"without_pose", m.without_pose},
+            {"evaluated", m.error.count},
+            {"mean_m", m.error.mean_m},
+            {"median_m", m.error.median_m},
+            {"p95_m", m.error.p95_m},
+            {"max_m", m.error.max_m},
+            {"yaw_error_mean_deg", m.yaw_error_mean_deg},
+            {"acceptance_share", m.acceptance_share},
+            {"inside_95_ellipse_share", m.inside_95_share},
+            {"frames_per_s", m.frames_per_s},
+            {"match_ms_per_frame", m.match_ms_per_frame},
+            {"frames_dropped", m.frames_dropped},
+            {"first_fix_frame", m.first_fix_frame},
+            {"first_fix_s", m.first_fix_s},
+            {"first_fix_distance_m", m.first_fix_distance_m},
+            {"refined_after_first_fix_share", m.refined_after_first_fix_share},
+            {"confident_wrong", m.confident_wrong},
+            {"frame_ms_p99", m.frame_ms_p99},
+            {"flagged", m.flagged}};
+}
+
+MethodResult methodResultFromJson(const nlohmann::json& j) {
+    MethodResult m;
+    j.at("traverse").get_to(m.traverse);
+    j.at("method").get_to(m.method);
+    j.at("run").get_to(m.run_directory);
+    j.at("frames").get_to(m.frames);
+    j.at("excluded").get_to(m.excluded);
+    j.at("without_pose").get_to(m.without_pose);
+    j.at("evaluated").get_to(m.error.count);
+    j.at("mean_m").get_to(m.error.mean_m);
+    j.at("median_m").get_to(m.error.median_m);
+    j.at("p95_m").get_to(m.error.p95_m);
+    j.at("max_m").get_to(m.error.max_m);
+    j.at("yaw_error_mean_deg").get_to(m.yaw_error_mean_deg);
+    j.at("acceptance_share").get_to(m.acceptance_share);
+    j.at("inside_95_ellipse_share").get_to(m.inside_95_share);
+    j.at("frames_per_s").get_to(m.frames_per_s);
+    j.at("match_ms_per_frame").get_to(m.match_ms_per_frame);
+    j.at("frames_dropped").get_to(m.frames_dropped);
+    j.at("first_fix_frame").get_to(m.first_fix_frame);
+    j.at("first_fix_s").get_to(m.first_fix_s);
+    j.at("first_fix_distance_m").get_to(m.first_fix_distance_m);
+    j.at("refined_after_first_fix_share").get_to(m.refined_after_first_fix_share);
+    j.at("confident_wrong").get_to(m.confident_wrong);
+    j.at("frame_ms_p99").get_to(m.frame_ms_p99);
+    j.at("flagged").get_to(m.flagged);
+    return m;
+}
 
 void writeReport(const Report& report, const std::string& out_dir) {
     std::error_code ec;

@@ -5,6 +5,7 @@
 #include <stdexcept>
 
 #include "lookup/common/rawlog_io.h"
+#include "lookup/eval/report_json.h"
 #include "lookup/suite/suite.h"
 #include "suite_internal.h"
 
@@ -12,58 +13,6 @@ namespace lookup::suite {
 namespace fs = std::filesystem;
 
 namespace {
-
-nlohmann::json rowToJson(const eval::MethodResult& m) {
-    return {{"traverse", m.traverse},
-            {"method", m.method},
-            {"run", m.run_directory},
-            {"frames", m.frames},
-            {"excluded", m.excluded},
-            {"without_pose", m.without_pose},
-            {"evaluated", m.error.count},
-            {"mean_m", m.error.mean_m},
-            {"median_m", m.error.median_m},
-            {"p95_m", m.error.p95_m},
-            {"max_m", m.error.max_m},
-            {"acceptance_share", m.acceptance_share},
-            {"refined_after_first_fix_share", m.refined_after_first_fix_share},
-            {"inside_95_ellipse_share", m.inside_95_share},
-            {"yaw_error_mean_deg", m.yaw_error_mean_deg},
-            {"first_fix_frame", m.first_fix_frame},
-            {"first_fix_s", m.first_fix_s},
-            {"first_fix_distance_m", m.first_fix_distance_m},
-            {"confident_wrong", m.confident_wrong},
-            {"frames_per_s", m.frames_per_s},
-            {"frame_ms_p99", m.frame_ms_p99},
-            {"frames_dropped", m.frames_dropped}};
-}
-
-eval::MethodResult rowFromJson(const nlohmann::json& j) {
-    eval::MethodResult m;
-    m.traverse = j.at("traverse");
-    m.method = j.at("method");
-    m.run_directory = j.at("run");
-    m.frames = j.at("frames");
-    m.excluded = j.at("excluded");
-    m.without_pose = j.at("without_pose");
-    m.error.count = j.at("evaluated");
-    m.error.mean_m = j.at("mean_m");
-    m.error.median_m = j.at("median_m");
-    m.error.p95_m = j.at("p95_m");
-    m.error.max_m = j.at("max_m");
-    m.acceptance_share = j.at("acceptance_share");
-    m.refined_after_first_fix_share = j.at("refined_after_first_fix_share");
-    m.inside_95_share = j.at("inside_95_ellipse_share");
-    m.yaw_error_mean_deg = j.at("yaw_error_mean_deg");
-    m.first_fix_frame = j.at("first_fix_frame");
-    m.first_fix_s = j.at("first_fix_s");
-    m.first_fix_distance_m = j.at("first_fix_distance_m");
-    m.confident_wrong = j.at("confident_wrong");
-    m.frames_per_s = j.at("frames_per_s");
-    m.frame_ms_p99 = j.at("frame_ms_p99");
-    m.frames_dropped = j.at("frames_dropped");
-    return m;
-}
 
 double meanOf(const std::vector<double>& v) {
     double s = 0;
@@ -196,7 +145,7 @@ nlohmann::json summaryToJson(const ConditionSummary& s) {
 
 nlohmann::json toJson(const JobResult& r) {
     nlohmann::json rows = nlohmann::json::array();
-    for (const auto& m : r.rows) rows.push_back(rowToJson(m));
+    for (const auto& m : r.rows) rows.push_back(eval::toJson(m));
     return {{"condition", r.condition}, {"seed", r.seed},     {"ok", r.ok},
             {"reason", r.reason},       {"wall_s", r.wall_s}, {"rows", rows}};
 }
@@ -208,7 +157,7 @@ JobResult jobFromJson(const nlohmann::json& j) {
     r.ok = j.at("ok");
     r.reason = j.at("reason");
     r.wall_s = j.at("wall_s");
-    for (const auto& row : j.at("rows")) r.rows.push_back(rowFromJson(row));
+    for (const auto& row : j.at("rows")) r.rows.push_back(eval::methodResultFromJson(row));
     return r;
 }
 
