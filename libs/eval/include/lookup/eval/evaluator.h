@@ -65,7 +65,7 @@ struct MethodResult {
     /// ellipse, over every frame with ground truth (coarse-excluded ones too).
     size_t confident_wrong = 0;
     double frame_ms_p99 = 0;  ///< 99th percentile of frames.csv `ms` (dropped frames left out)
-    std::string flagged;  ///< Run::flagged: why this row scores an incomplete run ("" if not)
+    std::string flagged;      ///< Run::flagged: why this row scores an incomplete run ("" if not)
 };
 
 struct Report {
