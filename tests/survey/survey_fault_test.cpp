@@ -137,8 +137,9 @@ TEST(SurveyFault, NonFiniteOdometryRecordsSkippedAndCounted) {
     ASSERT_TRUE(r.ok()) << r.reason;
     EXPECT_EQ(r.traverses.at(0).skipped.odometry, 3u);
     EXPECT_LT(r.traverses.at(0).error.max_m, 0.3);
-    for (const auto& ref :
-         lookup::database::ReferenceDatabase::load((dir / "db").string()).references()) {
+    // The database must outlive the loop: a range-for over a temporary's member dangles.
+    const auto db = lookup::database::ReferenceDatabase::load((dir / "db").string());
+    for (const auto& ref : db.references()) {
         ASSERT_TRUE(std::isfinite(ref.vehicle_pose.x()) && std::isfinite(ref.vehicle_pose.yaw()));
     }
 }
