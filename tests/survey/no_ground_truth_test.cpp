@@ -22,22 +22,12 @@ using namespace lookup::survey;
 namespace {
 
 fs::path tempDir(const std::string& name) {
-    auto dir = fs::temp_directory_path() / ("lookup_nogt_" + name);
-    fs::remove_all(dir);
-    fs::create_directories(dir);
-    return dir;
+    return lookup::test::freshTestDir("lookup_nogt_", name);
 }
 
-const mrpt::config::CConfigFile& shareIni() {
-    static mrpt::config::CConfigFile cfg(std::string(LOOKUP_SOURCE_SHARE_DIR) + "/survey.ini");
-    return cfg;
-}
+const mrpt::config::CConfigFile& shareIni() { return lookup::test::shareSurveyIni(); }
 
-SurveyOptions shareOptions() {
-    SurveyOptions o;
-    o.loadFromConfigFile(shareIni(), "survey");
-    return o;
-}
+SurveyOptions shareOptions() { return lookup::test::shareSurveyOptions(false); }
 
 // Smooth world-fixed value noise on the ceiling plane (8 cm cells, bilinear).
 double ceilingGrey(double x, double y) {

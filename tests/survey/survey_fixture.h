@@ -4,6 +4,7 @@
 // MRPT's laserScanSimulator scans, textured ceiling images (every 4th one blurred) and forward
 // images, plus the ground-truth file. Fast: ~200 frames of 80x60 px.
 
+#include <mrpt/config/CConfigFile.h>
 #include <mrpt/maps/COccupancyGridMap2D.h>
 #include <mrpt/obs/CObservation2DRangeScan.h>
 #include <mrpt/obs/CObservationImage.h>
@@ -18,8 +19,33 @@
 
 #include "lookup/common/pose_files.h"
 #include "lookup/common/rawlog_io.h"
+#include "lookup/survey/survey_options.h"
 
 namespace lookup::test {
+
+/// An empty folder under the test temporary folder, named `prefix` + `name`.
+inline std::filesystem::path freshTestDir(const std::string& prefix, const std::string& name) {
+    auto dir = std::filesystem::temp_directory_path() / (prefix + name);
+    std::filesystem::remove_all(dir);
+    std::filesystem::create_directories(dir);
+    return dir;
+}
+
+/// share/lookup/survey.ini of the source tree, read once.
+inline const mrpt::config::CConfigFile& shareSurveyIni() {
+    static mrpt::config::CConfigFile cfg(std::string(LOOKUP_SOURCE_SHARE_DIR) + "/survey.ini");
+    return cfg;
+}
+
+/// Its [survey] options; `operator_start_at_truth` gives the fixture's true start
+/// (truePoseAt(0): x 0, y 0, heading atan(0.1)) as the operator's start pose, so the map frame
+/// is the truth's and errors compare directly.
+inline survey::SurveyOptions shareSurveyOptions(bool operator_start_at_truth) {
+    survey::SurveyOptions o;
+    o.loadFromConfigFile(shareSurveyIni(), "survey");
+    if (operator_start_at_truth) o.start_pose = "0 0 5.7106";
+    return o;
+}
 
 inline mrpt::maps::COccupancyGridMap2D corridorMap() {
     mrpt::maps::COccupancyGridMap2D grid(-3, 27, -4, 4, 0.05f);

@@ -17,25 +17,12 @@ using namespace lookup::survey;
 namespace {
 
 fs::path tempDir(const std::string& name) {
-    auto dir = fs::temp_directory_path() / ("lookup_survey_" + name);
-    fs::remove_all(dir);
-    fs::create_directories(dir);
-    return dir;
+    return lookup::test::freshTestDir("lookup_survey_", name);
 }
 
-const mrpt::config::CConfigFile& shareIni() {
-    static mrpt::config::CConfigFile cfg(std::string(LOOKUP_SOURCE_SHARE_DIR) + "/survey.ini");
-    return cfg;
-}
+const mrpt::config::CConfigFile& shareIni() { return lookup::test::shareSurveyIni(); }
 
-SurveyOptions shareOptions() {
-    SurveyOptions o;
-    o.loadFromConfigFile(shareIni(), "survey");
-    // The operator's start pose is the fixture's true start (truePoseAt(0): x 0, y 0, heading
-    // atan(0.1)), so the map frame is the truth's and errors compare directly.
-    o.start_pose = "0 0 5.7106";
-    return o;
-}
+SurveyOptions shareOptions() { return lookup::test::shareSurveyOptions(true); }
 
 SurveyInputs inputsFor(const lookup::test::Fixture& f, const fs::path& out) {
     SurveyInputs in;
