@@ -12,6 +12,7 @@
 
 #include "lookup/coarse/coarse_localizer.h"
 #include "lookup/coarse/descriptor.h"
+#include "lookup/localize/place_search.h"
 
 namespace lookup::localize {
 
@@ -21,6 +22,8 @@ const char* toString(FrameStatus s) {
             return "refined";
         case FrameStatus::Fallback:
             return "fallback";
+        case FrameStatus::Ambiguous:
+            return "ambiguous";
         case FrameStatus::Lost:
             return "lost";
         case FrameStatus::Dropped:
@@ -436,6 +439,7 @@ void Localizer::restart() {
     last_startup_seed_ = std::numeric_limits<std::size_t>::max();
     seed_turn_ = 0;
     unverified_coarse_frames_ = 0;
+    frames_since_check_ = 0;
     last_stamp_.clear();
     if (coarse_) coarse_->restart();
 }
@@ -714,6 +718,96 @@ std::shared_ptr<const refine::RefineResult> Localizer::acquire(
     return confirmed->accepted() ? confirmed : report(best->result, {best->reference});
 }
 
+Localizer::GlobalOutcome Localizer::acquireGlobally(const mrpt::obs::CObservationImage& query,
+                                                    FrameResult& out) {
+    // Each distinct place the index offers is verified as an acquisition candidate is (probe,
+    // refinement, confirmation against the fix's neighbours); the best verified place is the
+    // fix unless another one scores nearly as well (aliased or repeating ceiling).
+    GlobalOutcome g;
+    const double separation_m = options_.acquisition_ambiguity_distance_m;
+    const auto found = searchPlaces(
+        *places_, db_, query, static_cast<std::size_t>(options_.place_candidates), separation_m);
+    out.times.place_ms += found.ms;
+    struct Verified {
+        std::shared_ptr<const refine::RefineResult> result;
+        std::vector<std::size_t> references;
+    };
+    std::vector<Verified> verified;
+    for (const auto& place : found.places) {
+        auto single = refineAgainst(query, {place.reference}, place.vehicle_pose, out, true);
+        if (!single->accepted()) continue;
+        const mrpt::poses::CPose2D fix = single->pose.mean;
+        auto confirmed = refineAgainst(query, referencesNear(fix), fix, out);
+        if (confirmed->accepted()) {
+            verified.push_back({confirmed, out.reference_indices});
+        } else {
+            verified.push_back({single, {place.reference}});
+        }
+    }
+    if (verified.empty()) {
+        g.note = "; place index: " + std::to_string(found.places.size()) + " places (" +
+                 std::to_string(found.features) + " features), none verified";
+        return g;
+    }
+    const auto best = std::max_element(verified.begin(), verified.end(), [](auto& a, auto& b) {
+        return a.result->inlier_share < b.result->inlier_share;
+    });
+    out.refinement = best->result;
+    out.inlier_share = best->result->inlier_share;
+    out.reference_indices = best->references;
+    g.result = best->result;
+    for (const auto& other : verified) {
+        const auto& a = best->result->pose.mean;
+        const auto& b = other.result->pose.mean;
+        const double d = std::hypot(a.x() - b.x(), a.y() - b.y());
+        if (d > separation_m &&
+            other.result->inlier_share >
+                best->result->inlier_share - options_.acquisition_ambiguity_margin) {
+            g.ambiguous = true;
+            g.note = "places " + number(d) + " m apart explain the frame with inlier shares " +
+                     number(best->result->inlier_share) + " and " +
+                     number(other.result->inlier_share);
+            return g;
+        }
+    }
+    return g;
+}
+
+std::optional<std::string> Localizer::trackContradicted(const mrpt::obs::CObservationImage& query,
+                                                        const refine::RefineResult& tracked,
+                                                        FrameResult& out) {
+    // An aliased track agrees with odometry; only another place explaining the frame as well
+    // tells it apart. The index's places away from the track are verified; the frame keeps
+    // the track's refinement for its report.
+    const auto kept_refinement = out.refinement;
+    const auto kept_refs = out.reference_indices;
+    const double kept_share = out.inlier_share;
+    const auto found =
+        searchPlaces(*places_, db_, query, static_cast<std::size_t>(options_.place_candidates),
+                     options_.acquisition_ambiguity_distance_m);
+    out.times.place_ms += found.ms;
+    std::optional<std::string> why;
+    for (const auto& place : found.places) {
+        const auto& t = tracked.pose.mean;
+        const double d = std::hypot(place.vehicle_pose.x() - t.x(), place.vehicle_pose.y() - t.y());
+        if (d <= options_.acquisition_ambiguity_distance_m) continue;
+        auto other = refineAgainst(query, {place.reference}, place.vehicle_pose, out, true);
+        if (other->accepted() &&
+            other->inlier_share > tracked.inlier_share - options_.acquisition_ambiguity_margin) {
+            why = "a place " + number(d) +
+                  " m from the track explains the frame as well (inlier "
+                  "shares " +
+                  number(other->inlier_share) + " and " + number(tracked.inlier_share) +
+                  "): track dropped";
+            break;
+        }
+    }
+    out.refinement = kept_refinement;
+    out.reference_indices = kept_refs;
+    out.inlier_share = kept_share;
+    return why;
+}
+
 FrameResult Localizer::processCeiling(const mrpt::obs::CObservationImage& query) {
     mrpt::system::CTicTac total;
     FrameResult out;
@@ -739,7 +833,16 @@ FrameResult Localizer::processCeiling(const mrpt::obs::CObservationImage& query)
     }
     if (hypothesis_ && last_fix_) hypothesis_.reset();  // a fix supersedes it
     if (hypothesis_ && !prediction) result = tryHypothesis(query, out);
-    if ((!result || !result->accepted()) && coarse_fix) {
+    // Global acquisition from the ceiling: a verified place anywhere, or ambiguous.
+    std::optional<std::string> ambiguous;
+    std::string place_note;
+    if ((!result || !result->accepted()) && !prediction && places_) {
+        auto global = acquireGlobally(query, out);
+        if (global.ambiguous) ambiguous = global.note;
+        if (global.result) result = global.result;
+        place_note = global.note;
+    }
+    if (!ambiguous && (!result || !result->accepted()) && coarse_fix) {
         result = refineAgainst(query, coarse_fix->references, coarse_fix->pose, out);
         // Acquisition searches around the coarse match only when not tracking: with a recent
         // fix a failed frame is a bad view (pipes, blur), not a lost vehicle, and searching
@@ -756,7 +859,7 @@ FrameResult Localizer::processCeiling(const mrpt::obs::CObservationImage& query)
     // a wrong seed's place from the right one (demo: fixes 45 m off).
     const bool verifiable =
         refiner_.options().correspondence.method != refine::CorrespondenceMethod::Ecc;
-    if (!result && !coarse_fix && verifiable && options_.acquisition_radius_m > 0) {
+    if (!ambiguous && !result && !coarse_fix && verifiable && options_.acquisition_radius_m > 0) {
         // Seeds are refreshed once per forward frame (ceiling frames come twice as often): a
         // seed already tried waits for the coarse stage's next frame.
         // One acquisition per forward frame, taking the traverses' seeds in turn (most
@@ -799,7 +902,17 @@ FrameResult Localizer::processCeiling(const mrpt::obs::CObservationImage& query)
         unverified_coarse_frames_ = 0;
     }
 
-    if (result && result->accepted()) {
+    if (prediction && refined && places_ && options_.place_check_every > 0 &&
+        ++frames_since_check_ >= options_.place_check_every) {
+        frames_since_check_ = 0;
+        ambiguous = trackContradicted(query, *result, out);
+    }
+
+    if (ambiguous) {
+        out.status = FrameStatus::Ambiguous;
+        out.reason = *ambiguous;
+        last_fix_.reset();  // neither place is the track's until one alone explains a frame
+    } else if (result && result->accepted()) {
         out.status = FrameStatus::Refined;
         out.pose_source = "refined";
         out.has_pose = true;
@@ -835,6 +948,7 @@ FrameResult Localizer::processCeiling(const mrpt::obs::CObservationImage& query)
             out.reason = last_coarse_
                              ? "coarse stage not confident: " + last_coarse_->reason + startup_note
                              : "no coarse match yet";
+            out.reason += place_note;
         }
     }
     if (out.coarse_pose &&

@@ -216,6 +216,7 @@ void RunWriter::finish(const RunTiming& t) {
     j["ms_per_frame"] = {{"coarse", t.coarse_ms / n},
                          {"select", t.select_ms / n},
                          {"refine", t.refine_ms / n},
+                         {"place", t.place_ms / n},
                          {"total", t.total_ms / n}};
     for (const auto& [stage, ms] : t.refine_stage_ms) j["refine_ms_per_frame"][stage] = ms / n;
     j["skipped"] = nlohmann::json::object();

@@ -19,7 +19,7 @@ struct RunTiming {
     double startup_s = 0;
     /// From the first observation to the last (start-up excluded): frames_per_s divides by it.
     double wall_s = 0;
-    double coarse_ms = 0, select_ms = 0, refine_ms = 0, total_ms = 0;
+    double coarse_ms = 0, select_ms = 0, refine_ms = 0, place_ms = 0, total_ms = 0;
     /// Refiner stage totals by name (e.g. "match" -> ms), summed over frames.
     std::map<std::string, double> refine_stage_ms;
     /// Observations refused at the localiser's edge, by reason (Rejection::kind).
