@@ -152,6 +152,29 @@ class Localizer {
         double travelled_m = 0;  ///< odometry distance since the fix
     };
     FrameResult processCeiling(const mrpt::obs::CObservationImage& query);
+    /// What a frame found: the refinement to report, or why there is no place.
+    struct Attempt {
+        std::shared_ptr<const refine::RefineResult> result;
+        std::optional<std::string> ambiguous;  ///< several places explain the frame
+        std::optional<std::string> dropped;    ///< the track was dropped
+        std::string note;                      ///< added to a lost frame's reason
+    };
+    struct CoarseFix;
+    FrameResult startFrame(const mrpt::obs::CObservationImage& query);
+    std::optional<CoarseFix> coarseStep(FrameResult& out);
+    Attempt locate(const mrpt::obs::CObservationImage& query,
+                   const std::optional<CoarseFix>& coarse_fix,
+                   const std::optional<Prediction>& prediction, FrameResult& out);
+    std::shared_ptr<const refine::RefineResult> trySeeds(const mrpt::obs::CObservationImage& query,
+                                                         FrameResult& out, std::string& note);
+    void auditCoarse(const std::shared_ptr<const refine::RefineResult>& result,
+                     const std::optional<CoarseFix>& coarse_fix, bool tracking);
+    void checkTrack(const mrpt::obs::CObservationImage& query,
+                    const std::optional<Prediction>& prediction, Attempt& a, FrameResult& out);
+    void emit(const Attempt& a, const std::optional<Prediction>& prediction,
+              FrameResult& out) const;
+    mrpt::math::CMatrixDouble33 surveyCovariance(const std::vector<std::size_t>& references) const;
+    void finishFrame(FrameResult& out);
     void processForward(const mrpt::obs::CObservationImage& image);
     void processOdometry(const mrpt::obs::CObservation& odo);
     struct CoarseFix {
@@ -185,8 +208,19 @@ class Localizer {
     std::optional<std::string> trackContradicted(const mrpt::obs::CObservationImage& query,
                                                  const refine::RefineResult& tracked,
                                                  FrameResult& out);
+    GlobalOutcome separatePlaces(const mrpt::obs::CObservationImage& query, FrameResult& out);
+    std::optional<std::string> trackDisagreesWithOdometry(const refine::RefineResult& tracked,
+                                                          const Prediction& prediction);
     const place::PlaceIndex* places_ = nullptr;
     int frames_since_check_ = 0;
+    /// Places an ambiguous frame left open, as they were at `time_s`: the next frames follow
+    /// each with odometry and close those whose ceiling stops matching (separatePlaces).
+    struct OpenPlace {
+        double time_s = 0;
+        mrpt::poses::CPose2D pose;
+    };
+    std::vector<OpenPlace> open_places_;
+    int disagreeing_fixes_ = 0;  ///< tracked fixes in a row far from the odometry prediction
 
     const database::ReferenceDatabase& db_;
     LocalizerOptions options_;
