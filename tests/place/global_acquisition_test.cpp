@@ -1,5 +1,8 @@
 #include <mrpt/obs/CObservationOdometry.h>
 
+#include <nlohmann/json.hpp>
+
+#include "lookup/localize/localize_app.h"
 #include "lookup/localize/localizer.h"
 #include "place_fixture.h"
 
@@ -92,6 +95,39 @@ TEST(GlobalAcquisition, ATrackOnAnAliasedPlaceIsDroppedByTheCheck) {
         dropped = f.status == FrameStatus::Ambiguous && !f.has_pose;
     }
     EXPECT_TRUE(dropped);
+}
+
+TEST(GlobalAcquisition, KidnappingsAlongTheRouteAreCountedAndFixedFromTheCeilingAlone) {
+    const auto dir = localize_testing::freshDir("global_kidnap");
+    auto req = localize_testing::planarRun(dir, [](int, auto&, auto&) {});
+    const auto db = database::ReferenceDatabase::load(req.db_dir);
+    place::PlaceIndex::build(db, place::PlaceIndexOptions())
+        .save(req.db_dir + "/" + place::kPlaceIndexFile);
+    req.coarse_poses.clear();  // no forward camera, no coarse file: the ceiling alone
+    std::ofstream((dir / "ceiling.ini").string()) << "[localizer]\ncoarse = ceiling\n";
+    req.ini_file = (dir / "ceiling.ini").string();
+    req.kidnap_every = 5;
+    localize::runLocalization(req);
+    const auto timing = nlohmann::json::parse(std::ifstream(dir / "run" / "timing.json"));
+    const auto& cold = timing.at("cold_starts");
+    EXPECT_EQ(cold.at("count").get<int>(), 4);
+    EXPECT_EQ(cold.at("fixed_within_3_frames").get<int>(), 4) << cold.dump();
+}
+
+TEST(GlobalAcquisition, CeilingOnlyRunsRefuseADatabaseWithoutItsIndex) {
+    const auto dir = localize_testing::freshDir("global_no_index");
+    auto req = localize_testing::planarRun(dir, [](int, auto&, auto&) {});
+    req.coarse_poses.clear();
+    std::ofstream((dir / "ceiling.ini").string()) << "[localizer]\ncoarse = ceiling\n";
+    req.ini_file = (dir / "ceiling.ini").string();
+    try {
+        localize::runLocalization(req);
+        ADD_FAILURE() << "ran without a place index";
+    } catch (const std::exception& e) {
+        EXPECT_NE(std::string(e.what()).find("place_index.bin: no place index"), std::string::npos)
+            << e.what();
+    }
+    EXPECT_FALSE(fs::exists(dir / "run" / "frames.csv"));
 }
 
 }  // namespace

@@ -325,6 +325,16 @@ class Session {
     }
 
   private:
+    /// The first refined frame since the last kidnapping closes its count.
+    void countColdStart(const FrameResult& frame) {
+        if (timing_.cold_start_frames.empty() || timing_.cold_start_frames.back() >= 0) return;
+        ++frames_since_kidnap_;
+        if (frame.status == FrameStatus::Refined) {
+            timing_.cold_start_frames.back() = frames_since_kidnap_ - 1;
+            frames_since_kidnap_ = 0;
+        }
+    }
+
     bool feedLocalizer(const mrpt::obs::CObservation::Ptr& obs, double late_s,
                        double arrival_unix_s, std::size_t record) {
         const bool is_ceiling = obs->sensorLabel == options_.ceiling_camera_label;
@@ -337,9 +347,16 @@ class Session {
             ++timing_.frames_dropped;
             return true;
         }
+        if (is_ceiling && req_.kidnap_every > 0 &&
+            timing_.frames % static_cast<std::size_t>(req_.kidnap_every) == 0) {
+            if (timing_.frames > 0) localizer_->restart();  // the first frame starts cold anyway
+            timing_.cold_start_frames.push_back(-1);
+            frames_since_kidnap_ = 0;
+        }
         const auto frame = localizer_->process(obs);
         if (auto rejected = localizer_->takeRejection()) skip(*obs, *rejected, record);
         if (!frame) return false;
+        countColdStart(*frame);
         writer_->write(*frame, img);
         link_->frame(*frame, timing_.frames, arrival_unix_s, wall_.Tac());
         if (img != nullptr) img->image.unload();  // keep memory flat on long runs
@@ -409,6 +426,7 @@ class Session {
     place::PlaceIndexOptions place_options_;
     std::unique_ptr<database::ReferenceDatabase> db_;
     std::unique_ptr<place::PlaceIndex> places_;  ///< before localizer_, which uses it
+    int frames_since_kidnap_ = 0;
     std::unique_ptr<Localizer> localizer_;
     std::unique_ptr<RunWriter> writer_;
     bool finished_ = false;

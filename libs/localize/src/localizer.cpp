@@ -767,10 +767,11 @@ Localizer::GlobalOutcome Localizer::acquireGlobally(const mrpt::obs::CObservatio
         const auto& a = best->result->pose.mean;
         const auto& b = other.result->pose.mean;
         const double d = std::hypot(a.x() - b.x(), a.y() - b.y());
-        if (d > separation_m && other.result->inlier_share >
-                                    best->result->inlier_share -
-                                        options_.acquisition_ambiguity_margin) {
-            for (const auto& v : verified) open_places_.push_back({out.time_s, v.result->pose.mean});
+        if (d > separation_m &&
+            other.result->inlier_share >
+                best->result->inlier_share - options_.acquisition_ambiguity_margin) {
+            for (const auto& v : verified)
+                open_places_.push_back({out.time_s, v.result->pose.mean});
             g.ambiguous = true;
             g.note = "places " + number(d) + " m apart explain the frame with inlier shares " +
                      number(best->result->inlier_share) + " and " +
@@ -782,7 +783,7 @@ Localizer::GlobalOutcome Localizer::acquireGlobally(const mrpt::obs::CObservatio
 }
 
 Localizer::GlobalOutcome Localizer::separatePlaces(const mrpt::obs::CObservationImage& query,
-                                                    FrameResult& out) {
+                                                   FrameResult& out) {
     // Each open place moves with odometry since it was seen; one whose ceiling no longer
     // matches closes. One left (or one clearly best): the fix. Several: still ambiguous.
     struct Alive {
@@ -847,9 +848,11 @@ std::optional<std::string> Localizer::trackContradicted(const mrpt::obs::CObserv
         auto other = refineAgainst(query, {place.reference}, place.vehicle_pose, out, true);
         if (other->accepted() &&
             other->inlier_share > tracked.inlier_share - options_.acquisition_ambiguity_margin) {
-            why = "a place " + number(d) + " m from the track explains the frame as well (inlier "
-                  "shares " + number(other->inlier_share) + " and " +
-                  number(tracked.inlier_share) + "): track dropped";
+            why = "a place " + number(d) +
+                  " m from the track explains the frame as well (inlier "
+                  "shares " +
+                  number(other->inlier_share) + " and " + number(tracked.inlier_share) +
+                  "): track dropped";
             open_places_ = {{out.time_s, tracked.pose.mean}, {out.time_s, other->pose.mean}};
             break;
         }
