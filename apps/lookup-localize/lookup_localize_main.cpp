@@ -3,7 +3,7 @@
 //                   [--ini FILE] [--method NAME]
 //                   [--coarse-matches F | --coarse-poses F] [--sampling grid|heatmap|auto]
 //                   [--matcher sad|orb|ecc]
-//                   [--realtime] [--max-frames N] [--repeat N]
+//                   [--realtime] [--max-frames N] [--repeat N] [--kidnap-every N]
 //                   [--publish udp://HOST:PORT | tcp://HOST:PORT] [--persist-fix FILE]
 
 #include <mrpt/3rdparty/tclap/CmdLine.h>
@@ -69,6 +69,11 @@ int run(int argc, char** argv) {
         "", "repeat",
         "replay the rawlog N times, each pass timed after the previous one (long runs)", false, 1,
         "N", cmd);
+    TCLAP::ValueArg<int> kidnap_every(
+        "", "kidnap-every",
+        "restart the localiser every N ceiling frames (cold starts all along the route; "
+        "timing.json cold_starts)",
+        false, 0, "N", cmd);
     TCLAP::ValueArg<std::string> publish(
         "", "publish",
         "send every frame's pose and a health message per second as JSON: udp://HOST:PORT "
@@ -94,6 +99,7 @@ int run(int argc, char** argv) {
     if (realtime.getValue()) req.realtime = 1;
     req.max_frames = static_cast<std::size_t>(std::max(0, max_frames.getValue()));
     req.repeat = repeat.getValue();
+    req.kidnap_every = std::max(0, kidnap_every.getValue());
     req.publish = publish.getValue();
     req.persist_fix = persist_fix.getValue();
 

@@ -25,6 +25,7 @@
 #include "lookup/common/errors.h"
 #include "lookup/common/rawlog_io.h"
 #include "lookup/localize/vehicle_link.h"
+#include "lookup/place/place_index.h"
 #include "lookup/refine/correspondence_methods.h"
 
 namespace lookup::localize {
@@ -151,7 +152,7 @@ class PassShift {
 /// forward images under the label the coarse stage reads, a coarse file that does not cover
 /// the query. Returns the ceiling frames' span.
 QuerySpan checkQuery(const LocalizeRequest& req, const LocalizerOptions& o,
-                     const database::ReferenceDatabase& db, const coarse::CoarseSource& coarse,
+                     const database::ReferenceDatabase& db, const coarse::CoarseSource* coarse,
                      bool coarse_from_images) {
     const auto& camera = db.info().ceiling_camera;
     checkSize(req.rawlog, firstImage(req.rawlog, o.ceiling_camera_label, "nothing to localise"),
@@ -165,8 +166,36 @@ QuerySpan checkQuery(const LocalizeRequest& req, const LocalizerOptions& o,
                   "forward", reference.cols, reference.rows, req.db_dir + " forward images");
     }
     const QuerySpan span = scanQuery(req.rawlog, o.ceiling_camera_label);
-    checkCoverage(coarse, req.coarse_poses.empty() ? req.coarse_matches : req.coarse_poses, span);
+    if (coarse) {
+        checkCoverage(*coarse, req.coarse_poses.empty() ? req.coarse_matches : req.coarse_poses,
+                      span);
+    }
     return span;
+}
+
+/// The database's place index when the options use one. Missing or unusable: an error with
+/// coarse = ceiling (nothing else can give a first fix), else a warning and the forward
+/// camera alone.
+std::unique_ptr<place::PlaceIndex> loadPlaceIndex(const database::ReferenceDatabase& db,
+                                                  const LocalizerOptions& o,
+                                                  const place::PlaceIndexOptions& query) {
+    if (o.coarse == "none" || !o.place_search) return nullptr;
+    const std::string path = db.directory() + "/" + place::kPlaceIndexFile;
+    const std::string fallback = ": start-up and recovery from the forward camera only";
+    if (!fs::exists(path)) {
+        const std::string why =
+            path + ": no place index (build it: lookup-place --db " + db.directory() + ")";
+        if (o.coarse == "ceiling") throw std::runtime_error(why + ", which coarse = ceiling needs");
+        std::cerr << "lookup-localize: warning: " << why << fallback << "\n";
+        return nullptr;
+    }
+    try {
+        return std::make_unique<place::PlaceIndex>(place::PlaceIndex::load(path, db, query));
+    } catch (const place::PlaceIndexError& e) {
+        if (o.coarse == "ceiling") throw;
+        std::cerr << "lookup-localize: warning: " << e.what() << fallback << "\n";
+        return nullptr;
+    }
 }
 
 }  // namespace
@@ -186,6 +215,9 @@ class Session {
             if (ini.sectionExists("localizer")) options_.loadFromConfigFile(ini, "localizer");
             refiner_options_.loadFromConfigFile(ini, "refine");
             if (ini.sectionExists("coarse")) coarse_options_.loadFromConfigFile(ini, "coarse");
+            if (ini.sectionExists("place_index")) {
+                place_options_.loadFromConfigFile(ini, "place_index");
+            }
         }
         if (req.realtime >= 0) options_.realtime = req.realtime == 1;
         if (req.sampling == "grid") refiner_options_.sampler.mode = refine::SamplingMode::Grid;
@@ -214,15 +246,17 @@ class Session {
             coarse = std::make_unique<coarse::MatchFileSource>(req.coarse_matches, 1.0);
         } else if (!req.coarse_poses.empty()) {
             coarse = std::make_unique<coarse::PoseFileSource>(req.coarse_poses, 1.0);
-        } else {
+        } else if (options_.coarse == "sequence") {
             coarse = makeSequenceCoarseSource(*db_, coarse_options_, options_.coarse_traverse);
         }
         const bool coarse_from_files = !req.coarse_matches.empty() || !req.coarse_poses.empty();
+        places_ = loadPlaceIndex(*db_, options_, place_options_);
         if (!req.rawlog.empty() && source_name == req.rawlog) {
-            span_ = checkQuery(req, options_, *db_, *coarse, !coarse_from_files);
+            span_ = checkQuery(req, options_, *db_, coarse.get(), coarse && !coarse_from_files);
         }
         localizer_ = std::make_unique<Localizer>(*db_, options_, refiner_options_,
                                                  std::move(coarse), !coarse_from_files);
+        localizer_->setPlaceIndex(places_.get());
         link_->start(*localizer_, *db_, req.publish_wait_s);
 
         mrpt::config::CConfigFileMemory used;
@@ -235,6 +269,7 @@ class Session {
         options_.saveToConfigFile(used, "localizer");
         refiner_options_.saveToConfigFile(used, "refine");
         coarse_options_.saveToConfigFile(used, "coarse");
+        place_options_.saveToConfigFile(used, "place_index");
         std::string used_text;
         used.getContent(used_text);
         writer_ = std::make_unique<RunWriter>(req.out_dir, used_text, options_.write_debug_images,
@@ -290,6 +325,16 @@ class Session {
     }
 
   private:
+    /// The first refined frame since the last kidnapping closes its count.
+    void countColdStart(const FrameResult& frame) {
+        if (timing_.cold_start_frames.empty() || timing_.cold_start_frames.back() >= 0) return;
+        ++frames_since_kidnap_;
+        if (frame.status == FrameStatus::Refined) {
+            timing_.cold_start_frames.back() = frames_since_kidnap_ - 1;
+            frames_since_kidnap_ = 0;
+        }
+    }
+
     bool feedLocalizer(const mrpt::obs::CObservation::Ptr& obs, double late_s,
                        double arrival_unix_s, std::size_t record) {
         const bool is_ceiling = obs->sensorLabel == options_.ceiling_camera_label;
@@ -302,9 +347,16 @@ class Session {
             ++timing_.frames_dropped;
             return true;
         }
+        if (is_ceiling && req_.kidnap_every > 0 &&
+            timing_.frames % static_cast<std::size_t>(req_.kidnap_every) == 0) {
+            if (timing_.frames > 0) localizer_->restart();  // the first frame starts cold anyway
+            timing_.cold_start_frames.push_back(-1);
+            frames_since_kidnap_ = 0;
+        }
         const auto frame = localizer_->process(obs);
         if (auto rejected = localizer_->takeRejection()) skip(*obs, *rejected, record);
         if (!frame) return false;
+        countColdStart(*frame);
         writer_->write(*frame, img);
         link_->frame(*frame, timing_.frames, arrival_unix_s, wall_.Tac());
         if (img != nullptr) img->image.unload();  // keep memory flat on long runs
@@ -312,6 +364,7 @@ class Session {
         timing_.coarse_ms += frame->times.coarse_ms;
         timing_.select_ms += frame->times.select_ms;
         timing_.refine_ms += frame->times.refine_ms;
+        timing_.place_ms += frame->times.place_ms;
         timing_.total_ms += frame->times.total_ms;
         if (frame->refinement) {
             const auto& t = frame->refinement->times;
@@ -370,7 +423,10 @@ class Session {
     LocalizerOptions options_;
     refine::RefinerOptions refiner_options_;
     coarse::CoarseOptions coarse_options_;
+    place::PlaceIndexOptions place_options_;
     std::unique_ptr<database::ReferenceDatabase> db_;
+    std::unique_ptr<place::PlaceIndex> places_;  ///< before localizer_, which uses it
+    int frames_since_kidnap_ = 0;
     std::unique_ptr<Localizer> localizer_;
     std::unique_ptr<RunWriter> writer_;
     bool finished_ = false;

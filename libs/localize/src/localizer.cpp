@@ -12,6 +12,7 @@
 
 #include "lookup/coarse/coarse_localizer.h"
 #include "lookup/coarse/descriptor.h"
+#include "lookup/localize/place_search.h"
 
 namespace lookup::localize {
 
@@ -21,6 +22,8 @@ const char* toString(FrameStatus s) {
             return "refined";
         case FrameStatus::Fallback:
             return "fallback";
+        case FrameStatus::Ambiguous:
+            return "ambiguous";
         case FrameStatus::Lost:
             return "lost";
         case FrameStatus::Dropped:
@@ -36,6 +39,11 @@ namespace {
 constexpr int kRejectCoarseAfterFrames = 10;
 // A refined fix this far from the coarse match contradicts it (the paper's exclusion radius).
 constexpr double kCoarseContradictedM = 10;
+// A tracked fix farther than this from the odometry prediction (plus a share of the distance
+// since the last fix) disagrees with it; so many in a row drop the track.
+constexpr double kTrackDisagreementM = 0.3;
+constexpr double kTrackDisagreementPerM = 0.1;
+constexpr int kDisagreeingFixesToDrop = 3;
 
 mrpt::poses::CPose2D toPose2D(const mrpt::poses::CPose3D& p) {
     return mrpt::poses::CPose2D(p.x(), p.y(), p.yaw());
@@ -436,6 +444,9 @@ void Localizer::restart() {
     last_startup_seed_ = std::numeric_limits<std::size_t>::max();
     seed_turn_ = 0;
     unverified_coarse_frames_ = 0;
+    frames_since_check_ = 0;
+    open_places_.clear();
+    disagreeing_fixes_ = 0;
     last_stamp_.clear();
     if (coarse_) coarse_->restart();
 }
@@ -714,71 +725,262 @@ std::shared_ptr<const refine::RefineResult> Localizer::acquire(
     return confirmed->accepted() ? confirmed : report(best->result, {best->reference});
 }
 
+Localizer::GlobalOutcome Localizer::acquireGlobally(const mrpt::obs::CObservationImage& query,
+                                                    FrameResult& out) {
+    // Each distinct place the index offers is verified as an acquisition candidate is (probe,
+    // refinement, confirmation against the fix's neighbours); the best verified place is the
+    // fix unless another one scores nearly as well (aliased or repeating ceiling).
+    GlobalOutcome g;
+    const double separation_m = options_.acquisition_ambiguity_distance_m;
+    const auto found = searchPlaces(
+        *places_, db_, query, static_cast<std::size_t>(options_.place_candidates), separation_m);
+    out.times.place_ms += found.ms;
+    struct Verified {
+        std::shared_ptr<const refine::RefineResult> result;
+        std::vector<std::size_t> references;
+    };
+    std::vector<Verified> verified;
+    for (const auto& place : found.places) {
+        auto single = refineAgainst(query, {place.reference}, place.vehicle_pose, out, true);
+        if (!single->accepted()) continue;
+        const mrpt::poses::CPose2D fix = single->pose.mean;
+        auto confirmed = refineAgainst(query, referencesNear(fix), fix, out);
+        if (confirmed->accepted()) {
+            verified.push_back({confirmed, out.reference_indices});
+        } else {
+            verified.push_back({single, {place.reference}});
+        }
+    }
+    if (verified.empty()) {
+        g.note = "; place index: " + std::to_string(found.places.size()) + " places (" +
+                 std::to_string(found.features) + " features), none verified";
+        return g;
+    }
+    const auto best = std::max_element(verified.begin(), verified.end(), [](auto& a, auto& b) {
+        return a.result->inlier_share < b.result->inlier_share;
+    });
+    out.refinement = best->result;
+    out.inlier_share = best->result->inlier_share;
+    out.reference_indices = best->references;
+    g.result = best->result;
+    for (const auto& other : verified) {
+        const auto& a = best->result->pose.mean;
+        const auto& b = other.result->pose.mean;
+        const double d = std::hypot(a.x() - b.x(), a.y() - b.y());
+        if (d > separation_m &&
+            other.result->inlier_share >
+                best->result->inlier_share - options_.acquisition_ambiguity_margin) {
+            for (const auto& v : verified)
+                open_places_.push_back({out.time_s, v.result->pose.mean});
+            g.ambiguous = true;
+            g.note = "places " + number(d) + " m apart explain the frame with inlier shares " +
+                     number(best->result->inlier_share) + " and " +
+                     number(other.result->inlier_share);
+            return g;
+        }
+    }
+    return g;
+}
+
+Localizer::GlobalOutcome Localizer::separatePlaces(const mrpt::obs::CObservationImage& query,
+                                                   FrameResult& out) {
+    // Each open place moves with odometry since it was seen; one whose ceiling no longer
+    // matches closes. One left (or one clearly best): the fix. Several: still ambiguous.
+    struct Alive {
+        std::shared_ptr<const refine::RefineResult> result;
+        std::vector<std::size_t> references;
+    };
+    std::vector<Alive> alive;
+    const auto now = odometryAt(out.time_s);
+    for (const auto& open : open_places_) {
+        if (out.time_s - open.time_s > options_.max_tracking_gap_s) continue;
+        const auto then = odometryAt(open.time_s);
+        const mrpt::poses::CPose2D moved = now && then ? open.pose + (*now - *then) : open.pose;
+        auto r = refineAgainst(query, referencesNear(moved), moved, out);
+        if (r->accepted()) alive.push_back({r, out.reference_indices});
+    }
+    open_places_.clear();
+    GlobalOutcome g;
+    if (alive.empty()) return g;  // none holds: the index searches again
+    const auto best = std::max_element(alive.begin(), alive.end(), [](auto& a, auto& b) {
+        return a.result->inlier_share < b.result->inlier_share;
+    });
+    out.refinement = best->result;
+    out.inlier_share = best->result->inlier_share;
+    out.reference_indices = best->references;
+    g.result = best->result;
+    for (const auto& other : alive) {
+        const auto& a = best->result->pose.mean;
+        const auto& b = other.result->pose.mean;
+        const double d = std::hypot(a.x() - b.x(), a.y() - b.y());
+        if (d > options_.acquisition_ambiguity_distance_m &&
+            other.result->inlier_share >
+                best->result->inlier_share - options_.acquisition_ambiguity_margin) {
+            g.ambiguous = true;
+            g.note = std::to_string(alive.size()) + " places still explain the frame (" +
+                     number(d) + " m apart)";
+        }
+    }
+    if (g.ambiguous) {
+        for (const auto& a : alive) open_places_.push_back({out.time_s, a.result->pose.mean});
+    }
+    return g;
+}
+
+std::optional<std::string> Localizer::trackContradicted(const mrpt::obs::CObservationImage& query,
+                                                        const refine::RefineResult& tracked,
+                                                        FrameResult& out) {
+    // An aliased track agrees with odometry; only another place explaining the frame as well
+    // tells it apart. The index's places away from the track are verified; the frame keeps
+    // the track's refinement for its report.
+    const auto kept_refinement = out.refinement;
+    const auto kept_refs = out.reference_indices;
+    const double kept_share = out.inlier_share;
+    const auto found =
+        searchPlaces(*places_, db_, query, static_cast<std::size_t>(options_.place_candidates),
+                     options_.acquisition_ambiguity_distance_m);
+    out.times.place_ms += found.ms;
+    std::optional<std::string> why;
+    for (const auto& place : found.places) {
+        const auto& t = tracked.pose.mean;
+        const double d = std::hypot(place.vehicle_pose.x() - t.x(), place.vehicle_pose.y() - t.y());
+        if (d <= options_.acquisition_ambiguity_distance_m) continue;
+        auto other = refineAgainst(query, {place.reference}, place.vehicle_pose, out, true);
+        if (other->accepted() &&
+            other->inlier_share > tracked.inlier_share - options_.acquisition_ambiguity_margin) {
+            why = "a place " + number(d) +
+                  " m from the track explains the frame as well (inlier "
+                  "shares " +
+                  number(other->inlier_share) + " and " + number(tracked.inlier_share) +
+                  "): track dropped";
+            open_places_ = {{out.time_s, tracked.pose.mean}, {out.time_s, other->pose.mean}};
+            break;
+        }
+    }
+    out.refinement = kept_refinement;
+    out.reference_indices = kept_refs;
+    out.inlier_share = kept_share;
+    return why;
+}
+
+std::optional<std::string> Localizer::trackDisagreesWithOdometry(
+    const refine::RefineResult& tracked, const Prediction& prediction) {
+    // Tracked fixes are searched around the prediction, so a few centimetres of disagreement
+    // are normal; fixes that keep landing far from it follow something else than the vehicle.
+    const double d = std::hypot(tracked.pose.mean.x() - prediction.pose.x(),
+                                tracked.pose.mean.y() - prediction.pose.y());
+    const double allowed = kTrackDisagreementM + kTrackDisagreementPerM * prediction.travelled_m;
+    disagreeing_fixes_ = d > allowed ? disagreeing_fixes_ + 1 : 0;
+    if (disagreeing_fixes_ < kDisagreeingFixesToDrop) return std::nullopt;
+    disagreeing_fixes_ = 0;
+    return "fixes " + number(d) + " m from the odometry prediction " +
+           std::to_string(kDisagreeingFixesToDrop) + " frames in a row: track dropped";
+}
+
+// Per ceiling frame: coarse -> locate (track, hypothesis, the ceiling's places, around the
+// coarse match, start-up seeds) -> audit of the coarse stage -> track checks -> emit.
 FrameResult Localizer::processCeiling(const mrpt::obs::CObservationImage& query) {
     mrpt::system::CTicTac total;
+    FrameResult out = startFrame(query);
+    const auto coarse_fix = coarseStep(out);
+    const auto prediction = options_.use_tracking ? predict(out.time_s) : std::nullopt;
+    Attempt attempt = locate(query, coarse_fix, prediction, out);
+    auditCoarse(attempt.result, coarse_fix, prediction.has_value());
+    checkTrack(query, prediction, attempt, out);
+    emit(attempt, prediction, out);
+    finishFrame(out);
+    out.times.total_ms = 1e3 * total.Tac() + out.times.coarse_ms;
+    return out;
+}
+
+FrameResult Localizer::startFrame(const mrpt::obs::CObservationImage& query) {
     FrameResult out;
     out.time_s = mrpt::Clock::toDouble(query.timestamp);
     out.camera_on_vehicle = query.cameraPose;
     out.times.coarse_ms = coarse_ms_since_frame_;
     coarse_ms_since_frame_ = 0;
+    return out;
+}
 
-    // 1. Coarse: the forward-camera match (paper) and the odometry-propagated previous fix.
+std::optional<Localizer::CoarseFix> Localizer::coarseStep(FrameResult& out) {
+    // The forward-camera match (paper) was updated by the forward frames; a coarse source
+    // without images (a file, another localiser) is asked at the ceiling frame's time.
     if (!coarse_uses_images_ && coarse_) {
         coarse::CoarseQuery q;
         q.time_s = out.time_s;
         last_coarse_ = coarse_->locate(q);
     }
-    const auto coarse_fix = coarseFix();
+    auto coarse_fix = coarseFix();
     if (coarse_fix) out.coarse_pose = coarse_fix->pose;
-    const auto prediction = options_.use_tracking ? predict(out.time_s) : std::nullopt;
+    return coarse_fix;
+}
 
-    // 2-4. References, refinement, acceptance.
-    std::shared_ptr<const refine::RefineResult> result;
+Localizer::Attempt Localizer::locate(const mrpt::obs::CObservationImage& query,
+                                     const std::optional<CoarseFix>& coarse_fix,
+                                     const std::optional<Prediction>& prediction,
+                                     FrameResult& out) {
+    Attempt a;
+    const auto refined = [&a] { return a.result && a.result->accepted(); };
     if (prediction) {
-        result = refineAgainst(query, referencesNear(prediction->pose), prediction->pose, out);
+        a.result = refineAgainst(query, referencesNear(prediction->pose), prediction->pose, out);
     }
     if (hypothesis_ && last_fix_) hypothesis_.reset();  // a fix supersedes it
-    if (hypothesis_ && !prediction) result = tryHypothesis(query, out);
-    if ((!result || !result->accepted()) && coarse_fix) {
-        result = refineAgainst(query, coarse_fix->references, coarse_fix->pose, out);
+    if (hypothesis_ && !prediction) a.result = tryHypothesis(query, out);
+    // The ceiling's own places: those an ambiguous frame left open, else the index's.
+    if (!refined() && !prediction && (places_ || !open_places_.empty())) {
+        auto global = open_places_.empty() ? GlobalOutcome{} : separatePlaces(query, out);
+        if (!global.result && places_) global = acquireGlobally(query, out);
+        if (global.ambiguous) a.ambiguous = global.note;
+        if (global.result) a.result = global.result;
+        a.note = global.note;
+    }
+    if (a.ambiguous) return a;
+    if (!refined() && coarse_fix) {
+        a.result = refineAgainst(query, coarse_fix->references, coarse_fix->pose, out);
         // Acquisition searches around the coarse match only when not tracking: with a recent
         // fix a failed frame is a bad view (pipes, blur), not a lost vehicle, and searching
         // would cost tens of milliseconds for nothing.
-        if (!result->accepted() && !prediction && options_.acquisition_radius_m > 0) {
-            result = acquire(query, *out.coarse_pose, result, out);
+        if (!a.result->accepted() && !prediction && options_.acquisition_radius_m > 0) {
+            a.result = acquire(query, *out.coarse_pose, a.result, out);
         }
     }
+    if (!a.result && !coarse_fix) a.result = trySeeds(query, out, a.note);
+    return a;
+}
+
+std::shared_ptr<const refine::RefineResult> Localizer::trySeeds(
+    const mrpt::obs::CObservationImage& query, FrameResult& out, std::string& note) {
     // Start-up, before the coarse sequence is full, or a coarse global match not confirmed yet:
     // a verified ceiling match around that match, or nothing (it is not reported as a coarse
-    // pose).
-    std::string startup_note;
-    // ECC is left out: its "inliers" all sample one dense warp, so an inlier share cannot tell
-    // a wrong seed's place from the right one (demo: fixes 45 m off).
-    const bool verifiable =
-        refiner_.options().correspondence.method != refine::CorrespondenceMethod::Ecc;
-    if (!result && !coarse_fix && verifiable && options_.acquisition_radius_m > 0) {
-        // Seeds are refreshed once per forward frame (ceiling frames come twice as often): a
-        // seed already tried waits for the coarse stage's next frame.
-        // One acquisition per forward frame, taking the traverses' seeds in turn (most
-        // trusted first): trying all of them at once made start-up frames cost 250 ms
-        // instead of 60-100.
-        const auto seeds = last_coarse_ && last_coarse_->query_index != last_startup_seed_
-                               ? startupSeeds()
-                               : std::vector<CoarseFix>{};
-        if (!seeds.empty()) {
-            last_startup_seed_ = last_coarse_->query_index;
-            const auto& seed = seeds[seed_turn_++ % seeds.size()];
-            result = acquire(query, seed.pose, nullptr, out);
-            if (!result) {
-                startup_note = "; no ceiling match around its match from " +
-                               std::to_string(last_coarse_->query_index + 1) + " frames";
-                out.refinement.reset();
-                out.reference_indices.clear();
-                out.inlier_share = 0;
-            }
-        }
+    // pose). ECC is left out: its "inliers" all sample one dense warp, so an inlier share
+    // cannot tell a wrong seed's place from the right one (demo: fixes 45 m off).
+    if (refiner_.options().correspondence.method == refine::CorrespondenceMethod::Ecc ||
+        options_.acquisition_radius_m <= 0) {
+        return nullptr;
     }
+    // Seeds are refreshed once per forward frame (ceiling frames come twice as often): a seed
+    // already tried waits for the coarse stage's next frame. One acquisition per forward
+    // frame, taking the traverses' seeds in turn (most trusted first): trying all of them at
+    // once made start-up frames cost 250 ms instead of 60-100.
+    const auto seeds = last_coarse_ && last_coarse_->query_index != last_startup_seed_
+                           ? startupSeeds()
+                           : std::vector<CoarseFix>{};
+    if (seeds.empty()) return nullptr;
+    last_startup_seed_ = last_coarse_->query_index;
+    const auto& seed = seeds[seed_turn_++ % seeds.size()];
+    auto result = acquire(query, seed.pose, nullptr, out);
+    if (!result) {
+        note = "; no ceiling match around its match from " +
+               std::to_string(last_coarse_->query_index + 1) + " frames" + note;
+        out.refinement.reset();
+        out.reference_indices.clear();
+        out.inlier_share = 0;
+    }
+    return result;
+}
 
+void Localizer::auditCoarse(const std::shared_ptr<const refine::RefineResult>& result,
+                            const std::optional<CoarseFix>& coarse_fix, bool tracking) {
     // A coarse match that no ceiling view confirms for several frames, or that a refined fix
     // puts far away, is wrong (an aliased place the coarse stage holds on to): tell the coarse
     // stage so it searches again.
@@ -789,7 +991,7 @@ FrameResult Localizer::processCeiling(const mrpt::obs::CObservationImage& query)
                    result->pose.mean.y() - coarse_fix->pose.y()) > kCoarseContradictedM;
     // Refined fixes are strong evidence (they passed the acceptance filters): two in a row
     // suffice; frames that merely fail around the coarse match need more.
-    if (coarse_fix && ((!prediction && !refined) || contradicted)) {
+    if (coarse_fix && ((!tracking && !refined) || contradicted)) {
         unverified_coarse_frames_ += contradicted ? kRejectCoarseAfterFrames / 2 : 1;
         if (unverified_coarse_frames_ >= kRejectCoarseAfterFrames && coarse_) {
             coarse_->rejectLastMatch();
@@ -798,45 +1000,73 @@ FrameResult Localizer::processCeiling(const mrpt::obs::CObservationImage& query)
     } else {
         unverified_coarse_frames_ = 0;
     }
+}
 
-    if (result && result->accepted()) {
+void Localizer::checkTrack(const mrpt::obs::CObservationImage& query,
+                           const std::optional<Prediction>& prediction, Attempt& a,
+                           FrameResult& out) {
+    if (!prediction || !a.result || !a.result->accepted()) return;
+    a.dropped = trackDisagreesWithOdometry(*a.result, *prediction);
+    if (a.dropped || !places_ || options_.place_check_every <= 0 ||
+        ++frames_since_check_ < options_.place_check_every) {
+        return;
+    }
+    frames_since_check_ = 0;
+    a.ambiguous = trackContradicted(query, *a.result, out);
+}
+
+void Localizer::emit(const Attempt& a, const std::optional<Prediction>& prediction,
+                     FrameResult& out) const {
+    if (a.ambiguous || a.dropped) {
+        out.status = a.ambiguous ? FrameStatus::Ambiguous : FrameStatus::Lost;
+        out.reason = a.ambiguous ? *a.ambiguous : *a.dropped;
+        return;
+    }
+    if (a.result && a.result->accepted()) {
         out.status = FrameStatus::Refined;
         out.pose_source = "refined";
         out.has_pose = true;
-        out.pose = result->pose;
-        // The fix is measured relative to the references: their survey uncertainty adds to it.
-        if (!out.reference_indices.empty()) {
-            mrpt::math::CMatrixDouble33 survey_cov;
-            survey_cov.setZero();
-            for (std::size_t i : out.reference_indices) survey_cov += db_.reference(i).vehicle_cov;
-            survey_cov *= 1.0 / double(out.reference_indices.size());
-            bool finite = true;
-            for (int r = 0; r < 3; ++r)
-                for (int c = 0; c < 3; ++c) finite = finite && std::isfinite(survey_cov(r, c));
-            if (finite) out.pose.cov += survey_cov;
-        }
-    } else {
-        out.status = FrameStatus::Fallback;
-        out.reason = result ? result->reason : "no references to refine against";
-        const auto& acc = refiner_.options().acceptance;
-        if (prediction) {
-            out.has_pose = true;
-            out.pose_source = "prediction";
-            // Dead reckoning since the last fix: a few percent of the distance travelled.
-            out.pose = gaussian(prediction->pose, 0.05 + 0.05 * prediction->travelled_m,
-                                mrpt::DEG2RAD(1.0 + 2.0 * prediction->travelled_m));
-        } else if (out.coarse_pose) {
-            out.has_pose = true;
-            out.pose_source = "coarse";
-            out.pose = gaussian(*out.coarse_pose, acc.fallback_sigma_xy_m,
-                                mrpt::DEG2RAD(acc.fallback_sigma_yaw_deg));
-        } else {
-            out.status = FrameStatus::Lost;
-            out.reason = last_coarse_
-                             ? "coarse stage not confident: " + last_coarse_->reason + startup_note
-                             : "no coarse match yet";
-        }
+        out.pose = a.result->pose;
+        out.pose.cov += surveyCovariance(out.reference_indices);
+        return;
     }
+    out.status = FrameStatus::Fallback;
+    out.reason = a.result ? a.result->reason : "no references to refine against";
+    const auto& acc = refiner_.options().acceptance;
+    if (prediction) {
+        out.has_pose = true;
+        out.pose_source = "prediction";
+        // Dead reckoning since the last fix: a few percent of the distance travelled.
+        out.pose = gaussian(prediction->pose, 0.05 + 0.05 * prediction->travelled_m,
+                            mrpt::DEG2RAD(1.0 + 2.0 * prediction->travelled_m));
+    } else if (out.coarse_pose) {
+        out.has_pose = true;
+        out.pose_source = "coarse";
+        out.pose = gaussian(*out.coarse_pose, acc.fallback_sigma_xy_m,
+                            mrpt::DEG2RAD(acc.fallback_sigma_yaw_deg));
+    } else {
+        out.status = FrameStatus::Lost;
+        out.reason = last_coarse_ ? "coarse stage not confident: " + last_coarse_->reason
+                                  : "no coarse match yet";
+        out.reason += a.note;
+    }
+}
+
+mrpt::math::CMatrixDouble33 Localizer::surveyCovariance(
+    const std::vector<std::size_t>& references) const {
+    // A fix is measured relative to its references: their survey uncertainty adds to it.
+    mrpt::math::CMatrixDouble33 cov;
+    cov.setZero();
+    if (references.empty()) return cov;
+    for (std::size_t i : references) cov += db_.reference(i).vehicle_cov;
+    cov *= 1.0 / double(references.size());
+    for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c)
+            if (!std::isfinite(cov(r, c))) return mrpt::math::CMatrixDouble33::Zero();
+    return cov;
+}
+
+void Localizer::finishFrame(FrameResult& out) {
     if (out.coarse_pose &&
         !std::isfinite(out.coarse_pose->x() + out.coarse_pose->y() + out.coarse_pose->phi())) {
         out.coarse_pose.reset();
@@ -850,10 +1080,11 @@ FrameResult Localizer::processCeiling(const mrpt::obs::CObservationImage& query)
         out.pose = mrpt::poses::CPosePDFGaussian();
         out.pose_source.clear();
     }
+    // An ambiguous frame or a dropped track leaves no place as the track's.
+    if (out.status == FrameStatus::Ambiguous || !out.has_pose) last_fix_.reset();
     if (out.status == FrameStatus::Refined) last_fix_ = Fix{out.time_s, out.pose.mean};
     fine_tracking_ = out.status == FrameStatus::Refined;
-    out.times.total_ms = 1e3 * total.Tac() + out.times.coarse_ms;
-    return out;
+    if (fine_tracking_) open_places_.clear();
 }
 
 }  // namespace lookup::localize

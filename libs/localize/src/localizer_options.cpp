@@ -20,6 +20,10 @@ void LocalizerOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& s
                          "acquisition_probe_points",
                          "acquisition_probe_min_matched",
                          "startup_acquisition_frames",
+                         "coarse",
+                         "place_search",
+                         "place_candidates",
+                         "place_check_every",
                          "coarse_traverse",
                          "coarse_while_tracking",
                          "realtime",
@@ -49,6 +53,10 @@ void LocalizerOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& s
         s.getInt("acquisition_probe_min_matched", acquisition_probe_min_matched, 0, 100000);
     startup_acquisition_frames =
         s.getInt("startup_acquisition_frames", startup_acquisition_frames, 0, 100000000);
+    coarse = s.getString("coarse", coarse);
+    place_search = s.getBool("place_search", place_search);
+    place_candidates = s.getInt("place_candidates", place_candidates, 1, 100);
+    place_check_every = s.getInt("place_check_every", place_check_every, 0, 100000000);
     coarse_traverse = s.getString("coarse_traverse", coarse_traverse);
     coarse_while_tracking = s.getBool("coarse_while_tracking", coarse_while_tracking);
     realtime = s.getBool("realtime", realtime);
@@ -79,6 +87,10 @@ void LocalizerOptions::saveToConfigFile(mrpt::config::CConfigFileBase& target,
     target.write(section, "acquisition_probe_points", acquisition_probe_points);
     target.write(section, "acquisition_probe_min_matched", acquisition_probe_min_matched);
     target.write(section, "startup_acquisition_frames", startup_acquisition_frames);
+    target.write(section, "coarse", coarse);
+    target.write(section, "place_search", place_search);
+    target.write(section, "place_candidates", place_candidates);
+    target.write(section, "place_check_every", place_check_every);
     target.write(section, "coarse_traverse", coarse_traverse);
     target.write(section, "coarse_while_tracking", coarse_while_tracking);
     target.write(section, "realtime", realtime);
@@ -96,6 +108,10 @@ void LocalizerOptions::check() const {
     common::OptionsCheck c("localizer");
     c.require(!ceiling_camera_label.empty(), "ceiling_camera_label", "non-empty");
     c.require(references_per_query >= 1, "references_per_query", ">= 1");
+    c.require(coarse == "sequence" || coarse == "ceiling" || coarse == "none", "coarse",
+              "one of sequence, ceiling, none");
+    c.require(place_candidates >= 1, "place_candidates", ">= 1");
+    c.require(place_check_every >= 0, "place_check_every", ">= 0");
     c.require(max_tracking_gap_s > 0, "max_tracking_gap_s", "> 0");
     c.require(acquisition_radius_m >= 0, "acquisition_radius_m", ">= 0");
     c.require(acquisition_step_m > 0, "acquisition_step_m", "> 0");

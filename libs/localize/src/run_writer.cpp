@@ -1,4 +1,5 @@
 #include "lookup/localize/run_writer.h"
+#include <limits>
 
 #include <mrpt/obs/CObservationRobotPose.h>
 #include <mrpt/poses/CPose3DPDFGaussian.h>
@@ -216,8 +217,19 @@ void RunWriter::finish(const RunTiming& t) {
     j["ms_per_frame"] = {{"coarse", t.coarse_ms / n},
                          {"select", t.select_ms / n},
                          {"refine", t.refine_ms / n},
+                         {"place", t.place_ms / n},
                          {"total", t.total_ms / n}};
     for (const auto& [stage, ms] : t.refine_stage_ms) j["refine_ms_per_frame"][stage] = ms / n;
+    if (!t.cold_start_frames.empty()) {
+        const auto& c = t.cold_start_frames;
+        const auto within = [&c](int n) {
+            return std::count_if(c.begin(), c.end(), [n](int f) { return f >= 0 && f < n; });
+        };
+        j["cold_starts"] = {{"count", c.size()},
+                            {"fixed_within_3_frames", within(3)},
+                            {"fixed", within(std::numeric_limits<int>::max())},
+                            {"frames_to_fix", c}};
+    }
     j["skipped"] = nlohmann::json::object();
     for (const auto& [kind, count] : t.skipped) j["skipped"][kind] = count;
     // Last: its presence, with the frame count, marks the run complete (lookup-eval checks).

@@ -12,6 +12,7 @@
 #include "lookup/common/config.h"
 #include "lookup/common/errors.h"
 #include "lookup/common/share_dirs.h"
+#include "lookup/place/place_app.h"
 
 namespace lookup::survey {
 namespace fs = std::filesystem;
@@ -112,6 +113,9 @@ bool SurveyApp::initialize(int argc, const char* const* argv) {
                                        false, "", "FILE", cmd);
     TCLAP::ValueArg<std::string> map("m", "map", "existing grid map replacing ICP-SLAM", false, "",
                                      "FILE.gridmap[.gz]", cmd);
+    TCLAP::SwitchArg no_index("", "no-place-index",
+                              "do not build the ceiling place index (lookup-place builds it later)",
+                              cmd, false);
     TCLAP::SwitchArg quiet("q", "quiet", "no progress bar", cmd, false);
     TCLAP::SwitchArg verbose("v", "verbose", "full error texts (MRPT call stacks)", cmd, false);
     std::vector<const char*> args(argv, argv + argc);
@@ -130,6 +134,9 @@ bool SurveyApp::initialize(int argc, const char* const* argv) {
             config_.setContent(file->getContent());
             config_.setFileName(ini_path);
             if (config_.sectionExists("survey")) options_.loadFromConfigFile(config_, "survey");
+            if (config_.sectionExists("place_index")) {
+                place_options_.loadFromConfigFile(config_, "place_index");
+            }
         }
         if (dataset.isSet()) {
             readDataset(dataset.getValue(), inputs_, options_);
@@ -148,6 +155,7 @@ bool SurveyApp::initialize(int argc, const char* const* argv) {
         inputs_.map_file = map.getValue();
         inputs_.show_progress = !quiet.getValue();
         verbose_ = verbose.getValue();
+        build_place_index_ = !no_index.getValue();
     } catch (const std::exception& e) {
         std::cerr << "lookup-survey: " << common::errorText(e, verbose.getValue()) << "\n";
         exit_code_ = common::exitCodeFor(e);
@@ -175,6 +183,7 @@ int SurveyApp::run() {
             return exit_code_ = common::kExitWriteError;
         }
         exit_code_ = common::kExitOk;
+        buildIndex();
     } else {
         std::cerr << (verbose_ && !result_.detail.empty()
                           ? "lookup-survey: FAILED: " + result_.detail
@@ -183,6 +192,22 @@ int SurveyApp::run() {
         exit_code_ = result_.exit_code != 0 ? result_.exit_code : common::kExitBadInput;
     }
     return exit_code_;
+}
+
+void SurveyApp::buildIndex() {
+    if (!build_place_index_) return;
+    // The database is complete and in place: a failure here leaves it usable, without the
+    // index (lookup-localize then starts from the forward camera, saying so).
+    try {
+        std::cout << place::buildPlaceIndex(inputs_.out_dir, place_options_, inputs_.show_progress)
+                  << std::endl;
+    } catch (const std::exception& e) {
+        std::cerr << "lookup-survey: warning: the database is complete but its place index is "
+                     "not: "
+                  << common::errorLine(e) << " (retry: lookup-place --db " << inputs_.out_dir << ")"
+                  << std::endl;
+        if (common::exitCodeFor(e) == common::kExitWriteError) exit_code_ = common::kExitWriteError;
+    }
 }
 
 }  // namespace lookup::survey

@@ -25,6 +25,10 @@ struct LocalizeRequest {
     /// Replays the rawlog this many times, each pass's time stamps after the previous one's
     /// (long-run memory and throughput checks: the vehicle jumps back to the start).
     int repeat = 1;
+    /// Every this many ceiling frames the localiser is restarted (Localizer::restart: a
+    /// kidnapping, the vehicle moved while off), so one replay measures cold starts all along
+    /// the route; timing.json "cold_starts" counts the frames each took to its first fix. 0 = none.
+    int kidnap_every = 0;
     bool progress = true;  ///< progress bar on stderr when it is a terminal
 
     // On the vehicle (docs/run-format.md): pose stream, restarts.

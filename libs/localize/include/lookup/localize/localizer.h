@@ -27,21 +27,28 @@
 #include "lookup/localize/localizer_options.h"
 #include "lookup/refine/refiner.h"
 
+namespace lookup::place {
+class PlaceIndex;
+}
+
 namespace lookup::localize {
 
 enum class FrameStatus {
     Refined,   ///< refinement accepted (N_th, d_th)
     Fallback,  ///< refinement rejected or impossible: predicted or coarse pose emitted
-    Lost,      ///< no pose at all (no coarse match, no recent fix)
-    Dropped,   ///< not processed: the localiser was behind real time
+    /// Several places explain the frame nearly as well: no pose (never one of them, tightly).
+    Ambiguous,
+    Lost,     ///< no pose at all (no coarse match, no recent fix)
+    Dropped,  ///< not processed: the localiser was behind real time
 };
-const char* toString(FrameStatus s);  ///< "refined", "fallback", "lost", "dropped"
+const char* toString(FrameStatus s);  ///< "refined", "fallback", "ambiguous", "lost", "dropped"
 
 /// Milliseconds spent per stage on one frame.
 struct StageTimes {
     double coarse_ms = 0;  ///< forward frames since the previous ceiling frame
     double select_ms = 0;  ///< choosing and loading references
     double refine_ms = 0;  ///< lookup::refine::Refiner (all attempts)
+    double place_ms = 0;   ///< ceiling place index queries (their verification is refine_ms)
     double total_ms = 0;
 };
 
@@ -128,6 +135,10 @@ class Localizer {
     void offerHypothesis(const mrpt::poses::CPosePDFGaussian& pose);
     static constexpr int kHypothesisFrames = 10;
 
+    /// The database's ceiling place index, for global acquisition and the track check (see
+    /// LocalizerOptions::place_search); null = none. Must outlive the localiser.
+    void setPlaceIndex(const place::PlaceIndex* index) { places_ = index; }
+
     const LocalizerOptions& options() const { return options_; }
 
     /// References an acquisition around `pose` refines against, one by one: those within
@@ -141,6 +152,29 @@ class Localizer {
         double travelled_m = 0;  ///< odometry distance since the fix
     };
     FrameResult processCeiling(const mrpt::obs::CObservationImage& query);
+    /// What a frame found: the refinement to report, or why there is no place.
+    struct Attempt {
+        std::shared_ptr<const refine::RefineResult> result;
+        std::optional<std::string> ambiguous;  ///< several places explain the frame
+        std::optional<std::string> dropped;    ///< the track was dropped
+        std::string note;                      ///< added to a lost frame's reason
+    };
+    struct CoarseFix;
+    FrameResult startFrame(const mrpt::obs::CObservationImage& query);
+    std::optional<CoarseFix> coarseStep(FrameResult& out);
+    Attempt locate(const mrpt::obs::CObservationImage& query,
+                   const std::optional<CoarseFix>& coarse_fix,
+                   const std::optional<Prediction>& prediction, FrameResult& out);
+    std::shared_ptr<const refine::RefineResult> trySeeds(const mrpt::obs::CObservationImage& query,
+                                                         FrameResult& out, std::string& note);
+    void auditCoarse(const std::shared_ptr<const refine::RefineResult>& result,
+                     const std::optional<CoarseFix>& coarse_fix, bool tracking);
+    void checkTrack(const mrpt::obs::CObservationImage& query,
+                    const std::optional<Prediction>& prediction, Attempt& a, FrameResult& out);
+    void emit(const Attempt& a, const std::optional<Prediction>& prediction,
+              FrameResult& out) const;
+    mrpt::math::CMatrixDouble33 surveyCovariance(const std::vector<std::size_t>& references) const;
+    void finishFrame(FrameResult& out);
     void processForward(const mrpt::obs::CObservationImage& image);
     void processOdometry(const mrpt::obs::CObservation& odo);
     struct CoarseFix {
@@ -165,6 +199,28 @@ class Localizer {
         const mrpt::obs::CObservationImage& query, const std::vector<std::size_t>& refs,
         const mrpt::poses::CPose2D& hint, FrameResult& out, bool probe = false);
     const refine::Reference& referenceView(std::size_t index);
+    struct GlobalOutcome {
+        std::shared_ptr<const refine::RefineResult> result;  ///< the fix, or the ambiguous one
+        bool ambiguous = false;
+        std::string note;  ///< why nothing was found, for the frame's reason
+    };
+    GlobalOutcome acquireGlobally(const mrpt::obs::CObservationImage& query, FrameResult& out);
+    std::optional<std::string> trackContradicted(const mrpt::obs::CObservationImage& query,
+                                                 const refine::RefineResult& tracked,
+                                                 FrameResult& out);
+    GlobalOutcome separatePlaces(const mrpt::obs::CObservationImage& query, FrameResult& out);
+    std::optional<std::string> trackDisagreesWithOdometry(const refine::RefineResult& tracked,
+                                                          const Prediction& prediction);
+    const place::PlaceIndex* places_ = nullptr;
+    int frames_since_check_ = 0;
+    /// Places an ambiguous frame left open, as they were at `time_s`: the next frames follow
+    /// each with odometry and close those whose ceiling stops matching (separatePlaces).
+    struct OpenPlace {
+        double time_s = 0;
+        mrpt::poses::CPose2D pose;
+    };
+    std::vector<OpenPlace> open_places_;
+    int disagreeing_fixes_ = 0;  ///< tracked fixes in a row far from the odometry prediction
 
     const database::ReferenceDatabase& db_;
     LocalizerOptions options_;

@@ -43,6 +43,20 @@ struct LocalizerOptions : public mrpt::config::CLoadableOptions {
     /// stays lost otherwise. 0 = no seeds: only trusted coarse matches. Not with the ECC
     /// baseline, whose inlier share cannot refuse a wrong place.
     int startup_acquisition_frames = 5;
+    /// Where a position comes from before the first fix and whenever lost: "sequence" (the
+    /// forward camera's sequence matcher, and the ceiling place index beside it when
+    /// place_search is on and the database has one), "ceiling" (the place index alone: no
+    /// forward camera needed) or "none" (only a start pose given or persisted).
+    std::string coarse = "sequence";
+    /// Global acquisition from the ceiling place index (place_index.bin in the database).
+    bool place_search = true;
+    /// Distinct places of the index verified by the SAD refinement per global search; the
+    /// second and third are what the ambiguity test compares the best with.
+    int place_candidates = 3;
+    /// While tracking, every this many ceiling frames the index's best places away from the
+    /// track are verified: one that explains the frame about as well as the track makes the
+    /// frame ambiguous and drops the track. 0 = never.
+    int place_check_every = 10;
     /// Survey traverse whose forward images feed the coarse matcher. "" = every traverse, each
     /// matched as its own sequence (laterally offset traverses would alias each other in one),
     /// the most confident match winning per frame.

@@ -5,6 +5,7 @@
 #include <map>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "lookup/common/rawlog_io.h"
 #include "lookup/localize/localizer.h"
@@ -19,9 +20,12 @@ struct RunTiming {
     double startup_s = 0;
     /// From the first observation to the last (start-up excluded): frames_per_s divides by it.
     double wall_s = 0;
-    double coarse_ms = 0, select_ms = 0, refine_ms = 0, total_ms = 0;
+    double coarse_ms = 0, select_ms = 0, refine_ms = 0, place_ms = 0, total_ms = 0;
     /// Refiner stage totals by name (e.g. "match" -> ms), summed over frames.
     std::map<std::string, double> refine_stage_ms;
+    /// --kidnap-every: ceiling frames from each restart to its first refined frame (-1: none
+    /// before the next restart or the end).
+    std::vector<int> cold_start_frames;
     /// Observations refused at the localiser's edge, by reason (Rejection::kind).
     std::map<std::string, std::size_t> skipped;
 

@@ -4,12 +4,16 @@
 //   lookup-survey --dataset DATASET/dataset.ini --out DB [--ini survey.ini] [--poses F] [--map F]
 //   lookup-survey --rawlogs A.rawlog[,B.rawlog...] [--ini survey.ini] --out DB [--poses F]
 //
+// After the database, the ceiling place index (lookup::place) is built into it, unless
+// --no-place-index.
+//
 // With --rawlogs every rawlog is a mapping and reference traverse (the first one builds the
 // map) and `<rawlog>.GT.txt` is used for the report when it exists.
 
 #include <string>
 
 #include "lookup/common/config.h"
+#include "lookup/place/place_index.h"
 #include "lookup/survey/survey.h"
 
 namespace lookup::survey {
@@ -32,7 +36,10 @@ class SurveyApp {
     SurveyOptions options_;
     common::NamedConfigFile config_;  ///< the --ini file
     SurveyResult result_;
+    place::PlaceIndexOptions place_options_;  ///< [place_index] of the --ini file
+    bool build_place_index_ = true;
     int exit_code_ = 0;
+    void buildIndex();
     bool verbose_ = false;
 };
 

@@ -1,0 +1,54 @@
+#include "lookup/localize/place_search.h"
+
+#include <mrpt/system/CTicTac.h>
+
+#include <cmath>
+#include <opencv2/imgproc.hpp>
+
+#include "lookup/database/reference_database.h"
+#include "lookup/place/place_index.h"
+#include "lookup/place/place_pose.h"
+
+namespace lookup::localize {
+
+namespace {
+
+cv::Mat greyOf(const mrpt::img::CImage& image) {
+    if (image.isExternallyStored()) image.forceLoad();
+    cv::Mat m = image.asCvMat<cv::Mat>(mrpt::img::SHALLOW_COPY);
+    if (m.channels() == 3) cv::cvtColor(m, m, cv::COLOR_BGR2GRAY);
+    return m;
+}
+
+}  // namespace
+
+PlaceSearchResult searchPlaces(const place::PlaceIndex& index,
+                               const database::ReferenceDatabase& db,
+                               const mrpt::obs::CObservationImage& query, std::size_t max_places,
+                               double separation_m) {
+    mrpt::system::CTicTac timer;
+    PlaceSearchResult out;
+    place::PlaceQueryTimes times;
+    const auto candidates = index.query(greyOf(query.image), &times);
+    out.features = times.query_features;
+    const place::QueryCamera camera{query.cameraParams, query.cameraPose};
+    for (const auto& c : candidates) {
+        if (out.places.size() >= max_places) break;
+        const auto& ref = db.reference(c.reference);
+        const auto pose =
+            place::vehiclePose(c, db.info().ceiling_camera, ref.vehicle_pose,
+                               ref.ceiling_camera_mount, camera, db.info().ceiling_height_m);
+        if (!pose) continue;
+        // Candidates come most inliers first: a later one near a kept place is the same place.
+        bool known = false;
+        for (const auto& p : out.places) {
+            known = known || std::hypot(p.vehicle_pose.x() - pose->x(),
+                                        p.vehicle_pose.y() - pose->y()) < separation_m;
+        }
+        if (!known) out.places.push_back({*pose, c.reference, c.inliers});
+    }
+    out.ms = 1e3 * timer.Tac();
+    return out;
+}
+
+}  // namespace lookup::localize

@@ -1,0 +1,129 @@
+#pragma once
+// The ceiling place index: local features of every reference ceiling image in one approximate
+// nearest-neighbour index, so one query ceiling frame finds its references anywhere in the
+// database at any heading (global acquisition, docs/place-index.md).
+//
+// Per query: features of the query image -> nearest database features (FLANN: LSH for binary
+// descriptors, KD-trees for float ones) -> votes per reference -> a RANSAC similarity transform
+// (rotation, translation, scale near 1) per best-voted reference. A candidate is a reference
+// and the query-to-reference pixel transform; placePose() turns it into a vehicle pose that
+// the SAD refinement verifies.
+
+#include <mrpt/config/CLoadableOptions.h>
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+namespace lookup::database {
+class ReferenceDatabase;
+}
+
+namespace lookup::place {
+namespace detail {
+struct Impl;
+}
+
+/// File name of the index inside a database folder.
+inline constexpr const char* kPlaceIndexFile = "place_index.bin";
+
+/// A place index file that cannot be used: the message names the file and the reason.
+class PlaceIndexError : public std::runtime_error {
+  public:
+    using std::runtime_error::runtime_error;
+};
+
+enum class FeatureType { Orb, Akaze, Sift };
+const char* toString(FeatureType t);  ///< "orb", "akaze", "sift"
+
+/// Options of the index ([place_index] section of survey.ini and of lookup-localize's --ini).
+/// The build options are stored in the index file; the query options apply per run.
+struct PlaceIndexOptions : public mrpt::config::CLoadableOptions {
+    // --- build -------------------------------------------------------------------------
+    FeatureType features = FeatureType::Orb;
+    int features_per_reference = 150;  ///< strongest features kept per reference image
+    /// References are indexed at most this close along their traverse [m]: neighbours overlap
+    /// by most of the image, and the SAD refinement uses the nearest references anyway.
+    double reference_spacing_m = 0.75;
+    // --- query -------------------------------------------------------------------------
+    int query_features = 500;          ///< features detected in the query image
+    int neighbours = 2;                ///< database features per query feature (votes)
+    int max_descriptor_distance = 64;  ///< Hamming bits (binary) beyond which no vote
+    int rerank_references = 12;        ///< best-voted references fitted geometrically
+    double ransac_threshold_px = 4.0;  ///< similarity RANSAC inlier distance [px]
+    int min_inliers = 12;              ///< fewer geometric inliers: not a candidate
+    double max_scale_change = 0.25;    ///< |scale - 1| allowed (another camera height)
+    int lsh_tables = 4;                ///< FLANN LSH (binary descriptors)
+    int lsh_key_bits = 20;
+    int lsh_probe_level = 0;
+    int search_checks = 64;  ///< FLANN search checks
+
+    void loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
+                            const std::string& section) override;
+    void saveToConfigFile(mrpt::config::CConfigFileBase& target,
+                          const std::string& section) const override;
+    void check() const;
+};
+
+/// One reference that explains the query: query pixel p maps to reference pixel
+/// `query_to_reference * (p, 1)`.
+struct PlaceCandidate {
+    std::size_t reference = 0;  ///< database index
+    cv::Matx23d query_to_reference;
+    int votes = 0;    ///< feature matches before the geometric check
+    int inliers = 0;  ///< matches agreeing with the transform
+    double scale = 1;
+    double rotation_rad = 0;
+};
+
+struct PlaceQueryTimes {
+    double features_ms = 0;
+    double search_ms = 0;
+    double geometry_ms = 0;
+    int query_features = 0;
+};
+
+class PlaceIndex {
+  public:
+    PlaceIndex();
+    PlaceIndex(PlaceIndex&&) noexcept;
+    PlaceIndex& operator=(PlaceIndex&&) noexcept;
+    ~PlaceIndex();
+
+    /// Features of the database's ceiling images (references thinned by
+    /// reference_spacing_m). `progress(done, total)` is called per reference when given.
+    static PlaceIndex build(const database::ReferenceDatabase& db, const PlaceIndexOptions& o,
+                            const std::function<void(std::size_t, std::size_t)>& progress = {});
+    /// Writes the index to `path` atomically (temporary beside it, fsync, rename);
+    /// common::WriteError naming the file on failure.
+    void save(const std::string& path) const;
+    /// Reads an index written by save() for `db`: PlaceIndexError naming the file when it is
+    /// missing, truncated, corrupt (CRC), of another format version or built from another
+    /// database (the references' fingerprint differs). Query options come from `query`.
+    static PlaceIndex load(const std::string& path, const database::ReferenceDatabase& db,
+                           const PlaceIndexOptions& query);
+    /// `<db>/place_index.bin` when it exists.
+    static bool existsFor(const database::ReferenceDatabase& db);
+
+    /// Candidates for one grey query image, most inliers first (several per place possible).
+    std::vector<PlaceCandidate> query(const cv::Mat& grey, PlaceQueryTimes* times = nullptr) const;
+
+    std::size_t indexedReferences() const;
+    std::size_t featureCount() const;
+    /// Bytes of the features and descriptors (FLANN's hash tables come on top).
+    std::size_t memoryBytes() const;
+    const PlaceIndexOptions& options() const;
+
+  private:
+    std::unique_ptr<detail::Impl> impl_;
+};
+
+/// A fingerprint of the database's references (ids, times, poses, image sizes): an index of
+/// another database or of an older survey of the same folder does not match it.
+std::uint64_t referenceFingerprint(const database::ReferenceDatabase& db);
+
+}  // namespace lookup::place

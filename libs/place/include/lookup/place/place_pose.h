@@ -1,0 +1,31 @@
+#pragma once
+// From a place candidate (a pixel transform between the query and one reference image) to the
+// query vehicle's pose in the map, through the ceiling plane.
+
+#include <mrpt/img/TCamera.h>
+#include <mrpt/poses/CPose2D.h>
+#include <mrpt/poses/CPose3D.h>
+
+#include <optional>
+
+#include "lookup/place/place_index.h"
+
+namespace lookup::place {
+
+struct QueryCamera {
+    mrpt::img::TCamera intrinsics;    ///< of the query image (rectified pinhole)
+    mrpt::poses::CPose3D on_vehicle;  ///< CObservationImage::cameraPose
+};
+
+/// The vehicle pose the candidate implies: a few query pixels map through the transform into
+/// the reference image; both sets are back-projected onto the ceiling plane z = h (the
+/// reference camera where the survey put it, the query camera on a vehicle at the origin), and
+/// the planar rigid motion between the two point sets is the query vehicle's pose. Empty when
+/// the rays miss the plane or the intrinsics are unusable.
+std::optional<mrpt::poses::CPose2D> vehiclePose(const PlaceCandidate& candidate,
+                                                const mrpt::img::TCamera& reference_camera,
+                                                const mrpt::poses::CPose3D& reference_vehicle,
+                                                const mrpt::poses::CPose3D& reference_mount,
+                                                const QueryCamera& query, double ceiling_height_m);
+
+}  // namespace lookup::place

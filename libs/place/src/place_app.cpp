@@ -1,0 +1,211 @@
+#include "lookup/place/place_app.h"
+
+#include <mrpt/3rdparty/tclap/CmdLine.h>
+#include <mrpt/obs/CObservationImage.h>
+#include <mrpt/system/CTicTac.h>
+#include <mrpt/system/os.h>
+
+#include <malloc.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <numeric>
+#include <opencv2/imgproc.hpp>
+#include <sstream>
+
+#include "lookup/common/cli.h"
+#include "lookup/common/config.h"
+#include "lookup/common/errors.h"
+#include "lookup/common/pose_files.h"
+#include "lookup/common/rawlog_io.h"
+#include "lookup/database/reference_database.h"
+#include "lookup/place/place_pose.h"
+
+namespace lookup::place {
+
+std::string buildPlaceIndex(const std::string& db_dir, const PlaceIndexOptions& options,
+                            bool show_progress) {
+    mrpt::system::CTicTac timer;
+    const auto db = database::ReferenceDatabase::load(db_dir, 8);
+    const auto progress = [&](std::size_t done, std::size_t total) {
+        if (show_progress && (done == total || done % 50 == 0)) {
+            std::fprintf(stderr, "\rplace index: %zu / %zu references", done, total);
+            if (done == total) std::fprintf(stderr, "\n");
+        }
+    };
+    const PlaceIndex index = PlaceIndex::build(db, options, progress);
+    const std::string path = db_dir + "/" + kPlaceIndexFile;
+    index.save(path);
+    char line[256];
+    std::snprintf(line, sizeof line,
+                  "%s: %zu of %zu references, %zu %s features, %.1f MB in memory, %.1f s",
+                  path.c_str(), index.indexedReferences(), db.size(), index.featureCount(),
+                  toString(options.features), index.memoryBytes() / 1e6, timer.Tac());
+    return line;
+}
+
+bool PlaceApp::initialize(int argc, const char* const* argv) {
+    TCLAP::CmdLine cmd(std::string("lookup-place: builds or evaluates the ceiling place index of "
+                                   "a LookUP database. ") +
+                           common::kExitCodesHelp,
+                       ' ', "0.1");
+    TCLAP::ValueArg<std::string> db("d", "db", "database folder", true, "", "DB", cmd);
+    TCLAP::ValueArg<std::string> ini("i", "ini", ".ini with a [place_index] section", false, "",
+                                     "FILE", cmd);
+    TCLAP::ValueArg<std::string> query("e", "evaluate",
+                                       "query rawlog: score the index on its ceiling frames "
+                                       "instead of building it",
+                                       false, "", "Q.rawlog", cmd);
+    TCLAP::ValueArg<std::string> gt("g", "gt", "ground truth of the query (with --evaluate)", false,
+                                    "", "Q.GT.txt", cmd);
+    TCLAP::ValueArg<int> every("n", "every", "evaluate every N-th ceiling frame", false, 1, "N",
+                               cmd);
+    TCLAP::ValueArg<std::string> json("j", "json", "write the evaluation as JSON", false, "",
+                                      "FILE", cmd);
+    TCLAP::SwitchArg quiet("q", "quiet", "no progress", cmd, false);
+    std::vector<const char*> args(argv, argv + argc);
+    if (!cmd.parse(argc, args.data())) {
+        exit_code_ = common::parseFailureExitCode(argc, argv, common::kExitUsage);
+        return false;
+    }
+    try {
+        db_dir_ = db.getValue();
+        ini_file_ = ini.getValue();
+        query_rawlog_ = query.getValue();
+        gt_file_ = gt.getValue();
+        json_file_ = json.getValue();
+        every_ = std::max(1, every.getValue());
+        quiet_ = quiet.getValue();
+        if (!query_rawlog_.empty() && gt_file_.empty()) {
+            throw common::ConfigError("--evaluate needs --gt");
+        }
+        if (!ini_file_.empty()) {
+            const auto file = common::loadIniFile(ini_file_);
+            if (file->sectionExists("place_index")) {
+                options_.loadFromConfigFile(*file, "place_index");
+            }
+        }
+    } catch (const std::exception& e) {
+        std::cerr << "lookup-place: " << common::errorText(e, false) << "\n";
+        exit_code_ = common::exitCodeFor(e);
+        return false;
+    }
+    return true;
+}
+
+int PlaceApp::run() {
+    exit_code_ = query_rawlog_.empty() ? build() : evaluate();
+    return exit_code_;
+}
+
+int PlaceApp::build() {
+    std::cout << buildPlaceIndex(db_dir_, options_, !quiet_) << std::endl;
+    return common::kExitOk;
+}
+
+namespace {
+
+double percentile(std::vector<double> v, double p) {
+    if (v.empty()) return 0;
+    std::sort(v.begin(), v.end());
+    return v[std::min(v.size() - 1, static_cast<std::size_t>(p * double(v.size())))];
+}
+
+}  // namespace
+
+int PlaceApp::evaluate() {
+    constexpr double kRightM = 1.0, kWrongM = 2.0;
+    const auto db = database::ReferenceDatabase::load(db_dir_, 8);
+    // Heap bytes the loaded index holds (its own estimate leaves out FLANN's allocator).
+    const std::size_t heap_before = mallinfo2().uordblks;
+    const PlaceIndex index = PlaceIndex::load(db_dir_ + "/" + kPlaceIndexFile, db, options_);
+    const double heap_mb = double(mallinfo2().uordblks - heap_before) / 1e6;
+    const auto truth = common::makeInterpolator(common::readPoseFile(gt_file_), 1.0);
+    common::RawlogReader reader(query_rawlog_);
+    mrpt::obs::CObservation::Ptr obs;
+    int frames = 0, scored = 0, top1_right = 0, top1_wrong = 0, any_right = 0, none = 0;
+    std::vector<double> ms, top1_error;
+    double tf_ms = 0, ts_ms = 0, tg_ms = 0;
+    std::size_t ceiling_seen = 0;
+    while (reader.next(obs)) {
+        const auto* img = dynamic_cast<const mrpt::obs::CObservationImage*>(obs.get());
+        if (!img || img->sensorLabel != db.info().ceiling_camera_label) continue;
+        if (ceiling_seen++ % static_cast<std::size_t>(every_) != 0) continue;
+        ++frames;
+        if (img->image.isExternallyStored()) img->image.forceLoad();
+        cv::Mat grey = img->image.asCvMat<cv::Mat>(mrpt::img::SHALLOW_COPY);
+        if (grey.channels() == 3) cv::cvtColor(grey, grey, cv::COLOR_BGR2GRAY);
+        PlaceQueryTimes t;
+        mrpt::system::CTicTac timer;
+        const auto candidates = index.query(grey, &t);
+        std::vector<mrpt::poses::CPose2D> poses;
+        const QueryCamera camera{img->cameraParams, img->cameraPose};
+        for (const auto& c : candidates) {
+            const auto& ref = db.reference(c.reference);
+            if (auto p =
+                    vehiclePose(c, db.info().ceiling_camera, ref.vehicle_pose,
+                                ref.ceiling_camera_mount, camera, db.info().ceiling_height_m)) {
+                poses.push_back(*p);
+            }
+        }
+        ms.push_back(1e3 * timer.Tac());
+        tf_ms += t.features_ms;
+        ts_ms += t.search_ms;
+        tg_ms += t.geometry_ms;
+        mrpt::poses::CPose3D gt;
+        bool valid = false;
+        truth.interpolate(img->timestamp, gt, valid);
+        if (!valid) continue;
+        ++scored;
+        if (poses.empty()) {
+            ++none;
+            continue;
+        }
+        const auto err = [&](const mrpt::poses::CPose2D& p) {
+            return std::hypot(p.x() - gt.x(), p.y() - gt.y());
+        };
+        top1_error.push_back(err(poses.front()));
+        // Right: within the SAD window of the truth; wrong: another place.
+        if (err(poses.front()) < kRightM) ++top1_right;
+        if (err(poses.front()) > kWrongM) ++top1_wrong;
+        if (std::any_of(poses.begin(), poses.end(), [&](auto& p) { return err(p) < kRightM; })) {
+            ++any_right;
+        }
+    }
+    const auto share = [&](int n) { return scored ? 100.0 * n / scored : 0.0; };
+    char line[512];
+    std::snprintf(line, sizeof line,
+                  "%s: %d frames, %d scored: top-1 within 1 m %.1f %%, beyond 2 m %.1f %%, any "
+                  "candidate within 1 m %.1f %%, no candidate %.1f %%; top-1 error median %.3f m; "
+                  "query %.1f ms mean, %.1f ms "
+                  "p99; index %.1f MB, %zu features",
+                  query_rawlog_.c_str(), frames, scored, share(top1_right), share(top1_wrong),
+                  share(any_right), share(none), percentile(top1_error, 0.5),
+                  ms.empty() ? 0.0 : std::accumulate(ms.begin(), ms.end(), 0.0) / double(ms.size()),
+                  percentile(ms, 0.99), index.memoryBytes() / 1e6, index.featureCount());
+    std::cout << line << std::endl;
+    if (frames > 0) {
+        std::printf(
+            "per query: features %.2f ms, search %.2f ms, geometry %.2f ms; index heap "
+            "%.1f MB\n",
+            tf_ms / frames, ts_ms / frames, tg_ms / frames, heap_mb);
+    }
+    if (!json_file_.empty()) {
+        std::ostringstream j;
+        j << "{\"frames\": " << frames << ", \"scored\": " << scored
+          << ", \"top1_right_pct\": " << share(top1_right)
+          << ", \"top1_wrong_pct\": " << share(top1_wrong)
+          << ", \"any_right_pct\": " << share(any_right) << ", \"none_pct\": " << share(none)
+          << ", \"query_ms_mean\": "
+          << (ms.empty() ? 0.0 : std::accumulate(ms.begin(), ms.end(), 0.0) / double(ms.size()))
+          << ", \"query_ms_p99\": " << percentile(ms, 0.99) << ", \"heap_mb\": " << heap_mb
+          << "}\n";
+        common::writeFileAtomically(json_file_, j.str());
+    }
+    return common::kExitOk;
+}
+
+}  // namespace lookup::place

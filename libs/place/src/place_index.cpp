@@ -1,0 +1,186 @@
+#include "lookup/place/place_index.h"
+
+#include <mrpt/system/CTicTac.h>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/features2d.hpp>
+#include <opencv2/flann.hpp>
+
+#include "lookup/database/reference_database.h"
+#include "place_index_impl.h"
+
+namespace lookup::place {
+
+const char* toString(FeatureType t) {
+    switch (t) {
+        case FeatureType::Orb:
+            return "orb";
+        case FeatureType::Akaze:
+            return "akaze";
+        case FeatureType::Sift:
+            return "sift";
+    }
+    return "?";
+}
+
+namespace detail {
+
+cv::Ptr<cv::Feature2D> makeDetector(FeatureType type, int n) {
+    switch (type) {
+        case FeatureType::Orb:
+            // Few pyramid levels: query and reference see the ceiling from nearly one height.
+            return cv::ORB::create(n, 1.2f, 4, 31, 0, 2, cv::ORB::HARRIS_SCORE, 31, 12);
+        case FeatureType::Akaze:
+            return cv::AKAZE::create(cv::AKAZE::DESCRIPTOR_MLDB, 0, 3, 0.0005f, 3, 3);
+        case FeatureType::Sift:
+            return cv::SIFT::create(n);
+    }
+    return {};
+}
+
+void detect(const cv::Mat& grey, FeatureType type, int n, std::vector<cv::KeyPoint>& keypoints,
+            cv::Mat& descriptors) {
+    keypoints.clear();
+    descriptors.release();
+    if (grey.empty()) return;
+    auto detector = makeDetector(type, n);
+    detector->detect(grey, keypoints);
+    // AKAZE has no feature budget: keep the strongest n, as ORB and SIFT do.
+    if (static_cast<int>(keypoints.size()) > n) {
+        cv::KeyPointsFilter::retainBest(keypoints, n);
+        keypoints.resize(static_cast<std::size_t>(n));
+    }
+    if (!keypoints.empty()) detector->compute(grey, keypoints, descriptors);
+}
+
+bool isBinary(FeatureType type) { return type != FeatureType::Sift; }
+
+void buildSearch(Impl& impl) {
+    impl.search.reset();
+    if (impl.descriptors.empty()) return;
+    const auto& o = impl.options;
+    impl.search = std::make_unique<cv::flann::Index>();
+    if (isBinary(o.features)) {
+        impl.search->build(
+            impl.descriptors,
+            cv::flann::LshIndexParams(o.lsh_tables, o.lsh_key_bits, o.lsh_probe_level),
+            cvflann::FLANN_DIST_HAMMING);
+    } else {
+        impl.search->build(impl.descriptors, cv::flann::KDTreeIndexParams(4),
+                           cvflann::FLANN_DIST_L2);
+    }
+}
+
+}  // namespace detail
+
+using detail::Impl;
+
+PlaceIndex::PlaceIndex() : impl_(std::make_unique<Impl>()) {}
+PlaceIndex::PlaceIndex(PlaceIndex&&) noexcept = default;
+PlaceIndex& PlaceIndex::operator=(PlaceIndex&&) noexcept = default;
+PlaceIndex::~PlaceIndex() = default;
+
+namespace {
+
+/// Indices of the references to index: per traverse, at least `spacing_m` apart along it.
+std::vector<std::size_t> thinnedReferences(const database::ReferenceDatabase& db,
+                                           double spacing_m) {
+    std::map<std::string, double> last_travelled;
+    std::vector<std::size_t> out;
+    for (std::size_t i = 0; i < db.size(); ++i) {
+        const auto& ref = db.reference(i);
+        auto it = last_travelled.find(ref.traverse);
+        if (it != last_travelled.end() && std::abs(ref.travelled_m - it->second) < spacing_m) {
+            continue;
+        }
+        last_travelled[ref.traverse] = ref.travelled_m;
+        out.push_back(i);
+    }
+    return out;
+}
+
+}  // namespace
+
+PlaceIndex PlaceIndex::build(const database::ReferenceDatabase& db, const PlaceIndexOptions& o,
+                             const std::function<void(std::size_t, std::size_t)>& progress) {
+    o.check();
+    PlaceIndex index;
+    Impl& impl = *index.impl_;
+    impl.options = o;
+    impl.fingerprint = referenceFingerprint(db);
+    impl.database_references = db.size();
+    const auto chosen = thinnedReferences(db, o.reference_spacing_m);
+    std::vector<cv::Mat> rows;
+    for (std::size_t k = 0; k < chosen.size(); ++k) {
+        std::vector<cv::KeyPoint> keypoints;
+        cv::Mat descriptors;
+        detail::detect(db.ceilingImage(chosen[k]), o.features, o.features_per_reference, keypoints,
+                       descriptors);
+        for (const auto& kp : keypoints) {
+            impl.features.push_back({static_cast<std::uint32_t>(chosen[k]), kp.pt.x, kp.pt.y});
+        }
+        if (!descriptors.empty()) rows.push_back(descriptors);
+        ++impl.indexed_references;
+        if (progress) progress(k + 1, chosen.size());
+    }
+    if (!rows.empty()) cv::vconcat(rows, impl.descriptors);
+    detail::buildSearch(impl);
+    return index;
+}
+
+std::vector<PlaceCandidate> PlaceIndex::query(const cv::Mat& grey, PlaceQueryTimes* times) const {
+    const Impl& impl = *impl_;
+    const auto& o = impl.options;
+    PlaceQueryTimes local;
+    PlaceQueryTimes& t = times ? *times : local;
+    mrpt::system::CTicTac timer;
+    std::vector<cv::KeyPoint> keypoints;
+    cv::Mat descriptors;
+    detail::detect(grey, o.features, o.query_features, keypoints, descriptors);
+    t.query_features = static_cast<int>(keypoints.size());
+    t.features_ms = 1e3 * timer.Tac();
+    if (keypoints.empty() || !impl.search) return {};
+
+    timer.Tic();
+    const auto votes = detail::vote(impl, keypoints, descriptors);
+    t.search_ms = 1e3 * timer.Tac();
+
+    timer.Tic();
+    auto candidates = detail::fitCandidates(impl, votes);
+    t.geometry_ms = 1e3 * timer.Tac();
+    return candidates;
+}
+
+std::size_t PlaceIndex::indexedReferences() const { return impl_->indexed_references; }
+std::size_t PlaceIndex::featureCount() const { return impl_->features.size(); }
+const PlaceIndexOptions& PlaceIndex::options() const { return impl_->options; }
+
+std::size_t PlaceIndex::memoryBytes() const {
+    const Impl& impl = *impl_;
+    return impl.features.size() * sizeof(detail::Feature) +
+           impl.descriptors.total() * impl.descriptors.elemSize();
+}
+
+std::uint64_t referenceFingerprint(const database::ReferenceDatabase& db) {
+    // FNV-1a over what identifies each reference (not its file paths: a moved folder is fine).
+    std::uint64_t h = 1469598103934665603ull;
+    const auto mix = [&h](const void* data, std::size_t n) {
+        const auto* p = static_cast<const unsigned char*>(data);
+        for (std::size_t i = 0; i < n; ++i) h = (h ^ p[i]) * 1099511628211ull;
+    };
+    const std::uint64_t n = db.size();
+    mix(&n, sizeof n);
+    for (const auto& ref : db.references()) {
+        const double values[] = {ref.time_s, ref.vehicle_pose.x(), ref.vehicle_pose.y(),
+                                 ref.vehicle_pose.yaw()};
+        mix(&ref.id, sizeof ref.id);
+        mix(values, sizeof values);
+        mix(ref.traverse.data(), ref.traverse.size());
+    }
+    return h;
+}
+
+}  // namespace lookup::place

@@ -1,0 +1,60 @@
+#include "lookup/place/place_pose.h"
+
+#include <cmath>
+#include <vector>
+
+#include "lookup/refine/geometry.h"
+
+namespace lookup::place {
+
+std::optional<mrpt::poses::CPose2D> vehiclePose(const PlaceCandidate& candidate,
+                                                const mrpt::img::TCamera& reference_camera,
+                                                const mrpt::poses::CPose3D& reference_vehicle,
+                                                const mrpt::poses::CPose3D& reference_mount,
+                                                const QueryCamera& query, double h) {
+    refine::Pinhole ref_cam, query_cam;
+    if (!refine::pinholeFrom(reference_camera, ref_cam, nullptr) ||
+        !refine::pinholeFrom(query.intrinsics, query_cam, nullptr)) {
+        return std::nullopt;
+    }
+    const mrpt::poses::CPose3D ref_in_map = reference_vehicle + reference_mount;
+    // The query vehicle at the origin, on the reference's floor height.
+    const mrpt::poses::CPose3D query_in_vehicle =
+        mrpt::poses::CPose3D(0, 0, reference_vehicle.z(), 0, 0, 0) + query.on_vehicle;
+    // The four quarter points and the centre of the query image.
+    const double w = query.intrinsics.ncols, hgt = query.intrinsics.nrows;
+    std::vector<cv::Point2d> in_vehicle, in_map;
+    for (const auto& [u, v] :
+         {std::pair{0.5, 0.5}, {0.25, 0.25}, {0.75, 0.25}, {0.25, 0.75}, {0.75, 0.75}}) {
+        const cv::Point2d q(u * w, v * hgt);
+        const cv::Matx23d& A = candidate.query_to_reference;
+        const cv::Point2d r(A(0, 0) * q.x + A(0, 1) * q.y + A(0, 2),
+                            A(1, 0) * q.x + A(1, 1) * q.y + A(1, 2));
+        const auto a = refine::backProjectToCeiling(query_cam, query_in_vehicle, q, h);
+        const auto b = refine::backProjectToCeiling(ref_cam, ref_in_map, r, h);
+        if (!a || !b) return std::nullopt;
+        in_vehicle.emplace_back(a->x, a->y);
+        in_map.emplace_back(b->x, b->y);
+    }
+    // Planar Procrustes: the rotation and translation taking vehicle-frame points to map ones.
+    cv::Point2d ca(0, 0), cb(0, 0);
+    for (std::size_t i = 0; i < in_vehicle.size(); ++i) {
+        ca += in_vehicle[i];
+        cb += in_map[i];
+    }
+    ca /= double(in_vehicle.size());
+    cb /= double(in_map.size());
+    double s_cos = 0, s_sin = 0;
+    for (std::size_t i = 0; i < in_vehicle.size(); ++i) {
+        const cv::Point2d a = in_vehicle[i] - ca, b = in_map[i] - cb;
+        s_cos += a.x * b.x + a.y * b.y;
+        s_sin += a.x * b.y - a.y * b.x;
+    }
+    const double yaw = std::atan2(s_sin, s_cos);
+    const double c = std::cos(yaw), s = std::sin(yaw);
+    const double x = cb.x - (c * ca.x - s * ca.y), y = cb.y - (s * ca.x + c * ca.y);
+    if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(yaw)) return std::nullopt;
+    return mrpt::poses::CPose2D(x, y, yaw);
+}
+
+}  // namespace lookup::place

@@ -1,0 +1,126 @@
+#include <fstream>
+
+#include "lookup/place/place_pose.h"
+#include "place_fixture.h"
+
+namespace lookup::place_testing {
+namespace {
+
+using mrpt::poses::CPose3D;
+
+cv::Mat grey(const mrpt::obs::CObservationImage& obs) {
+    return obs.image.asCvMat<cv::Mat>(mrpt::img::SHALLOW_COPY);
+}
+
+struct Located {
+    bool found = false;
+    double error_m = 1e9, yaw_error_deg = 1e9;
+};
+
+Located locate(const place::PlaceIndex& index, const database::ReferenceDatabase& db,
+               const localize_testing::Scene& scene, const CPose3D& vehicle) {
+    const auto obs = scene.image(vehicle, 0);
+    const auto candidates = index.query(grey(*obs));
+    Located out;
+    if (candidates.empty()) return out;
+    const auto& c = candidates.front();
+    const auto& ref = db.reference(c.reference);
+    const auto pose =
+        place::vehiclePose(c, db.info().ceiling_camera, ref.vehicle_pose, ref.ceiling_camera_mount,
+                           {scene.camera, scene.mount}, db.info().ceiling_height_m);
+    if (!pose) return out;
+    out.found = true;
+    out.error_m = std::hypot(pose->x() - vehicle.x(), pose->y() - vehicle.y());
+    out.yaw_error_deg = std::abs(mrpt::RAD2DEG(mrpt::math::wrapToPi(pose->phi() - vehicle.yaw())));
+    return out;
+}
+
+TEST(PlaceIndex, FindsThePlaceAnywhereAtAnyHeadingFromOneImage) {
+    const auto dir = localize_testing::freshDir("place_any_heading");
+    const auto scene = sceneWithDatabase(dir);
+    const auto db = database::ReferenceDatabase::load((dir / "db").string());
+    const auto index = place::PlaceIndex::load((dir / "db" / place::kPlaceIndexFile).string(), db,
+                                               place::PlaceIndexOptions());
+    EXPECT_LT(index.indexedReferences(), db.size());  // thinned along the traverse
+    int right = 0, tried = 0;
+    for (double x = -7; x <= 7; x += 1.75) {
+        for (double yaw_deg : {0.0, 35.0, 90.0, 180.0, -120.0}) {
+            const CPose3D vehicle(x, 0.3, 0, mrpt::DEG2RAD(yaw_deg), 0, 0);
+            const auto r = locate(index, db, scene, vehicle);
+            ++tried;
+            // Features only: the SAD refinement takes it to centimetres.
+            if (r.found && r.error_m < 0.15 && r.yaw_error_deg < 2) ++right;
+        }
+    }
+    EXPECT_GE(right, tried * 95 / 100) << right << " of " << tried;
+}
+
+TEST(PlaceIndex, NoCandidateOnAnImageWithoutTexture) {
+    const auto dir = localize_testing::freshDir("place_flat");
+    sceneWithDatabase(dir);
+    const auto db = database::ReferenceDatabase::load((dir / "db").string());
+    const auto index = place::PlaceIndex::load((dir / "db" / place::kPlaceIndexFile).string(), db,
+                                               place::PlaceIndexOptions());
+    cv::Mat flat(240, 320, CV_8UC1, cv::Scalar(128));
+    cv::RNG(3).fill(flat, cv::RNG::NORMAL, 128, 2);  // sensor noise on a uniform ceiling
+    EXPECT_TRUE(index.query(flat).empty());
+}
+
+std::string errorOf(const std::string& file, const database::ReferenceDatabase& db) {
+    try {
+        place::PlaceIndex::load(file, db, place::PlaceIndexOptions());
+    } catch (const place::PlaceIndexError& e) {
+        return e.what();
+    }
+    return "";
+}
+
+TEST(PlaceIndex, DamagedForeignOrMissingIndexFilesAreRefusedNamingTheFile) {
+    const auto dir = localize_testing::freshDir("place_bad_files");
+    sceneWithDatabase(dir);
+    const auto db = database::ReferenceDatabase::load((dir / "db").string());
+    const std::string good = (dir / "db" / place::kPlaceIndexFile).string();
+    std::ifstream in(good, std::ios::binary);
+    const std::string bytes((std::istreambuf_iterator<char>(in)), {});
+    const auto writeCopy = [&](const std::string& name, const std::string& content) {
+        const std::string p = (dir / name).string();
+        std::ofstream(p, std::ios::binary) << content;
+        return p;
+    };
+    const std::string truncated = writeCopy("truncated.bin", bytes.substr(0, bytes.size() / 2));
+    std::string flipped_bytes = bytes;
+    flipped_bytes[flipped_bytes.size() / 3] ^= 0x20;
+    const std::string flipped = writeCopy("flipped.bin", flipped_bytes);
+    const std::string garbage = writeCopy("garbage.bin", "not an index at all");
+    for (const auto& [file, why] : {std::pair{truncated, "CRC"},
+                                    {flipped, "CRC"},
+                                    {garbage, "not a LookUP place index"},
+                                    {(dir / "missing.bin").string(), "cannot open"}}) {
+        const std::string e = errorOf(file, db);
+        EXPECT_NE(e.find(file), std::string::npos) << e;
+        EXPECT_NE(e.find(why), std::string::npos) << e;
+    }
+    // Another database (the same ceiling, surveyed 0.1 m to the side).
+    localize_testing::Scene scene;
+    localize_testing::writeDatabase(scene, (dir / "other").string(),
+                                    {{"survey", 65, 100.0, 0, 0.1}});
+    const auto other = database::ReferenceDatabase::load((dir / "other").string());
+    const std::string e = errorOf(good, other);
+    EXPECT_NE(e.find("another database"), std::string::npos) << e;
+}
+
+TEST(PlaceIndex, BuildingTheIndexLeavesTheReferencesUntouched) {
+    const auto dir = localize_testing::freshDir("place_untouched");
+    localize_testing::Scene scene;
+    localize_testing::writeDatabase(scene, (dir / "db").string(), {{"survey", 20, 100.0}});
+    const auto before = fs::last_write_time(dir / "db" / "refs.rawlog");
+    const auto db = database::ReferenceDatabase::load((dir / "db").string());
+    place::PlaceIndex::build(db, place::PlaceIndexOptions())
+        .save((dir / "db" / place::kPlaceIndexFile).string());
+    EXPECT_EQ(fs::last_write_time(dir / "db" / "refs.rawlog"), before);
+    // The database still verifies (its manifest does not list the index).
+    EXPECT_NO_THROW(database::ReferenceDatabase::load((dir / "db").string()));
+}
+
+}  // namespace
+}  // namespace lookup::place_testing
