@@ -57,8 +57,8 @@ struct PlaceIndexOptions : public mrpt::config::CLoadableOptions {
     double ransac_threshold_px = 4.0;  ///< similarity RANSAC inlier distance [px]
     int min_inliers = 12;              ///< fewer geometric inliers: not a candidate
     double max_scale_change = 0.25;    ///< |scale - 1| allowed (another camera height)
-    int lsh_tables = 4;                ///< FLANN LSH (binary descriptors)
-    int lsh_key_bits = 20;
+    int lsh_tables = 3;                ///< FLANN LSH (binary descriptors)
+    int lsh_key_bits = 18;
     int lsh_probe_level = 0;
     int search_checks = 64;  ///< FLANN search checks
 
