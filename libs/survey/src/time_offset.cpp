@@ -395,11 +395,12 @@ TimeOffsetEstimate estimateTimeOffset(const std::vector<CeilingTraverse>& traver
                       "the image motion does not pin it down (too little acceleration or "
                       "turning for its noise, rms %.3f m): fit %.4f s +- %.4f s over %zu pairs, "
                       "more uncertain than time_offset_max_sigma_s = %.4f s",
-                      fit.rms, fit.dt, fit.sigma, fit.used, o.time_offset_max_sigma_s);
+                      fit.rms, e.fitted_s, fit.sigma, fit.used, o.time_offset_max_sigma_s);
         e.warning = notEstimated(e, buf);
     } else if (std::abs(fit.dt) > o.time_offset_max_s - 0.01) {
-        std::snprintf(buf, sizeof(buf), "fit %.4f s at the edge of time_offset_max_s = %.3f s",
-                      fit.dt, o.time_offset_max_s);
+        std::snprintf(buf, sizeof(buf),
+                      "fit %.4f s at the edge of the search range (time_offset_max_s = %.3f s)",
+                      e.fitted_s, o.time_offset_max_s);
         e.warning = notEstimated(e, buf);
     } else {
         e.source = "estimated";
