@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <map>
 #include <optional>
 
 #include <opencv2/calib3d.hpp>
@@ -330,6 +331,41 @@ FitResult fitOffset(const std::vector<Pair>& pairs, const SurveyOptions& o) {
     return r;
 }
 
+// The pairs split into groups that share no structure error: per traverse, its first and
+// second half in time (a start and a stop each show the offset on their own).
+std::vector<std::vector<Pair>> independentGroups(const std::vector<Pair>& pairs) {
+    std::map<const CeilingTraverse*, std::vector<const Pair*>> by_traverse;
+    for (const auto& p : pairs) by_traverse[p.traverse].push_back(&p);
+    std::vector<std::vector<Pair>> groups;
+    for (auto& [t, list] : by_traverse) {
+        std::sort(list.begin(), list.end(), [](auto a, auto b) { return a->ti < b->ti; });
+        const double mid = 0.5 * (list.front()->ti + list.back()->ti);
+        std::vector<Pair> first, second;
+        for (const Pair* p : list) (p->ti < mid ? first : second).push_back(*p);
+        groups.push_back(std::move(first));
+        groups.push_back(std::move(second));
+    }
+    return groups;
+}
+
+// The fit's sigma widened by the Birge ratio of the groups' own fits: residuals of the image
+// motion that follow the place (ceiling relief, walls in view) are not independent per pair,
+// and only fits of separate stretches show how far they move the offset.
+double consistentSigma(const std::vector<Pair>& pairs, const FitResult& all,
+                       const SurveyOptions& o) {
+    double chi2 = 0;
+    int k = 0;
+    for (const auto& g : independentGroups(pairs)) {
+        if (g.size() < std::size_t(std::max(5, o.time_offset_min_pairs / 4))) continue;
+        const FitResult f = fitOffset(g, o);
+        if (!std::isfinite(f.sigma) || f.sigma <= 0) continue;
+        chi2 += std::pow((f.dt - all.dt) / f.sigma, 2);
+        ++k;
+    }
+    if (k < 2) return all.sigma;
+    return all.sigma * std::max(1.0, std::sqrt(chi2 / (k - 1)));
+}
+
 std::string notEstimated(const TimeOffsetEstimate& e, const std::string& why) {
     char buf[160];
     std::snprintf(buf, sizeof(buf),
@@ -383,7 +419,8 @@ TimeOffsetEstimate estimateTimeOffset(const std::vector<CeilingTraverse>& traver
                                 std::to_string(o.time_offset_min_pairs) + ")");
         return finish();
     }
-    const FitResult fit = fitOffset(pairs, o);
+    FitResult fit = fitOffset(pairs, o);
+    fit.sigma = consistentSigma(pairs, fit, o);
     e.fitted_s = e.configured_s + fit.dt;
     e.sigma_s = fit.sigma;
     e.scale = fit.scale;
