@@ -3,6 +3,8 @@
 // refusal, never as a silently wrong database.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <mrpt/config/CConfigFile.h>
 #include <mrpt/obs/CObservation2DRangeScan.h>
 #include <mrpt/obs/CObservationImage.h>
@@ -95,8 +97,12 @@ TEST(SurveyFault, NonFiniteLidarRangesLeaveReferencePosesAsAccurate) {
     const auto& t = r.traverses.at(0);
     EXPECT_EQ(t.skipped.scans, 4u);  // all-NaN ranges, NaN aperture, inf maxRange, NaN pose
     EXPECT_GT(t.skipped.lidar_ranges, 30 * scans);
-    ASSERT_FALSE(r.warnings.empty());
-    EXPECT_NE(r.warnings[0].find("nan.rawlog"), std::string::npos) << r.warnings[0];
+    // Among the warnings (the fixture's tiny images also leave the camera time offset
+    // unestimated): the refused lidar data, naming the rawlog.
+    const auto named = std::find_if(r.warnings.begin(), r.warnings.end(), [](const auto& w) {
+        return w.find("nan.rawlog") != std::string::npos;
+    });
+    EXPECT_NE(named, r.warnings.end());
     EXPECT_NE(r.toJson().find("\"lidar_ranges\": " + std::to_string(t.skipped.lidar_ranges)),
               std::string::npos);
     // As accurate as without them (the survey took 0.9 m off before they were refused).

@@ -24,6 +24,7 @@
 #include "lookup/common/config.h"
 #include "lookup/common/errors.h"
 #include "lookup/common/rawlog_io.h"
+#include "lookup/localize/sensor_clock.h"
 #include "lookup/localize/vehicle_link.h"
 #include "lookup/place/place_index.h"
 #include "lookup/refine/correspondence_methods.h"
@@ -218,6 +219,7 @@ class Session {
             if (ini.sectionExists("place_index")) {
                 place_options_.loadFromConfigFile(ini, "place_index");
             }
+            clock_ = SensorClock::fromConfig(ini, req.ini_file);
         }
         if (req.realtime >= 0) options_.realtime = req.realtime == 1;
         if (req.sampling == "grid") refiner_options_.sampler.mode = refine::SamplingMode::Grid;
@@ -270,6 +272,7 @@ class Session {
         refiner_options_.saveToConfigFile(used, "refine");
         coarse_options_.saveToConfigFile(used, "coarse");
         place_options_.saveToConfigFile(used, "place_index");
+        clock_.saveTo(used);
         std::string used_text;
         used.getContent(used_text);
         writer_ = std::make_unique<RunWriter>(req.out_dir, used_text, options_.write_debug_images,
@@ -312,6 +315,17 @@ class Session {
         return handled;
     }
 
+    /// feed() through the sensor clock ([time_offsets]): stamps corrected, observations fed in
+    /// the corrected order. `arrival_s`: elapsed() when it arrived (real time: lateness is
+    /// counted from then, the hold included). Returns how many ceiling frames were handled.
+    std::size_t feedClocked(const mrpt::obs::CObservation::Ptr& obs, double late_s,
+                            double arrival_s, std::size_t record = std::string::npos) {
+        if (clock_.empty()) return feed(obs, late_s, record) ? 1 : 0;
+        return feedItems(clock_.push({obs, arrival_s, record}));
+    }
+    /// What the sensor clock still holds (end of a pass, end of the run).
+    std::size_t flushClock() { return feedItems(clock_.flush()); }
+
     /// Health checks and messages; also called while no observation arrives.
     void tick() { link_->tick(wall_.Tac()); }
 
@@ -333,6 +347,15 @@ class Session {
             timing_.cold_start_frames.back() = frames_since_kidnap_ - 1;
             frames_since_kidnap_ = 0;
         }
+    }
+
+    std::size_t feedItems(std::vector<SensorClock::Item> items) {
+        std::size_t frames = 0;
+        for (auto& item : items) {
+            const double late_s = options_.realtime ? std::max(0.0, elapsed() - item.arrival_s) : 0;
+            frames += feed(item.obs, late_s, item.record) ? 1 : 0;
+        }
+        return frames;
     }
 
     bool feedLocalizer(const mrpt::obs::CObservation::Ptr& obs, double late_s,
@@ -431,6 +454,7 @@ class Session {
     std::unique_ptr<RunWriter> writer_;
     bool finished_ = false;
     QuerySpan span_;
+    SensorClock clock_;
     std::unique_ptr<VehicleLink> link_;
     RunTiming timing_;
     mrpt::system::CTicTac wall_;
@@ -451,6 +475,7 @@ RunTiming runLocalization(const LocalizeRequest& req) {
     std::map<std::string, double> last_arrival_of;  // per sensor
     for (int pass = 0; pass < req.repeat && !session.done() && !stop_requested; ++pass) {
         if (pass > 0) {
+            session.flushClock();
             shift.nextPass();
             session.restart();  // the vehicle jumped back to the start
             last_arrival_of.clear();
@@ -460,7 +485,7 @@ RunTiming runLocalization(const LocalizeRequest& req) {
         while (!stop_requested && reader.next(obs)) {
             const double stamp = shift.apply(*obs);
             const double first_stamp = shift.firstStamp();
-            double late_s = 0;
+            double late_s = 0, arrival_s = 0;
             if (options.realtime) {
                 // The observation arrives at its recorded time (relative to the first one); a
                 // sensor clock that jumps back (reported by the health checks) shifts the
@@ -472,12 +497,15 @@ RunTiming runLocalization(const LocalizeRequest& req) {
                     arrival = previous;
                 }
                 previous = arrival;
+                arrival_s = arrival;
                 const double now = session.elapsed();
                 session.sleepUntil(arrival);
                 late_s = std::max(0.0, now - arrival);
             }
             try {
-                if (!session.feed(obs, late_s, reader.recordIndex())) continue;
+                if (session.feedClocked(obs, late_s, arrival_s, reader.recordIndex()) == 0) {
+                    continue;
+                }
             } catch (const common::WriteError&) {
                 throw;  // the output's fault, not the rawlog's
             } catch (const std::exception& e) {
@@ -487,6 +515,7 @@ RunTiming runLocalization(const LocalizeRequest& req) {
             if (session.done()) break;
         }
     }
+    if (!stop_requested && !session.done()) session.flushClock();
     return session.finish();
 }
 
@@ -576,11 +605,12 @@ RunTiming runLiveLocalization(const LiveRequest& live) {
             auto obs = std::dynamic_pointer_cast<mrpt::obs::CObservation>(object);
             if (!obs) continue;
             // Lateness: time since this batch was polled, i.e. spent on earlier observations.
-            session.feed(obs, session.elapsed() - now);
+            session.feedClocked(obs, session.elapsed() - now, now);
             session.progress(0);
             if (session.done()) break;
         }
     }
+    if (!stop_requested) session.flushClock();
     return session.finish();
 }
 

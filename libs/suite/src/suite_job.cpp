@@ -28,11 +28,12 @@ void generate(const SuiteOptions& suite, const Condition& c, std::uint64_t seed,
 }
 
 /// Laser-derived references, as a mine gets them: the ground truth is not handed over.
-void survey(const std::string& dataset_ini, const std::string& db_dir) {
+void survey(const std::string& dataset_ini, const std::string& db_dir,
+            const std::string& survey_ini) {
     const char* argv[] = {"lookup-survey", "--dataset", dataset_ini.c_str(), "--out",
-                          db_dir.c_str()};
+                          db_dir.c_str(),  "--ini",     survey_ini.c_str()};
     survey::SurveyApp app;
-    if (!app.initialize(5, argv)) {
+    if (!app.initialize(survey_ini.empty() ? 5 : 7, argv)) {
         throw std::runtime_error("lookup-survey refused its arguments (exit code " +
                                  std::to_string(app.exitCode()) + ")");
     }
@@ -90,7 +91,7 @@ JobResult runJob(const SuiteOptions& suite, const Condition& c, std::uint64_t se
         const std::string data = job_dir + "/data", db = job_dir + "/db";
         generate(suite, c, seed, data);
         step = "survey";
-        survey(data + "/dataset.ini", db);
+        survey(data + "/dataset.ini", db, c.survey_ini);
         for (const auto& q : queryTraverses(data + "/dataset.ini")) {
             step = "localise " + q.name;
             localiseAndScore(suite, c, q, db, job_dir + "/runs/" + q.name, r.rows);

@@ -106,10 +106,11 @@ Condition readCondition(const mrpt::config::CConfigFileBase& ini, const std::str
     }
     c.localize_ini = s.has("localize_ini") ? resolveFile(s, "localize_ini", suite_dir, share_dirs)
                                            : default_localize_ini;
+    if (s.has("survey_ini")) c.survey_ini = resolveFile(s, "survey_ini", suite_dir, share_dirs);
     std::vector<std::string> keys;
     ini.getAllKeys(section, keys);
     for (const auto& key : keys) {
-        if (key == "preset" || key == "localize_ini") continue;
+        if (key == "preset" || key == "localize_ini" || key == "survey_ini") continue;
         const std::size_t dot = key.rfind('.');  // sections may hold dots: traverse_3.world
         if (dot == std::string::npos || dot == 0 || dot + 1 == key.size()) {
             throw common::ConfigError(s.where(key) +

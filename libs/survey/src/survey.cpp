@@ -218,6 +218,13 @@ std::string startJson(const TraverseReport& t) {
     return buf;
 }
 
+// The cameras' configured time offsets, applied to their stamps as read: every later step
+// (pose per image, forward image per reference, the ceiling height) sees the pose clock.
+void configuredOffsets(const SurveyOptions& o, TraverseData& d) {
+    shiftStamps(d.ceiling, o.ceiling_time_offset_s);
+    shiftStamps(d.forward, o.forward_time_offset_s);
+}
+
 }  // namespace
 
 std::string SurveyResult::summaryLine() const {
@@ -233,6 +240,13 @@ std::string SurveyResult::summaryLine() const {
     if (!ceiling_source.empty()) {
         o.precision(3);
         o << "; ceiling " << ceiling.ceiling_height_m << " m (" << ceiling_source << ")";
+    }
+    if (!time_offsets.empty()) {
+        const auto& c = time_offsets.front();
+        o.precision(1);
+        o << "; " << c.label << " time offset " << 1e3 * c.offset_s << " ms (" << c.source;
+        if (c.source == "estimated") o << " +- " << 1e3 * c.sigma_s << " ms";
+        o << ")";
     }
     for (const auto& t : traverses) {
         if (!t.has_ground_truth) continue;
@@ -267,6 +281,13 @@ std::string SurveyResult::toJson() const {
     }
     if (!ceiling_source.empty()) {
         o << "  \"ceiling\": " << ceilingJson(ceiling, ceiling_source) << ",\n";
+    }
+    if (!time_offsets.empty()) {
+        o << "  \"time_offsets\": [";
+        for (std::size_t i = 0; i < time_offsets.size(); ++i) {
+            o << (i ? ",\n    " : "\n    ") << timeOffsetJson(time_offsets[i]);
+        }
+        o << "\n  ],\n";
     }
     o << "  \"traverses\": [";
     for (std::size_t i = 0; i < traverses.size(); ++i) {
@@ -356,6 +377,33 @@ double Survey::ceilingHeight(const SurveyInputs& in, const std::vector<TraverseD
     return result.ceiling.ceiling_height_m;
 }
 
+void Survey::timeOffsets(std::vector<TraverseData>& data, const std::vector<LaserTrack>& tracks,
+                         const std::vector<bool>& reference, double ceiling_height_m,
+                         SurveyResult& result) const {
+    TimeOffsetEstimate ceiling;
+    ceiling.label = options_.ceiling_camera_label;
+    ceiling.source = "configured";
+    ceiling.offset_s = ceiling.configured_s = options_.ceiling_time_offset_s;
+    if (options_.time_offset_estimate) {
+        std::vector<mrpt::poses::CPose3DInterpolator> interps;
+        interps.reserve(data.size());
+        std::vector<CeilingTraverse> traverses;
+        for (std::size_t i = 0; i < data.size(); ++i) {
+            interps.push_back(common::makeInterpolator(tracks[i].poses, options_.max_pose_gap_s));
+            if (!reference[i] || tracks[i].poses.empty()) continue;
+            traverses.push_back({"", &data[i].ceiling, &interps.back()});
+        }
+        ceiling = estimateTimeOffset(traverses, ceiling_height_m, options_);
+        if (!ceiling.warning.empty()) result.warnings.push_back(ceiling.warning);
+        for (auto& d : data) shiftStamps(d.ceiling, ceiling.offset_s - ceiling.configured_s);
+    }
+    TimeOffsetEstimate forward;
+    forward.label = options_.forward_camera_label;
+    forward.source = "configured";
+    forward.offset_s = forward.configured_s = options_.forward_time_offset_s;
+    result.time_offsets = {ceiling, forward};
+}
+
 SurveyResult Survey::run(const SurveyInputs& in) const {
     SurveyResult result;
     mrpt::system::CTicTac total;
@@ -374,6 +422,7 @@ SurveyResult Survey::run(const SurveyInputs& in) const {
         std::vector<std::optional<mrpt::poses::CPose3DInterpolator>> gt;
         for (const auto& spec : in.traverses) {
             data.push_back(readTraverse(spec.rawlog, options_, laser && spec.reference));
+            configuredOffsets(options_, data.back());
             if (!spec.ground_truth.empty()) {
                 gt.emplace_back(common::makeInterpolator(common::readPoseFile(spec.ground_truth),
                                                          options_.max_pose_gap_s));
@@ -446,6 +495,7 @@ SurveyResult Survey::run(const SurveyInputs& in) const {
                 // The mapping traverse needs lidar + odometry even if it is not a reference.
                 if (data[mapping].scan_count == 0 || data[mapping].odometry_count == 0) {
                     data[mapping] = readTraverse(in.traverses[mapping].rawlog, options_, true);
+                    configuredOffsets(options_, data[mapping]);
                 }
                 result.pose_source = "laser";
                 // ICP-SLAM runs in its own frame (its start = identity: MRPT 2.5.8's pose
@@ -561,6 +611,11 @@ SurveyResult Survey::run(const SurveyInputs& in) const {
         info.ceiling_camera_label = options_.ceiling_camera_label;
         info.forward_camera_label = options_.forward_camera_label;
         info.ceiling_height_m = ceilingHeight(in, data, tracks, result);
+        {
+            std::vector<bool> reference;
+            for (const auto& t : in.traverses) reference.push_back(t.reference);
+            timeOffsets(data, tracks, reference, info.ceiling_height_m, result);
+        }
         info.pose_source = result.pose_source;
         {
             mrpt::config::CConfigFileMemory used;

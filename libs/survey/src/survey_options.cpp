@@ -54,7 +54,15 @@ void SurveyOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& sour
                          "start_pose",
                          "start_search_spacing_m",
                          "start_match_travel_m",
-                         "start_min_goodness"});
+                         "start_min_goodness",
+                         "ceiling_time_offset_s",
+                         "forward_time_offset_s",
+                         "time_offset_estimate",
+                         "time_offset_max_s",
+                         "time_offset_baseline_m",
+                         "time_offset_max_pairs",
+                         "time_offset_min_pairs",
+                         "time_offset_max_sigma_s"});
     ceiling_camera_label = s.getString("ceiling_camera_label", ceiling_camera_label);
     forward_camera_label = s.getString("forward_camera_label", forward_camera_label);
     lidar_label = s.getString("lidar_label", lidar_label);
@@ -75,6 +83,14 @@ void SurveyOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& sour
     ceiling_min_pairs = s.getInt("ceiling_min_pairs", ceiling_min_pairs, 1, 1000000);
     use_dataset_ceiling_height =
         s.getBool("use_dataset_ceiling_height", use_dataset_ceiling_height);
+    ceiling_time_offset_s = s.getDouble("ceiling_time_offset_s", ceiling_time_offset_s);
+    forward_time_offset_s = s.getDouble("forward_time_offset_s", forward_time_offset_s);
+    time_offset_estimate = s.getBool("time_offset_estimate", time_offset_estimate);
+    time_offset_max_s = s.getDouble("time_offset_max_s", time_offset_max_s);
+    time_offset_baseline_m = s.getDouble("time_offset_baseline_m", time_offset_baseline_m);
+    time_offset_max_pairs = s.getInt("time_offset_max_pairs", time_offset_max_pairs, 1, 1000000);
+    time_offset_min_pairs = s.getInt("time_offset_min_pairs", time_offset_min_pairs, 1, 1000000);
+    time_offset_max_sigma_s = s.getDouble("time_offset_max_sigma_s", time_offset_max_sigma_s);
     start_pose = s.getString("start_pose", start_pose);
     start_search_spacing_m = s.getDouble("start_search_spacing_m", start_search_spacing_m);
     start_match_travel_m = s.getDouble("start_match_travel_m", start_match_travel_m);
@@ -114,6 +130,14 @@ void SurveyOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
     c.write(section, "ceiling_prior_sigma_m", ceiling_prior_sigma_m);
     c.write(section, "ceiling_min_pairs", ceiling_min_pairs);
     c.write(section, "use_dataset_ceiling_height", use_dataset_ceiling_height);
+    c.write(section, "ceiling_time_offset_s", ceiling_time_offset_s);
+    c.write(section, "forward_time_offset_s", forward_time_offset_s);
+    c.write(section, "time_offset_estimate", time_offset_estimate);
+    c.write(section, "time_offset_max_s", time_offset_max_s);
+    c.write(section, "time_offset_baseline_m", time_offset_baseline_m);
+    c.write(section, "time_offset_max_pairs", time_offset_max_pairs);
+    c.write(section, "time_offset_min_pairs", time_offset_min_pairs);
+    c.write(section, "time_offset_max_sigma_s", time_offset_max_sigma_s);
     c.write(section, "start_pose", start_pose);
     c.write(section, "start_search_spacing_m", start_search_spacing_m);
     c.write(section, "start_match_travel_m", start_match_travel_m);
@@ -150,6 +174,16 @@ void SurveyOptions::check() const {
     c.require(ceiling_baseline_m > 0 && ceiling_baseline_m <= 5, "ceiling_baseline_m", "in (0, 5]");
     c.require(ceiling_prior_sigma_m > 0, "ceiling_prior_sigma_m", "> 0");
     c.require(ceiling_min_pairs >= 1, "ceiling_min_pairs", ">= 1");
+    c.require(std::isfinite(ceiling_time_offset_s) && std::abs(ceiling_time_offset_s) <= 1,
+              "ceiling_time_offset_s", "in [-1, 1]");
+    c.require(std::isfinite(forward_time_offset_s) && std::abs(forward_time_offset_s) <= 1,
+              "forward_time_offset_s", "in [-1, 1]");
+    c.require(time_offset_max_s > 0 && time_offset_max_s <= 1, "time_offset_max_s", "in (0, 1]");
+    c.require(time_offset_baseline_m > 0 && time_offset_baseline_m <= 5, "time_offset_baseline_m",
+              "in (0, 5]");
+    c.require(time_offset_max_pairs >= time_offset_min_pairs, "time_offset_max_pairs",
+              ">= time_offset_min_pairs");
+    c.require(time_offset_max_sigma_s > 0, "time_offset_max_sigma_s", "> 0");
     c.require(start_pose.empty() || parseStartPose(start_pose).has_value(), "start_pose",
               "three numbers: x y yaw_deg");
     c.require(start_search_spacing_m > 0, "start_search_spacing_m", "> 0");

@@ -20,6 +20,7 @@ struct Condition {
     /// (section, key, value) written over the preset, from `SECTION.KEY = VALUE` lines.
     std::vector<std::array<std::string, 3>> overrides;
     std::string localize_ini;  ///< [localizer]/[refine.*]/[coarse] options; empty: defaults
+    std::string survey_ini;    ///< lookup-survey --ini for this row; empty: share/lookup's
 };
 
 struct SuiteOptions {

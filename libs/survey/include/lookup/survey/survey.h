@@ -14,6 +14,7 @@
 #include "lookup/survey/laser_poses.h"
 #include "lookup/survey/pose_graph.h"
 #include "lookup/survey/survey_options.h"
+#include "lookup/survey/time_offset.h"
 
 namespace lookup::survey {
 
@@ -97,6 +98,8 @@ struct SurveyResult {
     std::vector<TraverseReport> traverses;
     CeilingDistanceEstimate ceiling;  ///< the database's ceiling height and how it was found
     std::string ceiling_source;       ///< "estimated", "configured" or "dataset"
+    /// Each camera's time offset against the pose track (ceiling, then forward), as applied.
+    std::vector<TimeOffsetEstimate> time_offsets;
     /// Refused or skipped input, one line each (file, record, reason, count); lookup-survey
     /// prints them on stderr.
     std::vector<std::string> warnings;
@@ -123,6 +126,13 @@ class Survey {
     /// configured / dataset value as the options say; recorded in `result`.
     double ceilingHeight(const SurveyInputs& in, const std::vector<TraverseData>& data,
                          const std::vector<LaserTrack>& tracks, SurveyResult& result) const;
+
+    /// The ceiling camera's time offset: estimated from the images (time_offset.h) unless
+    /// disabled, applied to the traverses' ceiling stamps, recorded in `result` with the
+    /// forward camera's configured one.
+    void timeOffsets(std::vector<TraverseData>& data, const std::vector<LaserTrack>& tracks,
+                     const std::vector<bool>& reference, double ceiling_height_m,
+                     SurveyResult& result) const;
 
     SurveyOptions options_;
     PoseGraphOptions graph_options_;

@@ -49,6 +49,21 @@ struct SurveyOptions : public mrpt::config::CLoadableOptions {
     /// ignored with a note unless this is set; then it replaces the estimate.
     bool use_dataset_ceiling_height = false;
 
+    // --- camera time offsets (time_offset.h) ------------------------------------------------
+    /// Added to each camera's time stamps to put them on the lidar / odometry clock [s] (a
+    /// camera stamping 30 ms after the exposure: -0.030). The ceiling camera's is the start of
+    /// the estimate (time_offset_estimate), the forward camera's is used as configured.
+    double ceiling_time_offset_s = 0;
+    double forward_time_offset_s = 0;
+    bool time_offset_estimate = true;     ///< estimate the ceiling camera's offset from the images
+    double time_offset_max_s = 0.2;       ///< search range around the configured offset [s]
+    double time_offset_baseline_m = 0.5;  ///< travel between the two images of a pair [m]
+    int time_offset_max_pairs = 300;      ///< image pairs measured, at most
+    int time_offset_min_pairs = 20;       ///< fewer usable pairs = warning, configured offset used
+    /// A fit less certain than this (too little acceleration or turning) = warning, configured
+    /// offset used [s].
+    double time_offset_max_sigma_s = 0.005;
+
     // --- laser stage (ICP-SLAM map, then MCL per traverse) ---------------------------------
     int mcl_particles = 600;              ///< particles of CMonteCarloLocalization2D
     double mcl_init_std_xy_m = 0.2;       ///< spread of the initial particles around the start [m]

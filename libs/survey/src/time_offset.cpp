@@ -1,0 +1,483 @@
+#include "lookup/survey/time_offset.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <map>
+#include <optional>
+
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/video/tracking.hpp>
+
+#include "lookup/refine/geometry.h"
+
+namespace lookup::survey {
+namespace {
+
+using Motion = cv::Vec3d;  ///< vehicle motion between two times in the first one's frame: x, y, yaw
+
+constexpr double kMaxPairGap_s = 3.0;   // a longer pair spans a stop: nothing to measure
+constexpr double kYawWeight_m = 1.0;    // metres of residual per radian of heading residual
+constexpr std::size_t kMinPoints = 25;  // tracked ceiling points for a measured pair
+
+struct Pair {
+    const CeilingTraverse* traverse = nullptr;
+    std::size_t i = 0, j = 0;  ///< image indices
+    double ti = 0, tj = 0;     ///< stamps [s]
+    double info = 0;           ///< how much the track's motion changes with dt
+    Motion measured;
+};
+
+std::optional<mrpt::poses::CPose3D> poseAt(const mrpt::poses::CPose3DInterpolator& track,
+                                           double t) {
+    mrpt::math::TPose3D p;
+    bool valid = false;
+    track.interpolate(mrpt::Clock::fromDouble(t), p, valid);
+    if (!valid) return std::nullopt;
+    return mrpt::poses::CPose3D(p);
+}
+
+Motion motionOf(const mrpt::poses::CPose3D& a_to_b) {
+    return {a_to_b.x(), a_to_b.y(), a_to_b.yaw()};
+}
+
+// The track's vehicle motion from ti + dt to tj + dt.
+std::optional<Motion> trackMotion(const Pair& p, double dt) {
+    const auto a = poseAt(*p.traverse->poses, p.ti + dt);
+    const auto b = poseAt(*p.traverse->poses, p.tj + dt);
+    if (!a || !b) return std::nullopt;
+    return motionOf(*b - *a);
+}
+
+double stampOf(const mrpt::obs::CObservationImage& obs) {
+    return mrpt::Clock::toDouble(obs.timestamp);
+}
+
+// Pairs of images a baseline of travel apart whose track motion exists over the search range.
+std::vector<Pair> candidatePairs(const CeilingTraverse& t, const SurveyOptions& o) {
+    const auto& images = *t.ceiling;
+    std::vector<std::size_t> index;
+    std::vector<double> travel;
+    for (std::size_t k = 0; k < images.size(); ++k) {
+        const double s = stampOf(*images[k]);
+        const auto p = poseAt(*t.poses, s);
+        if (!p || !poseAt(*t.poses, s - o.time_offset_max_s) ||
+            !poseAt(*t.poses, s + o.time_offset_max_s)) {
+            continue;
+        }
+        double d = 0;
+        if (!index.empty()) {
+            const auto q = *poseAt(*t.poses, stampOf(*images[index.back()]));
+            d = travel.back() + std::hypot(p->x() - q.x(), p->y() - q.y());
+        }
+        index.push_back(k);
+        travel.push_back(d);
+    }
+    std::vector<Pair> out;
+    std::size_t b = 0;
+    for (std::size_t a = 0; a < index.size(); ++a) {
+        b = std::max(b, a + 1);
+        while (b < index.size() && travel[b] < travel[a] + o.time_offset_baseline_m) ++b;
+        if (b == index.size()) break;
+        Pair p;
+        p.traverse = &t;
+        p.i = index[a];
+        p.j = index[b];
+        p.ti = stampOf(*images[p.i]);
+        p.tj = stampOf(*images[p.j]);
+        if (p.tj - p.ti > kMaxPairGap_s) continue;
+        const auto plus = trackMotion(p, 0.005), minus = trackMotion(p, -0.005);
+        if (!plus || !minus) continue;
+        p.info = cv::norm(*plus - *minus);
+        out.push_back(p);
+    }
+    return out;
+}
+
+// The most informative half of `max` first, the rest spread evenly over the others.
+std::vector<Pair> selectPairs(std::vector<Pair> all, std::size_t max) {
+    if (all.size() <= max) return all;
+    std::vector<std::size_t> order(all.size());
+    for (std::size_t k = 0; k < order.size(); ++k) order[k] = k;
+    std::sort(order.begin(), order.end(),
+              [&](std::size_t a, std::size_t b) { return all[a].info > all[b].info; });
+    std::vector<Pair> out;
+    const std::size_t top = max / 2;
+    for (std::size_t k = 0; k < top; ++k) out.push_back(all[order[k]]);
+    const std::size_t rest = all.size() - top, want = max - top;
+    for (std::size_t k = 0; k < want; ++k) out.push_back(all[order[top + k * rest / want]]);
+    return out;
+}
+
+cv::Mat loadGrey(const mrpt::obs::CObservationImage& obs) {
+    cv::Mat m;
+    if (obs.image.isExternallyStored()) {
+        m = cv::imread(obs.image.getExternalStorageFileAbsolutePath(), cv::IMREAD_GRAYSCALE);
+        obs.image.unload();
+        return m;
+    }
+    obs.image.asCvMat(m, mrpt::img::DEEP_COPY);
+    if (m.channels() == 3) cv::cvtColor(m, m, cv::COLOR_BGR2GRAY);
+    return m.depth() == CV_8U && m.channels() == 1 ? m : cv::Mat();
+}
+
+// Pixels to the pinhole part of the camera (lens distortion removed).
+std::vector<cv::Point2f> rectified(const std::vector<cv::Point2f>& px,
+                                   const mrpt::img::TCamera& cam, const refine::Pinhole& pin) {
+    if (!refine::hasDistortion(cam)) return px;
+    const cv::Matx33d K = pin.K();
+    std::vector<cv::Point2f> out;
+    const auto& d = cam.dist;
+    if (cam.distortion == mrpt::img::DistortionModel::kannala_brandt) {
+        cv::fisheye::undistortPoints(px, out, K, cv::Vec4d(d[0], d[1], d[4], d[5]), cv::noArray(),
+                                     K);
+    } else {
+        cv::undistortPoints(px, out, K, std::vector<double>{d[0], d[1], d[2], d[3], d[4]},
+                            cv::noArray(), K);
+    }
+    return out;
+}
+
+// Ceiling points of image a tracked into image b (forward-backward checked), `guess` the
+// expected vehicle motion a -> b.
+bool trackPoints(const cv::Mat& a, const cv::Mat& b, const refine::Pinhole& pin,
+                 const mrpt::poses::CPose3D& mount, double h, const mrpt::poses::CPose3D& guess,
+                 std::vector<cv::Point2f>& pa, std::vector<cv::Point2f>& pb) {
+    std::vector<cv::Point2f> corners;
+    cv::goodFeaturesToTrack(a, corners, 300, 0.01, 8);
+    if (corners.size() < kMinPoints) return false;
+    const mrpt::poses::CPose3D b_cam = guess + mount;
+    std::vector<cv::Point2f> next;
+    for (const auto& c : corners) {
+        const auto p = refine::backProjectToCeiling(pin, mount, cv::Point2d(c.x, c.y), h);
+        const auto q = p ? refine::projectToImage(pin, b_cam, *p) : std::nullopt;
+        next.push_back(q ? cv::Point2f(float(q->x), float(q->y)) : c);
+    }
+    std::vector<uchar> ok, back_ok;
+    std::vector<float> err;
+    const cv::TermCriteria stop(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 30, 0.01);
+    cv::calcOpticalFlowPyrLK(a, b, corners, next, ok, err, cv::Size(21, 21), 3, stop,
+                             cv::OPTFLOW_USE_INITIAL_FLOW);
+    std::vector<cv::Point2f> back = corners;
+    cv::calcOpticalFlowPyrLK(b, a, next, back, back_ok, err, cv::Size(21, 21), 3, stop,
+                             cv::OPTFLOW_USE_INITIAL_FLOW);
+    pa.clear();
+    pb.clear();
+    for (std::size_t k = 0; k < corners.size(); ++k) {
+        if (ok[k] && back_ok[k] && cv::norm(back[k] - corners[k]) < 0.5) {
+            pa.push_back(corners[k]);
+            pb.push_back(next[k]);
+        }
+    }
+    return pa.size() >= kMinPoints;
+}
+
+mrpt::poses::CPose3D poseFrom(const cv::Matx33d& R, const cv::Vec3d& t) {
+    mrpt::math::CMatrixDouble33 Rm;
+    for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) Rm(r, c) = R(r, c);
+    return mrpt::poses::CPose3D(Rm, mrpt::math::CVectorFixedDouble<3>({t[0], t[1], t[2]}));
+}
+
+// The vehicle motion a -> b from the images: the ceiling homography between them decomposed
+// into the camera motion and the plane's normal (so a pitched or rolled vehicle is told from
+// travel), the translation scaled by the camera-to-ceiling distance, the mount taken off.
+std::optional<Motion> imageMotion(const mrpt::obs::CObservationImage& ia,
+                                  const mrpt::obs::CObservationImage& ib, double h,
+                                  const mrpt::poses::CPose3D& guess) {
+    refine::Pinhole pin;
+    if (!refine::pinholeFrom(ia.cameraParams, pin, nullptr)) return std::nullopt;
+    const cv::Mat a = loadGrey(ia), b = loadGrey(ib);
+    if (a.empty() || b.empty() || a.size() != b.size()) return std::nullopt;
+    const auto& mount = ia.cameraPose;
+    const double distance_m = h - mount.z();
+    if (!(distance_m > 0)) return std::nullopt;
+    std::vector<cv::Point2f> pa, pb;
+    if (!trackPoints(a, b, pin, mount, h, guess, pa, pb)) return std::nullopt;
+    pa = rectified(pa, ia.cameraParams, pin);
+    pb = rectified(pb, ia.cameraParams, pin);
+    std::vector<uchar> inlier;
+    const cv::Mat H = cv::findHomography(pa, pb, cv::RANSAC, 1.0, inlier);
+    if (H.empty() || std::size_t(cv::countNonZero(inlier)) < kMinPoints) return std::nullopt;
+    std::vector<cv::Mat> Rs, ts, ns;
+    const int n = cv::decomposeHomographyMat(H, cv::Mat(pin.K()), Rs, ts, ns);
+    // The map's up direction in camera a (the plane's expected normal), and b's expected pose.
+    const auto Rmount = mount.getRotationMatrix();
+    const cv::Vec3d up(Rmount(2, 0), Rmount(2, 1), Rmount(2, 2));
+    mrpt::poses::CPose3D expected = guess + mount;
+    expected = expected - mount;  // camera b in camera a's frame
+    int best = -1;
+    double best_score = -1e9;
+    for (int k = 0; k < n; ++k) {
+        const cv::Vec3d nk(ns[k]);
+        const double score = nk.dot(up);
+        if (score > best_score) best_score = score, best = k;
+    }
+    if (best < 0 || best_score < 0.9) return std::nullopt;
+    // OpenCV: X_b = R X_a + t for the plane n.X_a = d; t is returned divided by d.
+    const cv::Matx33d R(Rs[best]);
+    const cv::Vec3d t = cv::Vec3d(ts[best]) * distance_m;
+    mrpt::poses::CPose3D b_in_a = poseFrom(R, t);
+    b_in_a.inverse();
+    if (std::abs(b_in_a.x() - expected.x()) + std::abs(b_in_a.y() - expected.y()) > 1.0) {
+        return std::nullopt;  // not the motion the track shows at all: a wrong decomposition
+    }
+    mrpt::poses::CPose3D mount_inv = mount;
+    mount_inv.inverse();
+    return motionOf(mount + b_in_a + mount_inv);
+}
+
+struct FitAt {
+    double cost = 0;
+    double scale = 1;
+    std::vector<double> norms;     ///< residual norm per pair [m]
+    std::vector<double> residual;  ///< 3 per used pair
+};
+
+// Residuals at dt: image motion x scale - track motion (scale by least squares over the used
+// pairs' translations), each squared norm clipped at clip^2 in the cost.
+FitAt evaluate(const std::vector<Pair>& pairs, const std::vector<char>& use, double dt,
+               double clip_m) {
+    FitAt f;
+    std::vector<std::optional<Motion>> track(pairs.size());
+    double mp = 0, mm = 0;
+    for (std::size_t k = 0; k < pairs.size(); ++k) {
+        track[k] = trackMotion(pairs[k], dt);
+        if (!use[k] || !track[k]) continue;
+        const Motion& m = pairs[k].measured;
+        mp += m[0] * (*track[k])[0] + m[1] * (*track[k])[1];
+        mm += m[0] * m[0] + m[1] * m[1];
+    }
+    f.scale = mm > 0 ? mp / mm : 1.0;
+    for (std::size_t k = 0; k < pairs.size(); ++k) {
+        const Motion& m = pairs[k].measured;
+        cv::Vec3d r(clip_m, 0, 0);
+        if (track[k]) {
+            r = cv::Vec3d(f.scale * m[0] - (*track[k])[0], f.scale * m[1] - (*track[k])[1],
+                          kYawWeight_m * mrpt::math::wrapToPi(m[2] - (*track[k])[2]));
+        }
+        const double n = cv::norm(r);
+        f.norms.push_back(n);
+        if (!use[k]) continue;
+        f.cost += std::min(n * n, clip_m * clip_m);
+        for (int c = 0; c < 3; ++c) f.residual.push_back(r[c]);
+    }
+    return f;
+}
+
+double median(std::vector<double> v) {
+    if (v.empty()) return 0;
+    std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+    return v[v.size() / 2];
+}
+
+// The dt of least cost on a grid of `step` over [from, to], refined by a parabola.
+double gridMinimum(const std::vector<Pair>& pairs, const std::vector<char>& use, double from,
+                   double to, double step, double clip_m) {
+    std::vector<double> dts, costs;
+    for (double dt = from; dt <= to + 1e-12; dt += step) {
+        dts.push_back(dt);
+        costs.push_back(evaluate(pairs, use, dt, clip_m).cost);
+    }
+    const std::size_t k = std::min_element(costs.begin(), costs.end()) - costs.begin();
+    if (k == 0 || k + 1 == costs.size()) return dts[k];
+    const double c0 = costs[k - 1], c1 = costs[k], c2 = costs[k + 1];
+    const double den = c0 - 2 * c1 + c2;
+    return den > 0 ? dts[k] + 0.5 * step * (c0 - c2) / den : dts[k];
+}
+
+struct FitResult {
+    double dt = 0, sigma = 0, scale = 1, rms = 0;
+    std::size_t used = 0;
+};
+
+// Robust dt: a clipped-cost grid over the whole range, then the pairs within 3 robust
+// deviations refitted by least squares (twice); sigma from the residuals' slope in dt.
+FitResult fitOffset(const std::vector<Pair>& pairs, const SurveyOptions& o) {
+    std::vector<char> use(pairs.size(), 1);
+    const double range = o.time_offset_max_s;
+    double dt = gridMinimum(pairs, use, -range, range, 0.002, 0.05);
+    for (int pass = 0; pass < 2; ++pass) {
+        const FitAt at = evaluate(pairs, std::vector<char>(pairs.size(), 1), dt, 1e9);
+        const double gate = std::max(0.005, 3 * 1.4826 * median(at.norms));
+        for (std::size_t k = 0; k < pairs.size(); ++k) use[k] = at.norms[k] <= gate;
+        dt = gridMinimum(pairs, use, dt - 0.006, dt + 0.006, 0.0005, 1e9);
+    }
+    FitResult r;
+    r.dt = dt;
+    const FitAt at = evaluate(pairs, use, dt, 1e9);
+    const FitAt plus = evaluate(pairs, use, dt + 0.001, 1e9);
+    const FitAt minus = evaluate(pairs, use, dt - 0.001, 1e9);
+    r.used = at.residual.size() / 3;
+    r.scale = at.scale;
+    double ss = 0, jj = 0;
+    for (std::size_t k = 0; k < at.residual.size(); ++k) {
+        ss += at.residual[k] * at.residual[k];
+        const double j = (plus.residual[k] - minus.residual[k]) / 0.002;
+        jj += j * j;
+    }
+    const double dof = std::max(1.0, double(at.residual.size()) - 2.0);
+    r.rms = std::sqrt(ss / std::max<std::size_t>(1, r.used));
+    // Pairs overlapping in time share track noise: inflate by how many overlap on average.
+    double span = 0;
+    for (std::size_t k = 0; k < pairs.size(); ++k)
+        span += use[k] ? double(pairs[k].j - pairs[k].i) : 0;
+    const double overlap = r.used ? std::max(1.0, span / r.used) : 1.0;
+    r.sigma = jj > 0 ? std::sqrt(ss / dof / jj * overlap) : std::numeric_limits<double>::infinity();
+    return r;
+}
+
+// The pairs split into groups that share no structure error: per traverse, its first and
+// second half in time (a start and a stop each show the offset on their own).
+std::vector<std::vector<Pair>> independentGroups(const std::vector<Pair>& pairs) {
+    std::map<const CeilingTraverse*, std::vector<const Pair*>> by_traverse;
+    for (const auto& p : pairs) by_traverse[p.traverse].push_back(&p);
+    std::vector<std::vector<Pair>> groups;
+    for (auto& [t, list] : by_traverse) {
+        std::sort(list.begin(), list.end(), [](auto a, auto b) { return a->ti < b->ti; });
+        const double mid = 0.5 * (list.front()->ti + list.back()->ti);
+        std::vector<Pair> first, second;
+        for (const Pair* p : list) (p->ti < mid ? first : second).push_back(*p);
+        groups.push_back(std::move(first));
+        groups.push_back(std::move(second));
+    }
+    return groups;
+}
+
+// The fit's sigma widened by the Birge ratio of the groups' own fits: residuals of the image
+// motion that follow the place (ceiling relief, walls in view) are not independent per pair,
+// and only fits of separate stretches show how far they move the offset.
+double consistentSigma(const std::vector<Pair>& pairs, const FitResult& all,
+                       const SurveyOptions& o) {
+    double chi2 = 0;
+    int k = 0;
+    for (const auto& g : independentGroups(pairs)) {
+        if (g.size() < std::size_t(std::max(5, o.time_offset_min_pairs / 4))) continue;
+        const FitResult f = fitOffset(g, o);
+        if (!std::isfinite(f.sigma) || f.sigma <= 0) continue;
+        chi2 += std::pow((f.dt - all.dt) / f.sigma, 2);
+        ++k;
+    }
+    if (k < 2) return all.sigma;
+    return all.sigma * std::max(1.0, std::sqrt(chi2 / (k - 1)));
+}
+
+std::string notEstimated(const TimeOffsetEstimate& e, const std::string& why) {
+    char buf[160];
+    std::snprintf(buf, sizeof(buf),
+                  "; the configured [survey] ceiling_time_offset_s = %.4f s is used",
+                  e.configured_s);
+    return e.label + " time offset not estimated: " + why + buf;
+}
+
+}  // namespace
+
+TimeOffsetEstimate estimateTimeOffset(const std::vector<CeilingTraverse>& traverses,
+                                      double ceiling_height_m, const SurveyOptions& o) {
+    const auto started = std::chrono::steady_clock::now();
+    TimeOffsetEstimate e;
+    e.label = o.ceiling_camera_label;
+    e.source = "configured";
+    e.configured_s = e.offset_s = o.ceiling_time_offset_s;
+    e.tried = true;
+    std::vector<Pair> all;
+    for (const auto& t : traverses) {
+        auto p = candidatePairs(t, o);
+        all.insert(all.end(), p.begin(), p.end());
+    }
+    std::vector<Pair> pairs;
+    for (auto& p : selectPairs(std::move(all), std::size_t(o.time_offset_max_pairs))) {
+        ++e.pairs_tried;
+        const auto& images = *p.traverse->ceiling;
+        const auto a = poseAt(*p.traverse->poses, p.ti), b = poseAt(*p.traverse->poses, p.tj);
+        if (!a || !b) continue;
+        std::optional<Motion> m;
+        try {
+            m = imageMotion(*images[p.i], *images[p.j], ceiling_height_m, *b - *a);
+        } catch (const std::exception&) {
+            m.reset();  // an unreadable image: the pair is not measured
+        }
+        if (!m) continue;
+        p.measured = *m;
+        pairs.push_back(p);
+    }
+    e.pairs_measured = pairs.size();
+    const auto finish = [&] {
+        e.time_s =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+        return e;
+    };
+    if (pairs.size() < std::size_t(o.time_offset_min_pairs)) {
+        e.warning =
+            notEstimated(e, std::to_string(pairs.size()) + " of " + std::to_string(e.pairs_tried) +
+                                " image pairs had enough tracked ceiling texture "
+                                "(time_offset_min_pairs = " +
+                                std::to_string(o.time_offset_min_pairs) + ")");
+        return finish();
+    }
+    FitResult fit = fitOffset(pairs, o);
+    fit.sigma = consistentSigma(pairs, fit, o);
+    e.fitted_s = e.configured_s + fit.dt;
+    e.sigma_s = fit.sigma;
+    e.scale = fit.scale;
+    e.rms_m = fit.rms;
+    e.pairs_used = fit.used;
+    char buf[320];
+    if (!(fit.sigma <= o.time_offset_max_sigma_s)) {
+        std::snprintf(buf, sizeof(buf),
+                      "the image motion does not pin it down (too little acceleration or "
+                      "turning for its noise, rms %.3f m): fit %.4f s +- %.4f s over %zu pairs, "
+                      "more uncertain than time_offset_max_sigma_s = %.4f s",
+                      fit.rms, e.fitted_s, fit.sigma, fit.used, o.time_offset_max_sigma_s);
+        e.warning = notEstimated(e, buf);
+    } else if (std::abs(fit.dt) > o.time_offset_max_s - 0.01) {
+        std::snprintf(buf, sizeof(buf),
+                      "fit %.4f s at the edge of the search range (time_offset_max_s = %.3f s)",
+                      e.fitted_s, o.time_offset_max_s);
+        e.warning = notEstimated(e, buf);
+    } else {
+        e.source = "estimated";
+        e.offset_s = e.fitted_s;
+    }
+    return finish();
+}
+
+void shiftStamps(std::vector<mrpt::obs::CObservationImage::Ptr>& images, double offset_s) {
+    if (offset_s == 0) return;
+    for (auto& im : images) {
+        im->timestamp = mrpt::Clock::fromDouble(mrpt::Clock::toDouble(im->timestamp) + offset_s);
+    }
+}
+
+std::string timeOffsetJson(const TimeOffsetEstimate& e) {
+    char buf[800];
+    const auto num = [](bool has, double v) {
+        char b[40];
+        if (!has || !std::isfinite(v)) return std::string("null");
+        std::snprintf(b, sizeof(b), "%.5f", v);
+        return std::string(b);
+    };
+    const bool fitted = e.pairs_used > 0;
+    std::snprintf(buf, sizeof(buf),
+                  "{\"label\": \"%s\", \"source\": \"%s\", \"offset_s\": %.5f, \"configured_s\": "
+                  "%.5f, \"estimated\": %s, \"fitted_s\": %s, \"sigma_s\": %s, \"scale\": %s, "
+                  "\"rms_m\": %s, \"pairs_tried\": %zu, \"pairs_measured\": %zu, \"pairs_used\": "
+                  "%zu, \"time_s\": %.2f, \"warning\": \"",
+                  e.label.c_str(), e.source.c_str(), e.offset_s, e.configured_s,
+                  e.source == "estimated" ? "true" : "false", num(fitted, e.fitted_s).c_str(),
+                  num(fitted, e.sigma_s).c_str(), num(fitted, e.scale).c_str(),
+                  num(fitted, e.rms_m).c_str(), e.pairs_tried, e.pairs_measured, e.pairs_used,
+                  e.time_s);
+    std::string out = buf;
+    for (char c : e.warning) {
+        if (c == '"' || c == '\\') out += '\\';
+        out += c;
+    }
+    return out + "\"}";
+}
+
+}  // namespace lookup::survey

@@ -1,0 +1,111 @@
+// The localiser's own sensors' time offsets ([time_offsets] of the --ini): read and checked,
+// applied to the stamps where observations come in, in corrected time order, and visible in
+// the run's frame times.
+
+#include <gtest/gtest.h>
+#include <mrpt/config/CConfigFileMemory.h>
+#include <mrpt/obs/CObservationOdometry.h>
+
+#include <fstream>
+
+#include "localize_fixture.h"
+#include "lookup/common/config.h"
+#include "lookup/localize/sensor_clock.h"
+
+namespace fs = std::filesystem;
+using namespace lookup;
+using namespace lookup::localize_testing;
+
+namespace {
+
+mrpt::obs::CObservation::Ptr odometryAt(double t) {
+    auto o = mrpt::obs::CObservationOdometry::Create();
+    o->sensorLabel = "ODOMETRY";
+    o->timestamp = mrpt::Clock::fromDouble(t);
+    return o;
+}
+
+double stampOf(const localize::SensorClock::Item& item) {
+    return mrpt::Clock::toDouble(item.obs->timestamp);
+}
+
+std::vector<double> frameTimes(const fs::path& run) {
+    std::ifstream in(run / "frames.csv");
+    std::vector<double> t;
+    std::string line;
+    std::getline(in, line);  // header
+    while (std::getline(in, line)) t.push_back(std::stod(line.substr(0, line.find(','))));
+    return t;
+}
+
+}  // namespace
+
+TEST(SensorClock, ReadsOffsetsPerLabelAndRefusesBadValuesNamingTheKey) {
+    mrpt::config::CConfigFileMemory ini;
+    ini.write("time_offsets", "CEILING_CAM", "-0.040");
+    ini.write("time_offsets", "ODOMETRY", "0.01");
+    const auto clock = localize::SensorClock::fromConfig(ini, "loc.ini");
+    EXPECT_DOUBLE_EQ(clock.offsetOf("CEILING_CAM"), -0.040);
+    EXPECT_DOUBLE_EQ(clock.offsetOf("ODOMETRY"), 0.01);
+    EXPECT_DOUBLE_EQ(clock.offsetOf("FORWARD_CAM"), 0.0);
+    for (const char* bad : {"abc", "0.04 s", "2", "nan"}) {
+        mrpt::config::CConfigFileMemory wrong;
+        wrong.write("time_offsets", "CEILING_CAM", bad);
+        try {
+            localize::SensorClock::fromConfig(wrong, "loc.ini");
+            ADD_FAILURE() << bad << " accepted";
+        } catch (const common::ConfigError& e) {
+            EXPECT_NE(std::string(e.what()).find("loc.ini [time_offsets] CEILING_CAM"),
+                      std::string::npos)
+                << e.what();
+        }
+    }
+    EXPECT_TRUE(localize::SensorClock::fromConfig(mrpt::config::CConfigFileMemory(), "x").empty());
+}
+
+TEST(SensorClock, ShiftsStampsAndReleasesInCorrectedOrder) {
+    mrpt::config::CConfigFileMemory ini;
+    ini.write("time_offsets", "CEILING_CAM", "-0.040");
+    auto clock = localize::SensorClock::fromConfig(ini, "loc.ini");
+    std::vector<double> out;
+    const auto take = [&](std::vector<localize::SensorClock::Item> items) {
+        for (const auto& i : items) out.push_back(stampOf(i));
+    };
+    take(clock.push({odometryAt(10.00), 0, 0}));
+    auto image = mrpt::obs::CObservationImage::Create();
+    image->sensorLabel = "CEILING_CAM";
+    image->timestamp = mrpt::Clock::fromDouble(10.03);  // exposed at 9.99
+    take(clock.push({image, 0, 1}));
+    take(clock.push({odometryAt(10.02), 0, 2}));
+    take(clock.flush());
+    ASSERT_EQ(out.size(), 3u);
+    EXPECT_NEAR(out[0], 9.99, 1e-6);
+    EXPECT_NEAR(out[1], 10.00, 1e-6);
+    EXPECT_NEAR(out[2], 10.02, 1e-6);
+}
+
+TEST(SensorClock, AConfiguredCameraOffsetShiftsTheReportedFrameTimes) {
+    // The query camera stamps 50 ms after its exposure; odometry is on time.
+    const auto dir = freshDir("sensor_clock");
+    auto req = planarRun(dir, [](int, mrpt::obs::CObservationImage& img, auto&) {
+        img.timestamp = mrpt::Clock::fromDouble(mrpt::Clock::toDouble(img.timestamp) + 0.05);
+    });
+    req.out_dir = (dir / "late").string();
+    localize::runLocalization(req);
+    const auto late = frameTimes(req.out_dir);
+    std::ofstream((dir / "loc.ini").string()) << "[time_offsets]\nCEILING_CAM = -0.050\n";
+    req.ini_file = (dir / "loc.ini").string();
+    req.out_dir = (dir / "shifted").string();
+    localize::runLocalization(req);
+    const auto shifted = frameTimes(req.out_dir);
+    ASSERT_EQ(late.size(), 20u);
+    ASSERT_EQ(shifted.size(), late.size());
+    for (std::size_t i = 0; i < late.size(); ++i) {
+        EXPECT_NEAR(late[i], kT0 + 0.1 * i + 0.05, 1e-5);
+        EXPECT_NEAR(shifted[i], kT0 + 0.1 * i, 1e-5);  // the exposure time: the pose's time
+    }
+    std::ifstream run_ini(dir / "shifted" / "run.ini");
+    const std::string text((std::istreambuf_iterator<char>(run_ini)), {});
+    EXPECT_NE(text.find("[time_offsets]"), std::string::npos);
+    EXPECT_NE(text.find("CEILING_CAM"), std::string::npos);
+}
