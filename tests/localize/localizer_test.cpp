@@ -504,6 +504,26 @@ TEST(Localize, NonFiniteOrGarbageObservationsAreSkippedAndCountedNeverPoses) {
     EXPECT_GE(refined, 16u);  // the good frames around the garbage still refine
 }
 
+TEST(Localize, QueryIntrinsicsThatCannotDescribeTheImageAreRefusedNamingTheRecord) {
+    const auto dir = freshDir("bad_intrinsics");
+    const auto req = planarRun(
+        dir, [&](int i, mrpt::obs::CObservationImage& img, mrpt::obs::CObservationOdometry&) {
+            if (i == 4) img.cameraParams.ncols = 640;  // the calibration of another resolution
+            if (i == 7) img.cameraParams.distortion = static_cast<mrpt::img::DistortionModel>(7);
+            if (i == 9) img.cameraParams.dist[4] = std::numeric_limits<double>::infinity();
+        });
+    testing::internal::CaptureStderr();
+    const auto timing = localize::runLocalization(req);
+    const std::string err = testing::internal::GetCapturedStderr();
+    EXPECT_EQ(timing.frames, 17u);
+    EXPECT_EQ(timing.skipped.at("image_size"), 1u);
+    EXPECT_EQ(timing.skipped.at("intrinsics_invalid"), 2u);
+    for (const char* expected : {"intrinsics are for 640x", "distortion model 7 is not one MRPT",
+                                 "dist[4] = inf is not finite", "query.rawlog"}) {
+        EXPECT_NE(err.find(expected), std::string::npos) << expected << " not in: " << err;
+    }
+}
+
 namespace {
 
 // runLocalization's error message, or "" when it ran.
