@@ -190,7 +190,10 @@ uint32_t DatabaseWriter::add(const ReferenceInput& in) {
                             " (t=" + std::to_string(mrpt::Clock::toDouble(in.ceiling->timestamp)) +
                             " s) has a non-finite pose or covariance; not stored");
     }
-    if (const auto why = common::cameraProblem(in.ceiling->cameraParams); !why.empty()) {
+    // All-zero focal lengths: no calibration recorded (the localiser refuses the reference).
+    const auto& camera = in.ceiling->cameraParams;
+    const bool unset = camera.fx() == 0 && camera.fy() == 0;
+    if (const auto why = common::cameraProblem(camera); !unset && !why.empty()) {
         throw DatabaseError(out_dir_ + ": reference " + std::to_string(references_.size()) +
                             " (t=" + std::to_string(mrpt::Clock::toDouble(in.ceiling->timestamp)) +
                             " s): ceiling camera " + why + "; not stored");

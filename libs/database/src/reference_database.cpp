@@ -96,11 +96,11 @@ ReferenceDatabase ReferenceDatabase::load(const std::string& dir, std::size_t ca
             r.ceiling_camera_mount = rec->sensorPose;
             r.ceiling_camera =
                 rec->has_ceiling_camera ? rec->ceiling_camera : impl->info.ceiling_camera;
-            if (const auto why = common::cameraProblem(r.ceiling_camera); !why.empty()) {
+            // All-zero focal lengths: stored without a calibration (the localiser refuses it).
+            const auto& camera = r.ceiling_camera;
+            const bool unset = camera.fx() == 0 && camera.fy() == 0;
+            if (const auto why = common::cameraProblem(camera); !unset && !why.empty()) {
                 throw DatabaseError(where() + "ceiling camera: " + why);
-            }
-            if (r.ceiling_camera.ncols == 0 || r.ceiling_camera.nrows == 0) {
-                throw DatabaseError(where() + "ceiling camera: image size is zero");
             }
             r.ceiling_image_path = images_dir + "/" + rec->ceiling_image_file;
             if (!fs::is_regular_file(r.ceiling_image_path)) {

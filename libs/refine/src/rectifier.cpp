@@ -111,6 +111,11 @@ mrpt::obs::CObservationImage Rectifier::rectify(const mrpt::obs::CObservationIma
 }
 
 void Rectifier::rectify(Reference& reference) const {
+    // A camera that cannot describe its image stays: the Refiner refuses it, saying why.
+    if (!common::cameraProblem(reference.camera, reference.image.cols, reference.image.rows)
+             .empty()) {
+        return;
+    }
     if (isIdentity(reference.camera)) {
         reference.camera = target_;
         return;

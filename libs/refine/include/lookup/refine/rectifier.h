@@ -51,7 +51,8 @@ class Rectifier {
 
     /// Rectifies `reference.image` and its heat map (same maps) from `reference.camera`, and sets
     /// `reference.camera` = target(). Call before Reference::prepare(): cached pyramids and
-    /// sample points are dropped.
+    /// sample points are dropped. A reference whose camera cannot describe its image is left
+    /// as it is (the Refiner refuses it, naming the reason).
     void rectify(Reference& reference) const;
 
     /// Source cameras whose maps are cached (shared by copies of this Rectifier).
