@@ -72,6 +72,9 @@ TEST(Rectifier, IdealCameraPassesThroughWithoutACopy) {
     auto zero_plumb_bob = pinhole(146.6);
     zero_plumb_bob.setDistortionPlumbBob(0, 0, 0, 0, 0);  // the simulator's "none"
     EXPECT_TRUE(r.isIdentity(zero_plumb_bob));
+    auto from_db_ini = pinhole(146.61299);  // db.ini's 5 decimals of 146.612994...
+    EXPECT_TRUE(Rectifier(pinhole(146.612994)).isIdentity(from_db_ini));
+    EXPECT_FALSE(r.isIdentity(pinhole(146.7)));
     EXPECT_EQ(r.cachedCameras(), 0u);
 }
 

@@ -53,8 +53,12 @@ Rectifier::Rectifier(const mrpt::img::TCamera& target)
 }
 
 bool Rectifier::isIdentity(const mrpt::img::TCamera& c) const {
-    return c.ncols == target_.ncols && c.nrows == target_.nrows && c.fx() == target_.fx() &&
-           c.fy() == target_.fy() && c.cx() == target_.cx() && c.cy() == target_.cy() &&
+    // db.ini keeps intrinsics to 5 decimals: the survey camera read back from it differs from
+    // the images' own by < 1e-5 px, which moves no pixel measurably.
+    constexpr double kSamePx = 1e-3;
+    const auto same = [](double a, double b) { return std::abs(a - b) <= kSamePx; };
+    return c.ncols == target_.ncols && c.nrows == target_.nrows && same(c.fx(), target_.fx()) &&
+           same(c.fy(), target_.fy()) && same(c.cx(), target_.cx()) && same(c.cy(), target_.cy()) &&
            !hasCoefficients(c);
 }
 

@@ -35,8 +35,9 @@ class Rectifier {
     /// The ideal camera every rectified image is in.
     const mrpt::img::TCamera& target() const { return target_; }
 
-    /// True when an image of `camera` already is one of target() (same size and intrinsics, no
-    /// non-zero distortion coefficient): rectify() then returns it unchanged, without a copy.
+    /// True when an image of `camera` already is one of target() (same size, intrinsics within
+    /// 0.001 px, no non-zero distortion coefficient): rectify() then returns it unchanged, without
+    /// a copy.
     bool isIdentity(const mrpt::img::TCamera& camera) const;
 
     /// `image` (any depth, 1 or 3 channels) taken with `camera`, resampled bilinearly into
