@@ -504,6 +504,46 @@ TEST(Localize, NonFiniteOrGarbageObservationsAreSkippedAndCountedNeverPoses) {
     EXPECT_GE(refined, 16u);  // the good frames around the garbage still refine
 }
 
+TEST(Localize, AQueryCameraOfAnotherSizeAndFocalLengthIsRectifiedIntoTheDatabases) {
+    const auto dir = freshDir("other_camera");
+    const auto req = planarRun(
+        dir, [&](int, mrpt::obs::CObservationImage& img, mrpt::obs::CObservationOdometry&) {
+            cv::Mat m;
+            cv::resize(img.image.asCvMat<cv::Mat>(mrpt::img::SHALLOW_COPY), m, cv::Size(256, 192),
+                       0, 0, cv::INTER_AREA);
+            img.image = mrpt::img::CImage(m, mrpt::img::DEEP_COPY);
+            img.cameraParams.scaleToResolution(256, 192);
+        });
+    const auto timing = localize::runLocalization(req);
+    EXPECT_EQ(timing.frames, 20u);
+    EXPECT_TRUE(timing.skipped.empty());
+    const auto run = eval::loadRun(req.out_dir);
+    ASSERT_EQ(run.frames.size(), 20u);
+    std::size_t refined = 0;
+    for (const auto& f : run.frames) refined += f.status == "refined";
+    EXPECT_GE(refined, 18u);
+}
+
+TEST(Localize, QueryIntrinsicsThatCannotDescribeTheImageAreRefusedNamingTheRecord) {
+    const auto dir = freshDir("bad_intrinsics");
+    const auto req = planarRun(
+        dir, [&](int i, mrpt::obs::CObservationImage& img, mrpt::obs::CObservationOdometry&) {
+            if (i == 4) img.cameraParams.ncols = 640;  // the calibration of another resolution
+            if (i == 7) img.cameraParams.distortion = static_cast<mrpt::img::DistortionModel>(7);
+            if (i == 9) img.cameraParams.dist[4] = std::numeric_limits<double>::infinity();
+        });
+    testing::internal::CaptureStderr();
+    const auto timing = localize::runLocalization(req);
+    const std::string err = testing::internal::GetCapturedStderr();
+    EXPECT_EQ(timing.frames, 17u);
+    EXPECT_EQ(timing.skipped.at("image_size"), 1u);
+    EXPECT_EQ(timing.skipped.at("intrinsics_invalid"), 2u);
+    for (const char* expected : {"intrinsics are for 640x", "distortion model 7 is not one MRPT",
+                                 "dist[4] = inf is not finite", "query.rawlog"}) {
+        EXPECT_NE(err.find(expected), std::string::npos) << expected << " not in: " << err;
+    }
+}
+
 namespace {
 
 // runLocalization's error message, or "" when it ran.
@@ -522,7 +562,8 @@ TEST(Localize, RunsThatCannotWorkAreRefusedAtTheStartWithTheReason) {
     const auto dir = freshDir("cannot_work");
     auto req = planarRun(dir, [](int, auto&, auto&) {});
 
-    // Query ceiling images of another size than the references'.
+    // Query ceiling images of another size than their intrinsics say (another size than the
+    // references' with intrinsics to match is rectified into the database's camera).
     const auto half = freshDir("cannot_work_size");
     auto small = planarRun(half, [](int, mrpt::obs::CObservationImage& img, auto&) {
         cv::Mat m;
@@ -530,7 +571,8 @@ TEST(Localize, RunsThatCannotWorkAreRefusedAtTheStartWithTheReason) {
         img.image = mrpt::img::CImage(m, mrpt::img::DEEP_COPY);
     });
     std::string e = errorOf(small);
-    EXPECT_NE(e.find("ceiling images are 160x120, the database's are 320x240"), std::string::npos)
+    EXPECT_NE(e.find("ceiling images are 160x120, expected 320x240 (their intrinsics' size)"),
+              std::string::npos)
         << e;
 
     // Coarse poses of another drive: no overlap with the query's time span.

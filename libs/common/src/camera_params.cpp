@@ -4,6 +4,8 @@
 #include <mrpt/core/exceptions.h>
 #include <mrpt/obs/CObservationImage.h>
 
+#include <cmath>
+#include <cstdio>
 #include <filesystem>
 
 #include "lookup/common/config.h"
@@ -11,6 +13,48 @@
 namespace fs = std::filesystem;
 
 namespace lookup::common {
+namespace {
+
+std::string number(double v) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%g", v);
+    return buf;
+}
+
+std::string size(unsigned w, unsigned h) { return std::to_string(w) + "x" + std::to_string(h); }
+
+bool knownModel(mrpt::img::DistortionModel m) {
+    using M = mrpt::img::DistortionModel;
+    return m == M::none || m == M::plumb_bob || m == M::kannala_brandt;
+}
+
+}  // namespace
+
+std::string cameraProblem(const mrpt::img::TCamera& c, int width, int height) {
+    if (!std::isfinite(c.fx()) || !std::isfinite(c.fy()) || !(c.fx() > 0) || !(c.fy() > 0)) {
+        return "focal length fx = " + number(c.fx()) + ", fy = " + number(c.fy()) +
+               " is not finite and > 0";
+    }
+    if (!std::isfinite(c.cx()) || !std::isfinite(c.cy())) {
+        return "principal point cx = " + number(c.cx()) + ", cy = " + number(c.cy()) +
+               " is not finite";
+    }
+    if (!knownModel(c.distortion)) {
+        return "distortion model " + std::to_string(int(c.distortion)) +
+               " is not one MRPT knows (none, plumb_bob, kannala_brandt)";
+    }
+    for (std::size_t k = 0; k < c.dist.size(); ++k) {
+        if (!std::isfinite(c.dist[k])) {
+            return "distortion dist[" + std::to_string(k) + "] = " + number(c.dist[k]) +
+                   " is not finite";
+        }
+    }
+    if ((width > 0 || height > 0) && (int(c.ncols) != width || int(c.nrows) != height)) {
+        return "intrinsics are for " + size(c.ncols, c.nrows) + " px but the image is " +
+               size(unsigned(width), unsigned(height)) + " px";
+    }
+    return "";
+}
 
 std::optional<mrpt::img::TCamera> sensorCameraParams(const mrpt::config::CConfigFileBase& sensors,
                                                      const std::string& section,

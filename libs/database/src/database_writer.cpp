@@ -18,6 +18,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "lookup/common/camera_params.h"
 #include "lookup/common/errors.h"
 #include "lookup/common/pose_files.h"
 #include "lookup/database/manifest.h"
@@ -189,6 +190,14 @@ uint32_t DatabaseWriter::add(const ReferenceInput& in) {
                             " (t=" + std::to_string(mrpt::Clock::toDouble(in.ceiling->timestamp)) +
                             " s) has a non-finite pose or covariance; not stored");
     }
+    // All-zero focal lengths: no calibration recorded (the localiser refuses the reference).
+    const auto& camera = in.ceiling->cameraParams;
+    const bool unset = camera.fx() == 0 && camera.fy() == 0;
+    if (const auto why = common::cameraProblem(camera); !unset && !why.empty()) {
+        throw DatabaseError(out_dir_ + ": reference " + std::to_string(references_.size()) +
+                            " (t=" + std::to_string(mrpt::Clock::toDouble(in.ceiling->timestamp)) +
+                            " s): ceiling camera " + why + "; not stored");
+    }
     const auto id = static_cast<uint32_t>(references_.size());
     char stem[32];
     std::snprintf(stem, sizeof(stem), "%06u", id);
@@ -202,6 +211,7 @@ uint32_t DatabaseWriter::add(const ReferenceInput& in) {
     ref.vehicle_cov = in.vehicle_cov;
     ref.ceiling_camera_mount = in.ceiling->cameraPose;
     ref.ceiling_camera_pose = in.vehicle_pose + in.ceiling->cameraPose;
+    ref.ceiling_camera = in.ceiling->cameraParams;
     ref.sharpness = in.sharpness;
     ref.mean_intensity = in.mean_intensity;
     ref.travelled_m = in.travelled_m;
@@ -250,6 +260,8 @@ uint32_t DatabaseWriter::add(const ReferenceInput& in) {
     record.vehicle_pose = in.vehicle_pose;
     record.vehicle_cov = in.vehicle_cov;
     record.ceiling_camera_pose = ref.ceiling_camera_pose;
+    record.has_ceiling_camera = true;
+    record.ceiling_camera = ref.ceiling_camera;
     record.forward_camera_pose = ref.forward_camera_pose;
     record.ceiling_image_file = ceiling_name;
     record.forward_image_file = forward_name;

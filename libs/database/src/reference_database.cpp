@@ -6,6 +6,7 @@
 #include <array>
 #include <filesystem>
 
+#include "lookup/common/camera_params.h"
 #include "lookup/common/rawlog_io.h"
 #include "lookup/database/image_cache.h"
 #include "lookup/database/manifest.h"
@@ -93,6 +94,14 @@ ReferenceDatabase ReferenceDatabase::load(const std::string& dir, std::size_t ca
             r.vehicle_cov = rec->vehicle_cov;
             r.ceiling_camera_pose = rec->ceiling_camera_pose;
             r.ceiling_camera_mount = rec->sensorPose;
+            r.ceiling_camera =
+                rec->has_ceiling_camera ? rec->ceiling_camera : impl->info.ceiling_camera;
+            // All-zero focal lengths: stored without a calibration (the localiser refuses it).
+            const auto& camera = r.ceiling_camera;
+            const bool unset = camera.fx() == 0 && camera.fy() == 0;
+            if (const auto why = common::cameraProblem(camera); !unset && !why.empty()) {
+                throw DatabaseError(where() + "ceiling camera: " + why);
+            }
             r.ceiling_image_path = images_dir + "/" + rec->ceiling_image_file;
             if (!fs::is_regular_file(r.ceiling_image_path)) {
                 throw DatabaseError(where() + "missing ceiling image " + r.ceiling_image_path);

@@ -86,9 +86,8 @@ void checkSize(const std::string& rawlog, const coarse::CameraFrame& frame, cons
     if (ref_width <= 0 || (w == ref_width && h == ref_height)) return;
     throw common::RawlogError(rawlog, frame.record,
                               std::string(what) + " images are " + std::to_string(w) + "x" +
-                                  std::to_string(h) + ", the database's are " +
-                                  std::to_string(ref_width) + "x" + std::to_string(ref_height) +
-                                  " (" + reference + ")");
+                                  std::to_string(h) + ", expected " + std::to_string(ref_width) +
+                                  "x" + std::to_string(ref_height) + " (" + reference + ")");
 }
 
 /// A coarse file must cover the query: none of it is an error, a part a warning.
@@ -149,15 +148,18 @@ class PassShift {
 };
 
 /// Refuses at the start a run that cannot work: no ceiling images, images that cannot be
-/// loaded (e.g. no `<name>_Images` folder), another image size than the references', no
+/// loaded (e.g. no `<name>_Images` folder), ceiling images of another size than their
+/// intrinsics say, no
 /// forward images under the label the coarse stage reads, a coarse file that does not cover
 /// the query. Returns the ceiling frames' span.
 QuerySpan checkQuery(const LocalizeRequest& req, const LocalizerOptions& o,
                      const database::ReferenceDatabase& db, const coarse::CoarseSource* coarse,
                      bool coarse_from_images) {
-    const auto& camera = db.info().ceiling_camera;
-    checkSize(req.rawlog, firstImage(req.rawlog, o.ceiling_camera_label, "nothing to localise"),
-              "ceiling", int(camera.ncols), int(camera.nrows), req.db_dir + "/db.ini");
+    // Any ceiling camera is rectified into the database's; its images must be of its own size.
+    const auto ceiling = firstImage(req.rawlog, o.ceiling_camera_label, "nothing to localise");
+    const auto& camera = ceiling.observation->cameraParams;
+    checkSize(req.rawlog, ceiling, "ceiling", int(camera.ncols), int(camera.nrows),
+              "their intrinsics' size");
     if (coarse_from_images && !db.forwardSequence().empty()) {
         const cv::Mat reference = db.forwardImage(db.forwardSequence().front());
         checkSize(req.rawlog,

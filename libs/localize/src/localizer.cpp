@@ -12,6 +12,7 @@
 
 #include "lookup/coarse/coarse_localizer.h"
 #include "lookup/coarse/descriptor.h"
+#include "lookup/common/camera_params.h"
 #include "lookup/localize/place_search.h"
 
 namespace lookup::localize {
@@ -219,28 +220,20 @@ std::string imageProblem(const mrpt::img::CImage& image, int& width, int& height
     return {};
 }
 
-std::optional<Rejection> checkCeiling(const mrpt::obs::CObservationImage& img,
-                                      const mrpt::img::TCamera& reference_camera) {
+std::optional<Rejection> checkCeiling(const mrpt::obs::CObservationImage& img) {
     int w = 0, h = 0;
     if (auto problem = imageProblem(img.image, w, h); !problem.empty()) {
         return Rejection{"image_unusable", problem};
     }
-    if (reference_camera.ncols > 0 &&
-        (w != int(reference_camera.ncols) || h != int(reference_camera.nrows))) {
-        return Rejection{"image_size", "image is " + std::to_string(w) + "x" + std::to_string(h) +
-                                           ", the references are " +
-                                           std::to_string(reference_camera.ncols) + "x" +
-                                           std::to_string(reference_camera.nrows)};
-    }
+    // Any camera is rectified into the database's (refine::Rectifier), if it describes the image.
     const auto& c = img.cameraParams;
-    std::string bad = badValue({{"fx", c.fx()}, {"fy", c.fy()}, {"cx", c.cx()}, {"cy", c.cy()}});
-    for (std::size_t k = 0; bad.empty() && k < c.dist.size(); ++k) {
-        if (!std::isfinite(c.dist[k]))
-            bad = "dist[" + std::to_string(k) + "] = " + number(c.dist[k]);
+    if (w != int(c.ncols) || h != int(c.nrows)) {
+        return Rejection{"image_size", common::cameraProblem(c, w, h)};
     }
-    if (bad.empty() && (c.fx() <= 0 || c.fy() <= 0))
-        bad = "fx = " + number(c.fx()) + ", fy = " + number(c.fy());
-    if (!bad.empty()) return Rejection{"intrinsics_invalid", "camera intrinsics " + bad};
+    if (auto bad = common::cameraProblem(c); !bad.empty()) {
+        return Rejection{"intrinsics_invalid", "camera " + bad};
+    }
+    std::string bad;
     const auto& m = img.cameraPose;
     bad = badValue({{"x", m.x()}, {"y", m.y()}, {"z", m.z()}}, kMaxCoordinateM);
     if (bad.empty()) bad = badValue({{"yaw", m.yaw()}, {"pitch", m.pitch()}, {"roll", m.roll()}});
@@ -267,7 +260,7 @@ cv::Mat loadHeatMap(const database::ReferenceDatabase& db, std::size_t index) {
     }
     cv::Mat heat;
     stored.convertTo(heat, CV_32F, stored.depth() == CV_16U ? 1.0 / 65535 : 1.0 / 255);
-    const auto& camera = db.info().ceiling_camera;
+    const auto& camera = db.reference(index).ceiling_camera;
     const cv::Size image_size(int(camera.ncols), int(camera.nrows));
     if (image_size.area() == 0 || heat.size() == image_size) return heat;
     if (heat.cols > image_size.width || heat.rows > image_size.height) {
@@ -344,6 +337,7 @@ Localizer::Localizer(const database::ReferenceDatabase& db, const LocalizerOptio
     : db_(db),
       options_(options),
       refiner_(refiner_options),
+      rectifier_(db.info().ceiling_camera),
       coarse_(std::move(coarse)),
       coarse_uses_images_(coarse_uses_images) {
     options_.check();
@@ -392,7 +386,9 @@ std::optional<FrameResult> Localizer::process(const mrpt::obs::CObservation::Ptr
         processForward(*image);
         return std::nullopt;
     }
-    if (obs->sensorLabel == options_.ceiling_camera_label) return processCeiling(*image);
+    if (obs->sensorLabel == options_.ceiling_camera_label) {
+        return processCeiling(rectifier_.rectify(*image));
+    }
     return std::nullopt;
 }
 
@@ -414,7 +410,7 @@ std::optional<Rejection> Localizer::check(const mrpt::obs::CObservation& obs) co
                                              ", not a CObservationImage"};
     }
     if (obs.sensorLabel == options_.ceiling_camera_label) {
-        return checkCeiling(*image, db_.info().ceiling_camera);
+        return checkCeiling(*image);
     }
     if (!coarse_ || !coarse_uses_images_) return std::nullopt;  // forward images unused
     int w = 0, h = 0;
@@ -633,13 +629,14 @@ const refine::Reference& Localizer::referenceView(std::size_t index) {
     view.id = static_cast<std::int64_t>(index);
     view.timestamp = mrpt::Clock::fromDouble(ref.time_s);
     view.image = db_.ceilingImage(index).clone();
-    view.camera = db_.info().ceiling_camera;
+    view.camera = ref.ceiling_camera;
     view.vehicle_in_map = ref.vehicle_pose;
     view.camera_on_vehicle = ref.ceiling_camera_mount;
     // A grid run on a database with heat maps does not pay for decoding them.
     if (refiner_.options().sampler.mode != refine::SamplingMode::Grid) {
         view.heat_map = loadHeatMap(db_, index);
     }
+    rectifier_.rectify(view);
     view.prepare(refiner_.options().matcher);
     view.prepareSamplePoints(refiner_.options().sampler);
     while (views_.size() >= options_.image_cache_capacity) {

@@ -6,9 +6,24 @@
 
 namespace lookup::obs {
 
+namespace {
+std::string modelName(mrpt::img::DistortionModel m) {
+    switch (m) {
+        case mrpt::img::DistortionModel::none:
+            return "none";
+        case mrpt::img::DistortionModel::plumb_bob:
+            return "plumb_bob";
+        case mrpt::img::DistortionModel::kannala_brandt:
+            return "kannala_brandt";
+        default:
+            return "unknown (" + std::to_string(int(m)) + ")";
+    }
+}
+}  // namespace
+
 IMPLEMENTS_SERIALIZABLE(CObservationLookupReference, mrpt::obs::CObservation, lookup::obs)
 
-uint8_t CObservationLookupReference::serializeGetVersion() const { return 0; }
+uint8_t CObservationLookupReference::serializeGetVersion() const { return 1; }
 
 void CObservationLookupReference::serializeTo(mrpt::serialization::CArchive& out) const {
     out << timestamp << sensorLabel << sensorPose;
@@ -17,18 +32,23 @@ void CObservationLookupReference::serializeTo(mrpt::serialization::CArchive& out
         for (int c = 0; c < 3; ++c) out << vehicle_cov(r, c);
     out << ceiling_camera_pose << forward_camera_pose << ceiling_image_file << forward_image_file
         << forward_time_s << sharpness << mean_intensity << travelled_m;
+    out << has_ceiling_camera << ceiling_camera;
 }
 
 void CObservationLookupReference::serializeFrom(mrpt::serialization::CArchive& in,
                                                 uint8_t version) {
     switch (version) {
-        case 0: {
+        case 0:
+        case 1: {
             in >> timestamp >> sensorLabel >> sensorPose;
             in >> reference_id >> traverse >> vehicle_pose;
             for (int r = 0; r < 3; ++r)
                 for (int c = 0; c < 3; ++c) in >> vehicle_cov(r, c);
             in >> ceiling_camera_pose >> forward_camera_pose >> ceiling_image_file >>
                 forward_image_file >> forward_time_s >> sharpness >> mean_intensity >> travelled_m;
+            has_ceiling_camera = false;
+            ceiling_camera = mrpt::img::TCamera();
+            if (version >= 1) in >> has_ceiling_camera >> ceiling_camera;
         } break;
         default:
             MRPT_THROW_UNKNOWN_SERIALIZATION_VERSION(version);
@@ -57,6 +77,14 @@ void CObservationLookupReference::getDescriptionAsText(std::ostream& o) const {
     o << "Sharpness (var. of Laplacian): " << sharpness << ", mean intensity: " << mean_intensity
       << "\n";
     o << "Travelled along traverse: " << travelled_m << " m\n";
+    if (has_ceiling_camera) {
+        o << "Ceiling camera: " << ceiling_camera.ncols << "x" << ceiling_camera.nrows
+          << " px, fx=" << ceiling_camera.fx() << " fy=" << ceiling_camera.fy()
+          << " cx=" << ceiling_camera.cx() << " cy=" << ceiling_camera.cy() << ", distortion "
+          << modelName(ceiling_camera.distortion) << "\n";
+    } else {
+        o << "Ceiling camera: the database's (db.ini [ceiling_camera])\n";
+    }
 }
 
 }  // namespace lookup::obs

@@ -23,6 +23,7 @@
 #include "lookup/common/rawlog_io.h"
 #include "lookup/database/reference_database.h"
 #include "lookup/place/place_pose.h"
+#include "lookup/refine/rectifier.h"
 
 namespace lookup::place {
 
@@ -125,6 +126,8 @@ int PlaceApp::evaluate() {
     const double heap_mb = double(mallinfo2().uordblks - heap_before) / 1e6;
     const auto truth = common::makeInterpolator(common::readPoseFile(gt_file_), 1.0);
     common::RawlogReader reader(query_rawlog_);
+    const refine::Rectifier rectifier(db.info().ceiling_camera);
+    const mrpt::img::TCamera reference_camera = rectifier.target();
     mrpt::obs::CObservation::Ptr obs;
     int frames = 0, scored = 0, top1_right = 0, top1_wrong = 0, any_right = 0, none = 0;
     std::vector<double> ms, top1_error;
@@ -136,18 +139,19 @@ int PlaceApp::evaluate() {
         if (ceiling_seen++ % static_cast<std::size_t>(every_) != 0) continue;
         ++frames;
         if (img->image.isExternallyStored()) img->image.forceLoad();
-        cv::Mat grey = img->image.asCvMat<cv::Mat>(mrpt::img::SHALLOW_COPY);
+        cv::Mat grey = rectifier.rectify(img->image.asCvMat<cv::Mat>(mrpt::img::SHALLOW_COPY),
+                                         img->cameraParams);
         if (grey.channels() == 3) cv::cvtColor(grey, grey, cv::COLOR_BGR2GRAY);
         PlaceQueryTimes t;
         mrpt::system::CTicTac timer;
         const auto candidates = index.query(grey, &t);
         std::vector<mrpt::poses::CPose2D> poses;
-        const QueryCamera camera{img->cameraParams, img->cameraPose};
+        const QueryCamera camera{rectifier.target(), img->cameraPose};
         for (const auto& c : candidates) {
             const auto& ref = db.reference(c.reference);
             if (auto p =
-                    vehiclePose(c, db.info().ceiling_camera, ref.vehicle_pose,
-                                ref.ceiling_camera_mount, camera, db.info().ceiling_height_m)) {
+                    vehiclePose(c, reference_camera, ref.vehicle_pose, ref.ceiling_camera_mount,
+                                camera, db.info().ceiling_height_m)) {
                 poses.push_back(*p);
             }
         }

@@ -10,6 +10,7 @@
 #include <opencv2/flann.hpp>
 
 #include "lookup/database/reference_database.h"
+#include "lookup/refine/rectifier.h"
 #include "place_index_impl.h"
 
 namespace lookup::place {
@@ -113,12 +114,16 @@ PlaceIndex PlaceIndex::build(const database::ReferenceDatabase& db, const PlaceI
     impl.fingerprint = referenceFingerprint(db);
     impl.database_references = db.size();
     const auto chosen = thinnedReferences(db, o.reference_spacing_m);
+    // Features live in the database's ideal pinhole camera, as the localiser's rectified
+    // queries and reference views do (refine::Rectifier).
+    const refine::Rectifier rectifier(db.info().ceiling_camera);
     std::vector<cv::Mat> rows;
     for (std::size_t k = 0; k < chosen.size(); ++k) {
         std::vector<cv::KeyPoint> keypoints;
         cv::Mat descriptors;
-        detail::detect(db.ceilingImage(chosen[k]), o.features, o.features_per_reference, keypoints,
-                       descriptors);
+        const cv::Mat image =
+            rectifier.rectify(db.ceilingImage(chosen[k]), db.reference(chosen[k]).ceiling_camera);
+        detail::detect(image, o.features, o.features_per_reference, keypoints, descriptors);
         for (const auto& kp : keypoints) {
             impl.features.push_back({static_cast<std::uint32_t>(chosen[k]), kp.pt.x, kp.pt.y});
         }

@@ -79,7 +79,7 @@ std::vector<cv::Point2d> rectify(const std::vector<cv::Point2f>& px,
     const cv::Mat K(pinhole.K());
     std::vector<cv::Point2f> undistorted;
     if (camera.distortion == mrpt::img::DistortionModel::kannala_brandt) {
-        const cv::Vec4d d(camera.dist[0], camera.dist[1], camera.dist[2], camera.dist[3]);
+        const cv::Vec4d d(camera.k1(), camera.k2(), camera.k3(), camera.k4());
         cv::fisheye::undistortPoints(px, undistorted, K, d, cv::noArray(), K);
     } else {
         const std::vector<double> d(camera.dist.begin(), camera.dist.end());

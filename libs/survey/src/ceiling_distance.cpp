@@ -6,6 +6,8 @@
 #include <cstdio>
 #include <optional>
 
+#include "lookup/common/camera_params.h"
+#include "lookup/refine/rectifier.h"
 #include "lookup/refine/refiner.h"
 
 namespace lookup::survey {
@@ -45,9 +47,9 @@ std::size_t nearestTravel(const std::vector<Frame>& f, double target) {
 
 // h from frame j refined against the frames `baseline_m` behind and ahead (nullopt when the
 // neighbours are missing or the refiner refuses the triple).
-std::optional<double> estimateAt(const refine::Refiner& refiner, const CeilingTraverse& t,
-                                 const std::vector<Frame>& f, std::size_t j, double baseline_m,
-                                 double prior_m) {
+std::optional<double> estimateAt(const refine::Refiner& refiner, const refine::Rectifier* rectifier,
+                                 const CeilingTraverse& t, const std::vector<Frame>& f,
+                                 std::size_t j, double baseline_m, double prior_m) {
     const std::size_t a = nearestTravel(f, f[j].travel_m - baseline_m);
     const std::size_t b = nearestTravel(f, f[j].travel_m + baseline_m);
     const auto near = [&](std::size_t k) {
@@ -58,12 +60,17 @@ std::optional<double> estimateAt(const refine::Refiner& refiner, const CeilingTr
     std::optional<double> h;
     try {
         std::vector<refine::Reference> refs;
-        refs.push_back(refine::Reference::fromObservation(0, *images[f[a].index], f[a].pose));
-        refs.push_back(refine::Reference::fromObservation(1, *images[f[b].index], f[b].pose));
+        // Measured on rectified images, as the localiser matches (pinhole geometry).
+        const auto rectified = [&](std::size_t k) {
+            const auto& obs = *images[f[k].index];
+            return rectifier ? rectifier->rectify(obs) : obs;
+        };
+        refs.push_back(refine::Reference::fromObservation(0, rectified(a), f[a].pose));
+        refs.push_back(refine::Reference::fromObservation(1, rectified(b), f[b].pose));
         refine::CoarseHint hint;
         hint.vehicle_pose = f[j].pose;
         hint.ceiling_height_m = prior_m;
-        const auto r = refiner.refine(*images[f[j].index], hint, refs);
+        const auto r = refiner.refine(rectified(j), hint, refs);
         if (r.accepted() && r.estimate.ok && std::isfinite(r.estimate.ceiling_height_m)) {
             h = r.estimate.ceiling_height_m;
         }
@@ -83,7 +90,8 @@ double median(std::vector<double> v) {
 
 // One pass over every traverse at one baseline: the accepted values, with counts in `out`.
 std::vector<double> onePass(const std::vector<CeilingTraverse>& traverses, const SurveyOptions& o,
-                            double baseline_m, double prior_m, CeilingDistanceEstimate& out) {
+                            const refine::Rectifier* rectifier, double baseline_m, double prior_m,
+                            CeilingDistanceEstimate& out) {
     refine::RefinerOptions ro;
     ro.estimator.ceiling_height_m = prior_m;
     ro.estimator.ceiling_height_sigma_m = o.ceiling_prior_sigma_m;
@@ -97,7 +105,7 @@ std::vector<double> onePass(const std::vector<CeilingTraverse>& traverses, const
              s += o.ceiling_sample_spacing_m) {
             const std::size_t j = nearestTravel(f, s);
             ++out.tried;
-            if (auto h = estimateAt(refiner, t, f, j, baseline_m, prior_m)) {
+            if (auto h = estimateAt(refiner, rectifier, t, f, j, baseline_m, prior_m)) {
                 hs.push_back(*h);
             } else {
                 ++out.rejected;
@@ -138,6 +146,16 @@ CeilingDistanceEstimate estimateCeilingDistance(const std::vector<CeilingTravers
             break;
         }
     }
+    // Every image is rectified into the first valid camera's pinhole twin (its maps cached).
+    std::optional<refine::Rectifier> rectifier;
+    for (const auto& t : traverses) {
+        for (const auto& image : *t.ceiling) {
+            const auto& c = image->cameraParams;
+            if (!rectifier && c.ncols > 0 && c.nrows > 0 && common::cameraProblem(c).empty()) {
+                rectifier.emplace(c);
+            }
+        }
+    }
     const auto finish = [&] {
         out.camera_to_ceiling_m = out.ceiling_height_m - out.camera_z_m;
         out.time_s =
@@ -151,7 +169,8 @@ CeilingDistanceEstimate estimateCeilingDistance(const std::vector<CeilingTravers
     std::optional<CeilingDistanceEstimate> first;
     for (double baseline : {0.5 * o.ceiling_baseline_m, o.ceiling_baseline_m}) {
         CeilingDistanceEstimate pass = out;
-        const auto hs = onePass(traverses, o, baseline, prior, pass);
+        const auto hs =
+            onePass(traverses, o, rectifier ? &*rectifier : nullptr, baseline, prior, pass);
         if (hs.size() < std::size_t(o.ceiling_min_pairs)) continue;
         summarise(hs, pass);
         if (pass.used < std::size_t(o.ceiling_min_pairs)) continue;

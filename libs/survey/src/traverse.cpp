@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <map>
 
+#include "lookup/common/camera_params.h"
 #include "lookup/common/rawlog_io.h"
 
 namespace lookup::survey {
@@ -77,6 +78,7 @@ std::string intrinsicsProblem(const mrpt::obs::CObservationImage& image) {
     for (double d : c.dist) {
         if (!std::isfinite(d)) return "distortion is not finite";
     }
+    if (const std::string why = common::cameraProblem(c); !why.empty()) return why;
     if (!finitePose(image.cameraPose)) return "camera mounting pose is not finite";
     return "";
 }

@@ -29,4 +29,10 @@ std::optional<mrpt::img::TCamera> sensorCameraParams(const mrpt::config::CConfig
 /// calibrated resolution: the intrinsics would be silently wrong.
 bool applyCameraParams(const mrpt::img::TCamera& camera, mrpt::obs::CObservation& obs);
 
+/// Why `camera` cannot describe an image of `width` x `height` px, or "" when it can: focal
+/// lengths not finite and > 0, a principal point or distortion coefficient not finite, a
+/// distortion model MRPT does not know, or a calibrated size (ncols x nrows) other than the
+/// image's. `width` = `height` = 0 skips the size check.
+std::string cameraProblem(const mrpt::img::TCamera& camera, int width = 0, int height = 0);
+
 }  // namespace lookup::common

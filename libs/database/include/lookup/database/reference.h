@@ -41,14 +41,17 @@ struct Reference {
     mrpt::math::CMatrixDouble33 vehicle_cov;    ///< covariance of (x [m], y [m], yaw [rad])
     mrpt::poses::CPose3D ceiling_camera_pose;   ///< ceiling camera in the map frame
     mrpt::poses::CPose3D ceiling_camera_mount;  ///< ceiling camera on the vehicle
-    std::string ceiling_image_path;             ///< absolute path of the ceiling image
-    bool has_forward = false;                   ///< whether a forward image is attached
-    double forward_time_s = 0;                  ///< forward image time stamp [s]
-    std::string forward_image_path;             ///< absolute path of the forward image ("" if none)
-    mrpt::poses::CPose3D forward_camera_pose;   ///< forward camera in the map frame
-    double sharpness = 0;                       ///< variance of the Laplacian of the ceiling image
-    double mean_intensity = 0;                  ///< mean grey level of the ceiling image [0..255]
-    double travelled_m = 0;                     ///< distance along the traverse [m]
+    /// Intrinsics and distortion of the ceiling image (databases written before references
+    /// kept their own give every reference DatabaseInfo::ceiling_camera).
+    mrpt::img::TCamera ceiling_camera;
+    std::string ceiling_image_path;            ///< absolute path of the ceiling image
+    bool has_forward = false;                  ///< whether a forward image is attached
+    double forward_time_s = 0;                 ///< forward image time stamp [s]
+    std::string forward_image_path;            ///< absolute path of the forward image ("" if none)
+    mrpt::poses::CPose3D forward_camera_pose;  ///< forward camera in the map frame
+    double sharpness = 0;                      ///< variance of the Laplacian of the ceiling image
+    double mean_intensity = 0;                 ///< mean grey level of the ceiling image [0..255]
+    double travelled_m = 0;                    ///< distance along the traverse [m]
 };
 
 /// Database-wide metadata (db.ini).
@@ -56,7 +59,10 @@ struct DatabaseInfo {
     std::string name;  ///< free text, e.g. the dataset name
     std::string ceiling_camera_label = "CEILING_CAM";
     std::string forward_camera_label = "FORWARD_CAM";
-    mrpt::img::TCamera ceiling_camera;  ///< intrinsics of the ceiling camera
+    /// Intrinsics of the first reference's ceiling camera: the camera the localiser rectifies
+    /// every ceiling image into (lookup::refine::Rectifier), and the camera of references
+    /// stored without their own.
+    mrpt::img::TCamera ceiling_camera;
     mrpt::img::TCamera forward_camera;  ///< intrinsics of the forward camera
     double ceiling_height_m = 0;  ///< ceiling height above the floor (prior for refinement) [m]
     std::vector<std::string> source_rawlogs;  ///< absolute paths of the survey rawlogs

@@ -25,6 +25,7 @@
 #include "lookup/coarse/coarse_source.h"
 #include "lookup/database/reference_database.h"
 #include "lookup/localize/localizer_options.h"
+#include "lookup/refine/rectifier.h"
 #include "lookup/refine/refiner.h"
 
 namespace lookup::place {
@@ -225,6 +226,7 @@ class Localizer {
     const database::ReferenceDatabase& db_;
     LocalizerOptions options_;
     refine::Refiner refiner_;
+    refine::Rectifier rectifier_;  ///< every ceiling image into the database's pinhole camera
     std::unique_ptr<coarse::CoarseSource> coarse_;
     bool coarse_uses_images_;
 

@@ -5,6 +5,7 @@
 // CObservationRobotPose of the survey. Registered with mrpt-rtti so RawLogViewer shows it when
 // liblookup_obs.so is loaded (`RawLogViewer -l liblookup_obs.so refs.rawlog`).
 
+#include <mrpt/img/TCamera.h>
 #include <mrpt/math/CMatrixFixed.h>
 #include <mrpt/obs/CObservation.h>
 #include <mrpt/poses/CPose3D.h>
@@ -42,6 +43,11 @@ class CObservationLookupReference : public mrpt::obs::CObservation {
     double mean_intensity = 0;
     /// Distance travelled along the traverse at this reference [m].
     double travelled_m = 0;
+    /// Intrinsics and distortion of this reference's ceiling image (its camera's calibration).
+    /// Records of version 0 (databases written before references kept their own) have none:
+    /// has_ceiling_camera is false and the database's db.ini [ceiling_camera] applies.
+    bool has_ceiling_camera = false;
+    mrpt::img::TCamera ceiling_camera;
 
     /// Sensor pose = the ceiling camera's mounting pose on the vehicle.
     mrpt::poses::CPose3D sensorPose;
