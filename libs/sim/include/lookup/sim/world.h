@@ -97,8 +97,20 @@ class TunnelWorld {
     Eigen::Vector2d awayFromWall(double x, double y, const WallQuery& q) const;
     /// Gradient (dz/dx, dz/dy) of roofHeight() at a point of `q` (arch plus relief).
     Eigen::Vector2d roofSlope(double x, double y, const WallQuery& q) const;
-    /// Floor height (relief of a few cm that pitches and rolls the vehicle) [m].
+    /// Floor height where the vehicle's wheels touch: the level of the grade profile plus a
+    /// relief of a few cm that pitches and rolls the vehicle [m].
     double floorHeight(double x, double y) const;
+    /// True when the mine has a grade profile (WorldOptions::grade): floor, roof and furniture
+    /// then stand on level(), otherwise on z = 0 exactly as before.
+    bool graded() const { return !level_.empty(); }
+    /// Height of the floor's base surface at a plan point [m]: the grade profile at the route
+    /// distance of the nearest point of the route's centre line (side tunnels take the level
+    /// of the main tunnel beside them); 0 in a level mine.
+    double level(double x, double y) const;
+    /// The grade profile itself at route distance s [m] (what level() looks up).
+    double levelAtRoute(double s) const;
+    /// Bound on |grad level()| (the steepest ramp), 0 in a level mine.
+    double maxGrade() const { return max_grade_; }
 
     /// Ceiling albedo at a plan point; `footprint_m` is the pixel size there (finer detail is
     /// averaged out). Adds the slope of the rock micro-relief to *slope_x, *slope_y.
@@ -124,6 +136,9 @@ class TunnelWorld {
     void buildFurniture(const std::vector<Eigen::Vector2d>& raw);
     void buildBuckets();
     void buildBumps();
+    void buildLevels(const std::vector<Eigen::Vector2d>& raw);
+    SurfaceHit traceGraded(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double t_min,
+                           double t_max, double rad_per_px) const;
     void addSegment(const Eigen::Vector2d& a, const Eigen::Vector2d& b, double half_width,
                     double s0, bool on_route);
     bool solid(const Eigen::Vector3d& p, WallQuery* q) const;
@@ -154,6 +169,12 @@ class TunnelWorld {
     double relief_lipschitz_ = 0;  ///< bound on |grad wallRelief| (sphere-tracing step)
     int bump_nx_ = 0, bump_ny_ = 0;
     Eigen::Vector2d bump_origin_;
+    // Grade profile: z per kLevelStep of route distance, and level() sampled every kLevelCell
+    // metres over the bounding box (bilinear; empty = a level mine).
+    std::vector<double> profile_;
+    std::vector<float> level_;
+    int level_nx_ = 0, level_ny_ = 0;
+    double max_grade_ = 0;
     // Optional user texture (grey, row-major) tiled over the ceiling.
     std::vector<float> tex_;
     int tex_w_ = 0, tex_h_ = 0;
