@@ -15,9 +15,9 @@ namespace {
 using lookup::common::ConfigError;
 using lookup::sim::ScenarioOptions;
 
-const char* kPresets[] = {"mine-a",      "mine-b",           "mine-a-mini",
-                          "mine-b-mini", "lhd-cycle-mini",   "mine-a-real",
-                          "mine-b-real", "mine-a-real-mini", "mine-b-real-mini"};
+const char* kPresets[] = {
+    "mine-a",      "mine-b",      "mine-a-mini",      "mine-b-mini",      "lhd-cycle-mini",
+    "mine-a-real", "mine-b-real", "mine-a-real-mini", "mine-b-real-mini", "mine-b-decline-mini"};
 
 std::string presetPath(const std::string& name) {
     return lookup::sim::findPreset(name, {std::string(LOOKUP_SOURCE_SHARE_DIR) + "/scenarios"});
