@@ -264,7 +264,9 @@ double CameraRenderer::shadePixel(int index, const View& view, double* depth) co
     if (kind_ == Kind::Ceiling && d.z() > 0.3) {
         // Flat part: fixed-point iteration on the relief alone.
         double t = (h - o.z()) / d.z();
-        for (int k = 0; k < 3; ++k) {
+        // A ramp tilts the roof under the ray and slows the iteration's convergence.
+        const int iterations = world_.graded() ? 10 : 3;
+        for (int k = 0; k < iterations; ++k) {
             const Vector3d p = o + t * d;
             t = (world_.roofHeight(p.x(), p.y(), 1e9) - o.z()) / d.z();
         }
@@ -285,9 +287,15 @@ double CameraRenderer::shadePixel(int index, const View& view, double* depth) co
                 const double dw = -qq->sdf;
                 return dw <= 0 ? 0.05 - dw : pp.z() - world_.roofHeight(pp.x(), pp.y(), dw);
             };
-            double ta =
-                std::max(0.02, (h - w.arch_radius_m - w.bump_amplitude_m - 0.02 - o.z()) / d.z());
-            double tb = (h + w.bump_amplitude_m + 0.02 - o.z()) / d.z();
+            // On a grade the roof over the ray's reach differs from the roof over the camera
+            // by up to the steepest grade times the ray's plan reach.
+            const double slack = world_.graded()
+                                     ? world_.maxGrade() * std::hypot(d.x(), d.y()) *
+                                           (h + w.bump_amplitude_m + 1.0 - o.z()) / d.z()
+                                     : 0.0;
+            double ta = std::max(
+                0.02, (h - w.arch_radius_m - w.bump_amplitude_m - 0.02 - slack - o.z()) / d.z());
+            double tb = (h + w.bump_amplitude_m + 0.02 + slack - o.z()) / d.z();
             WallQuery qa, qb;
             double ga = G(ta, &qa), gb = G(tb, &qb);
             if (ga < 0 && -qa.sdf > 0 && gb > 0) {
