@@ -5,9 +5,11 @@
 #include "test_worlds.h"
 
 #include <gtest/gtest.h>
+#include <lookup/common/pose_files.h>
 #include <lookup/sim/simulator.h>
 #include <lookup/sim/world.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
@@ -168,6 +170,11 @@ start_m = 2
 plan = drive 15, stop 1, reverse 5
 )";
 
+std::string readText(const fs::path& p) {
+    std::ifstream f(p, std::ios::binary);
+    return std::string((std::istreambuf_iterator<char>(f)), {});
+}
+
 /// FNV-1a 64 over every file under `root` in path order (path, NUL, bytes, NUL), without
 /// scenario.ini's `threads` line.
 uint64_t datasetHash(const fs::path& root) {
@@ -214,6 +221,36 @@ TEST(Decline, ALevelScenarioGeneratesTheBytesItDidBeforeGrades) {
     // Debian 12, GCC 12, Release). A change here means level datasets are no longer
     // reproducible across versions: find what changed the level path.
     EXPECT_EQ(datasetHash(dir / "out"), 0x9bb831796663538dull);
+}
+
+TEST(Decline, AGradedDatasetsGroundTruthDescendsTheRamp) {
+    const fs::path dir = fs::temp_directory_path() / "lookup_decline_test_graded";
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    std::string text = kLevelScenario;
+    const std::string anchor = "grid_resolution_m = 0.1\n";
+    text.insert(text.find(anchor) + anchor.size(), "grade = 3 17 -1:7\ngrade_transition_m = 4\n");
+    {
+        std::ofstream f(dir / "graded.ini");
+        f << text;
+    }
+    auto scenario = lookup::sim::ScenarioOptions::fromFile((dir / "graded.ini").string());
+    scenario.traverses.resize(1);
+    scenario.threads = 2;
+    const lookup::sim::Simulator sim(scenario);
+    ASSERT_TRUE(sim.world().graded());
+    const auto result = sim.run((dir / "out").string());
+    ASSERT_EQ(result.status, lookup::sim::SimulationResult::Status::Ok) << result.reason;
+    const auto track =
+        lookup::common::readPoseFile((dir / "out" / "middle.rawlog.GT.txt").string());
+    ASSERT_GT(track.size(), 100u);
+    EXPECT_NEAR(track.front().pose.z(), 0, 0.05);
+    EXPECT_NEAR(track.back().pose.z(), -14 * kGrade, 0.05);  // 14 m of ramp at 1:7
+    double steepest = 0;
+    for (const auto& row : track) steepest = std::max(steepest, row.pose.pitch());
+    EXPECT_NEAR(steepest, std::atan(kGrade), 0.03);  // plus the floor relief
+    const std::string resolved = readText(dir / "out" / "scenario.ini");
+    EXPECT_NE(resolved.find("grade = 3 17 -1:7"), std::string::npos);
 }
 
 TEST(Decline, GradeKeysRoundTripInTheResolvedScenario) {
