@@ -447,20 +447,22 @@ void TunnelWorld::buildRoute(const std::vector<Vector2d>& raw) {
     route_ = resample(pts, kRouteStep);
 }
 
-void TunnelWorld::buildFurniture(const std::vector<Vector2d>& raw) {
+void TunnelWorld::addCylinder(const Vector3d& a, const Vector3d& b, double radius,
+                              SurfaceKind kind) {
+    Cylinder c;
+    c.a = a;
+    c.length = (b - a).norm();
+    if (c.length < 1e-6) return;
+    c.axis = (b - a) / c.length;
+    c.radius = radius;
+    c.kind = kind;
+    c.lo = a.cwiseMin(b) - Vector3d::Constant(radius);
+    c.hi = a.cwiseMax(b) + Vector3d::Constant(radius);
+    cylinders_.push_back(c);
+}
+
+void TunnelWorld::buildServices(const std::vector<Vector2d>& raw) {
     const double h = opt_.ceiling_height_m;
-    auto addCylinder = [&](const Vector3d& a, const Vector3d& b, double radius, SurfaceKind kind) {
-        Cylinder c;
-        c.a = a;
-        c.length = (b - a).norm();
-        if (c.length < 1e-6) return;
-        c.axis = (b - a) / c.length;
-        c.radius = radius;
-        c.kind = kind;
-        c.lo = a.cwiseMin(b) - Vector3d::Constant(radius);
-        c.hi = a.cwiseMax(b) + Vector3d::Constant(radius);
-        cylinders_.push_back(c);
-    };
     for (std::size_t i = 1; i < raw.size(); ++i) {
         const Vector2d left = rot90((raw[i] - raw[i - 1]).normalized());
         auto lift = [&](const Vector2d& p, double off, double z) {
@@ -491,6 +493,11 @@ void TunnelWorld::buildFurniture(const std::vector<Vector2d>& raw) {
             }
         }
     }
+}
+
+void TunnelWorld::buildFurniture(const std::vector<Vector2d>& raw) {
+    const double h = opt_.ceiling_height_m;
+    buildServices(raw);
     // Cable hangers and lamps follow the route's arc length.
     const std::vector<Vector2d> fine = resample(raw, kRouteStep);
     auto sample = [&](double s, Vector2d* left) {
