@@ -425,7 +425,8 @@ void checkGrade(common::OptionsCheck& c, const WorldOptions& w) {
                       "starts after ramp " + std::to_string(k) + " ends (ramps in route order)");
         }
     } catch (const std::invalid_argument& e) {
-        c.require(false, "world.grade", e.what());
+        c.require(false, "world.grade",
+                  std::string("ramps 'S0 S1 G', none steeper than 1:4 (") + e.what() + ")");
     }
 }
 
