@@ -6,8 +6,10 @@
 
 #include <gtest/gtest.h>
 #include <lookup/common/pose_files.h>
+#include <lookup/common/rawlog_io.h>
 #include <lookup/sim/simulator.h>
 #include <lookup/sim/world.h>
+#include <mrpt/obs/CObservationOdometry.h>
 
 #include <algorithm>
 #include <cmath>
@@ -15,6 +17,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <optional>
 #include <string>
 
 namespace {
@@ -249,6 +252,28 @@ TEST(Decline, AGradedDatasetsGroundTruthDescendsTheRamp) {
     double steepest = 0;
     for (const auto& row : track) steepest = std::max(steepest, row.pose.pitch());
     EXPECT_NEAR(steepest, std::atan(kGrade), 0.03);  // plus the floor relief
+    // Wheel odometry measures the distance along the slope: (1 + scale_error) times the 3-D
+    // path, measurably more than that times the plan path.
+    double plan = 0, slope = 0, odometry = 0;
+    for (std::size_t i = 1; i < track.size(); ++i) {
+        const auto& a = track[i - 1].pose;
+        const auto& b = track[i].pose;
+        plan += std::hypot(b.x() - a.x(), b.y() - a.y());
+        slope += std::sqrt(std::pow(b.x() - a.x(), 2) + std::pow(b.y() - a.y(), 2) +
+                           std::pow(b.z() - a.z(), 2));
+    }
+    lookup::common::RawlogReader reader((dir / "out" / "middle.rawlog").string());
+    mrpt::obs::CObservation::Ptr obs;
+    std::optional<mrpt::poses::CPose2D> last;
+    while (reader.next(obs)) {
+        if (auto odo = std::dynamic_pointer_cast<mrpt::obs::CObservationOdometry>(obs)) {
+            if (last) odometry += (odo->odometry - *last).norm();
+            last = odo->odometry;
+        }
+    }
+    const double k = 1 + scenario.odometry.scale_error;
+    EXPECT_NEAR(odometry / slope, k, 0.002);
+    EXPECT_GT(odometry / plan, k + 0.004);
     const std::string resolved = readText(dir / "out" / "scenario.ini");
     EXPECT_NE(resolved.find("grade = 3 17 -1:7"), std::string::npos);
 }
