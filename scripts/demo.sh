@@ -79,6 +79,8 @@ done
 
 echo "== 5. evaluation against ground truth: lookup-eval =="
 join() { local IFS=,; echo "$*"; }
-"$BIN/lookup-eval" --gt "$(join "${GTS[@]}")" --runs "$(join "${RUNS[@]}")" --out "$OUT/report"
-echo "Report: $OUT/report/report.md, chart: $OUT/report/errors.png"
+"$BIN/lookup-eval" --gt "$(join "${GTS[@]}")" --runs "$(join "${RUNS[@]}")" --out "$OUT/report" \
+    --map "$DATA/map.gridmap.gz"
+echo "Report: $OUT/report/report.md, charts: $OUT/report/errors.png, trajectory_*.png," \
+    "error_along_*.png"
 echo "Demo took $(( $(date +%s) - START )) s after the build."

@@ -1,6 +1,6 @@
 // lookup-eval: accuracy of localisation runs against ground truth, per traverse and method.
 //   lookup-eval --gt Q1.rawlog.GT.txt[,Q2...] --runs RUN1[,RUN2...] --out REPORT_DIR [--ini F]
-//               [--partial] [--verbose]
+//               [--map MAP.gridmap.gz] [--partial] [--verbose]
 
 #include <mrpt/3rdparty/tclap/CmdLine.h>
 #include <mrpt/config/CConfigFile.h>
@@ -29,6 +29,9 @@ int run(int argc, char** argv) {
     TCLAP::ValueArg<std::string> out_arg("", "out", "report folder", true, "", "DIR", cmd);
     TCLAP::ValueArg<std::string> ini_arg("", "ini", "options ([eval] section)", false, "", "FILE",
                                          cmd);
+    TCLAP::ValueArg<std::string> map_arg(
+        "", "map", "occupancy grid drawn under the trajectory pictures (the dataset's map)", false,
+        "", "MAP.gridmap.gz", cmd);
     TCLAP::SwitchArg partial("", "partial",
                              "score such runs anyway, named in the report's flagged column", cmd);
     TCLAP::SwitchArg verbose("", "verbose", "on errors, print MRPT's full exception dump", cmd);
@@ -58,7 +61,10 @@ int run(int argc, char** argv) {
         runs.back().flagged = problem;
     }
 
-    const auto report = lookup::eval::evaluate(truths, runs, options);
+    auto report = lookup::eval::evaluate(truths, runs, options);
+    if (!map_arg.getValue().empty()) {
+        report.map_walls = lookup::eval::loadMapWalls(map_arg.getValue());
+    }
     lookup::eval::writeReport(report, out_arg.getValue());
     std::ifstream md(out_arg.getValue() + "/report.md");
     std::cout << md.rdbuf() << std::flush;

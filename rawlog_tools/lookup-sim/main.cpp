@@ -38,7 +38,7 @@ int run(int argc, char** argv) {
     TCLAP::ValueArg<std::string> preset(
         "p", "preset",
         "built-in scenario: mine-a, mine-b, mine-a-mini, mine-b-mini, mine-a-real, mine-b-real, "
-        "mine-a-real-mini, mine-b-real-mini, lhd-cycle-mini",
+        "mine-a-real-mini, mine-b-real-mini, lhd-cycle-mini, mine-b-decline-mini",
         false, "", "NAME", cmd);
     TCLAP::ValueArg<std::string> scenario("s", "scenario", "scenario .ini file", false, "",
                                           "FILE.ini", cmd);

@@ -1,5 +1,9 @@
 #include <gtest/gtest.h>
+#include <mrpt/io/CFileGZOutputStream.h>
+#include <mrpt/maps/COccupancyGridMap2D.h>
+#include <mrpt/serialization/CArchive.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -245,4 +249,95 @@ TEST(Report, RowRoundTripsThroughJson) {
     auto broken = toJson(row);
     broken.erase("confident_wrong");
     EXPECT_THROW(methodResultFromJson(broken), nlohmann::json::exception);
+}
+
+namespace {
+
+std::string readText(const fs::path& p) {
+    std::ifstream f(p);
+    return std::string((std::istreambuf_iterator<char>(f)), {});
+}
+
+}  // namespace
+
+TEST(Pictures, EveryMethodHasItsOwnColour) {
+    const auto& table = methodColourTable();
+    std::vector<std::string> names, colours;
+    for (const auto& [name, colour] : table) {
+        EXPECT_EQ(colour.size(), 7u) << name;
+        EXPECT_EQ(std::count(names.begin(), names.end(), name), 0) << name << " twice";
+        EXPECT_EQ(std::count(colours.begin(), colours.end(), colour), 0)
+            << name << " shares " << colour;
+        names.push_back(name);
+        colours.push_back(colour);
+    }
+    for (const char* known : {"coarse", "laser-ecc", "lookup-grid24", "lookup-fcn12", "lookup-orb",
+                              "lookup-ecc", "surveyed-ecc", "oracle-grid"}) {
+        EXPECT_NE(std::find(names.begin(), names.end(), known), names.end()) << known;
+    }
+    EXPECT_NE(methodColour("coarse", names), methodColour("laser-ecc", names));
+    // Names the table does not know get spare colours, distinct among themselves and from it.
+    std::vector<std::string> report = names;
+    for (int i = 0; i < 8; ++i) report.push_back("custom-" + std::to_string(i));
+    std::vector<std::string> seen;
+    for (const auto& m : report) {
+        const std::string c = methodColour(m, report);
+        EXPECT_EQ(std::count(seen.begin(), seen.end(), c), 0) << m << " repeats " << c;
+        seen.push_back(c);
+    }
+    EXPECT_EQ(methodColour("laser-ecc", {}), methodColour("laser-ecc", report))
+        << "a known method's colour does not depend on the report";
+}
+
+TEST(Pictures, TrajectoryAndErrorAlongTheRouteForASmallRun) {
+    const auto dir = fs::temp_directory_path() / "lookup_eval_pictures";
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    auto grid_run = runWithOffsets({0.05, 0.1, 0.2, 0.1, 0.3, 0.05}, 1.0);
+    grid_run.frames[2].status = "fallback";
+    grid_run.frames[3].status = "lost";
+    grid_run.frames[3].has_pose = false;
+    auto ecc_run = runWithOffsets({0.4, 0.5, 0.6}, 2.0);
+    ecc_run.method = "laser-ecc";
+    // A 12 m x 4 m map: free inside, rock around.
+    mrpt::maps::COccupancyGridMap2D grid(-1, 13, -2, 2, 0.1f);
+    for (unsigned y = 0; y < grid.getSizeY(); ++y) {
+        for (unsigned x = 0; x < grid.getSizeX(); ++x) {
+            grid.setCell(x, y, std::abs(grid.idx2y(y)) < 1.5 ? 1.0f : 0.0f);
+        }
+    }
+    {
+        mrpt::io::CFileGZOutputStream f((dir / "map.gridmap.gz").string());
+        auto arch = mrpt::serialization::archiveFrom(f);
+        arch << grid;
+    }
+    Report report = evaluate({straightTruth()}, {grid_run, ecc_run}, {});
+    ASSERT_EQ(report.traces.size(), 2u);
+    EXPECT_EQ(report.traces[0].frames.size(), 6u);
+    EXPECT_NEAR(report.traces[0].frames[5].distance_m, 5.0, 1e-9);
+    report.map_walls = loadMapWalls((dir / "map.gridmap.gz").string());
+    EXPECT_GT(report.map_walls.size(), 200u);
+    const fs::path out = dir / "report";
+    writeReport(report, out.string());
+    EXPECT_THROW(loadMapWalls((dir / "none.gridmap.gz").string()), lookup::common::ConfigError);
+    if (std::system("command -v gnuplot >/dev/null 2>&1") != 0) GTEST_SKIP() << "no gnuplot";
+    for (const char* png :
+         {"trajectory_zigzag_lookup-grid24.png", "trajectory_zigzag_laser-ecc.png",
+          "error_along_zigzag.png", "errors.png"}) {
+        EXPECT_TRUE(fs::exists(out / png)) << png;
+        if (fs::exists(out / png)) {
+            EXPECT_GT(fs::file_size(out / png), 1000u) << png;
+        }
+    }
+    const std::string traj = readText(out / "trajectory_zigzag_lookup-grid24.gp");
+    EXPECT_NE(traj.find("fallback"), std::string::npos) << traj;
+    EXPECT_NE(traj.find("lost"), std::string::npos) << traj;
+    EXPECT_NE(traj.find("map_walls.dat"), std::string::npos) << traj;
+    const std::string along = readText(out / "error_along_zigzag.gp");
+    const std::string errors = readText(out / "errors.gp");
+    for (const char* m : {"lookup-grid24", "laser-ecc", "coarse"}) {
+        const std::string colour = methodColour(m, {});
+        EXPECT_NE(along.find(colour), std::string::npos) << m << "\n" << along;
+        EXPECT_NE(errors.find(colour), std::string::npos) << m << "\n" << errors;
+    }
 }

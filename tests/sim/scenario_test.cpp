@@ -15,9 +15,9 @@ namespace {
 using lookup::common::ConfigError;
 using lookup::sim::ScenarioOptions;
 
-const char* kPresets[] = {"mine-a",      "mine-b",           "mine-a-mini",
-                          "mine-b-mini", "lhd-cycle-mini",   "mine-a-real",
-                          "mine-b-real", "mine-a-real-mini", "mine-b-real-mini"};
+const char* kPresets[] = {
+    "mine-a",      "mine-b",      "mine-a-mini",      "mine-b-mini",      "lhd-cycle-mini",
+    "mine-a-real", "mine-b-real", "mine-a-real-mini", "mine-b-real-mini", "mine-b-decline-mini"};
 
 std::string presetPath(const std::string& name) {
     return lookup::sim::findPreset(name, {std::string(LOOKUP_SOURCE_SHARE_DIR) + "/scenarios"});
@@ -153,6 +153,9 @@ TEST(Scenario, PhysicallyImpossibleSensorValuesAreRefusedNamingTheKey) {
         {"traverse_3", "direction = sideways", "traverse_3.direction"},
         {"traverse_3", "plan = drive 30, drive 10", "traverse_3.plan leg 2"},
         {"traverse_3", "plan = drive 30, stop -5", "traverse_3.plan"},
+        {"world", "grade = 10 40 -1:3", "world.grade"},
+        {"world", "grade = 10 40 0.3", "world.grade"},
+        {"world", "grade = 30 50 0.1, 10 40 0.1", "world.grade ramp 2"},
     };
     for (const auto& c : cases) {
         SCOPED_TRACE(c.keys);

@@ -162,10 +162,33 @@ void finishRow(Tally& t, MethodResult& m) {
     }
 }
 
+FrameTrace traceFrame(const FrameRow& f, const mrpt::poses::CPose3D& truth, double driven_m,
+                      const EvalOptions& o) {
+    FrameTrace ft;
+    ft.distance_m = driven_m;
+    ft.truth_x = truth.x();
+    ft.truth_y = truth.y();
+    ft.status = f.status;
+    ft.has_pose = f.has_pose;
+    ft.x = f.x;
+    ft.y = f.y;
+    if (f.has_pose) ft.error_m = std::hypot(f.x - truth.x(), f.y - truth.y());
+    if (f.has_coarse) {
+        ft.coarse_error_m = std::hypot(f.coarse_x - truth.x(), f.coarse_y - truth.y());
+        ft.excluded = ft.coarse_error_m > o.coarse_exclusion_m;
+    }
+    return ft;
+}
+
 }  // namespace
 
 MethodResult scoreRun(const Run& run, const GroundTruth& gt, const EvalOptions& options,
-                      MethodResult* coarse) {
+                      MethodResult* coarse, RunTrace* trace) {
+    if (trace) {
+        trace->traverse = gt.traverse;
+        trace->method = run.method;
+        trace->frames.clear();
+    }
     auto interp = common::makeInterpolator(gt.track, options.max_gt_gap_s);
     MethodResult m;
     m.traverse = gt.traverse;
@@ -187,6 +210,7 @@ MethodResult scoreRun(const Run& run, const GroundTruth& gt, const EvalOptions& 
         if (m.frames++ == 0) first_time_s = f.time_s;
         const bool after_fix = m.first_fix_frame >= 0;
         scoreIntegrity(f, i, truth, first_time_s, options, t, m);
+        if (trace) trace->frames.push_back(traceFrame(f, truth, t.driven_m, options));
         if (f.has_coarse) {
             const double ce = std::hypot(f.coarse_x - truth.x(), f.coarse_y - truth.y());
             if (ce > options.coarse_exclusion_m) {
@@ -224,7 +248,8 @@ Report evaluate(const std::vector<GroundTruth>& truths, const std::vector<Run>& 
             continue;
         }
         MethodResult coarse;
-        MethodResult m = scoreRun(run, *gt, options, &coarse);
+        report.traces.emplace_back();
+        MethodResult m = scoreRun(run, *gt, options, &coarse, &report.traces.back());
         if (coarse.frames > 0 && !coarse_done[gt->traverse]) {
             coarse_done[gt->traverse] = true;
             report.rows.push_back(coarse);

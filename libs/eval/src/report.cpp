@@ -1,3 +1,4 @@
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -12,6 +13,7 @@
 #include "lookup/common/rawlog_io.h"
 #include "lookup/eval/evaluator.h"
 #include "lookup/eval/report_json.h"
+#include "plots.h"
 
 namespace lookup::eval {
 namespace fs = std::filesystem;
@@ -77,10 +79,6 @@ void writeJson(const Report& r, const std::string& path) {
 
 /// Clustered bar chart of the mean error, like the paper's Fig. 8, drawn by gnuplot.
 bool plotMeanErrors(const Report& r, const std::string& out_dir, std::string& warning) {
-    if (std::system("command -v gnuplot >/dev/null 2>&1") != 0) {
-        warning = "gnuplot not installed: errors.png not drawn";
-        return false;
-    }
     std::vector<std::string> traverses, methods;
     std::map<std::pair<std::string, std::string>, double> mean;
     for (const auto& m : r.rows) {
@@ -114,25 +112,16 @@ bool plotMeanErrors(const Report& r, const std::string& out_dir, std::string& wa
           << "set style fill solid 0.8 border -1\nset boxwidth 0.9\n"
           << "set ylabel 'mean position error (m)'\nset logscale y\nset grid ytics\n"
           << "set key outside right top\nset title 'Mean localisation error per traverse'\n"
-          << "plot for [i=2:" << methods.size() + 1 << "] '" << dat
-          << "' using i:xtic(1) title columnhead(i)\n";
+          << "plot ";
+        for (std::size_t i = 0; i < methods.size(); ++i) {
+            g << (i ? ", \\\n     " : "") << "'" << dat << "' using " << i + 2
+              << (i ? "" : ":xtic(1)") << " title columnhead(" << i + 2 << ") lc rgb '"
+              << methodColour(methods[i], methods) << "'";
+        }
+        g << "\n";
         common::writeFileAtomically(gp, g.str());
     }
-    if (std::system(("gnuplot '" + gp + "' 2>" + out_dir + "/gnuplot.log").c_str()) != 0) {
-        // pngcairo may be missing from a minimal gnuplot; fall back to the plain png terminal.
-        std::string script;
-        {
-            std::ifstream in(gp);
-            script.assign(std::istreambuf_iterator<char>(in), {});
-        }
-        script.replace(script.find("pngcairo"), 8, "png");
-        common::writeFileAtomically(gp, script);
-        if (std::system(("gnuplot '" + gp + "' 2>>" + out_dir + "/gnuplot.log").c_str()) != 0) {
-            warning = "gnuplot failed, see " + out_dir + "/gnuplot.log";
-            return false;
-        }
-    }
-    return true;
+    return detail::runGnuplot(gp, out_dir, warning);
 }
 
 }  // namespace
@@ -199,7 +188,15 @@ void writeReport(const Report& report, const std::string& out_dir) {
     if (ec) throw common::WriteError(out_dir, "cannot create: " + ec.message());
     Report r = report;
     std::string warning;
-    if (!plotMeanErrors(r, out_dir, warning)) r.warnings.push_back(warning);
+    if (!detail::haveGnuplot()) {
+        r.warnings.push_back(
+            "gnuplot not installed: errors.png and the per-traverse pictures "
+            "not drawn");
+    } else {
+        if (!plotMeanErrors(r, out_dir, warning)) r.warnings.push_back(warning);
+        warning.clear();
+        if (!detail::plotRunPictures(r, out_dir, warning)) r.warnings.push_back(warning);
+    }
     writeMarkdown(r, out_dir + "/report.md");
     writeJson(r, out_dir + "/report.json");
 }

@@ -257,11 +257,16 @@ double CameraRenderer::shadePixel(int index, const View& view, double* depth) co
     // the general marcher handles the arches, walls and steep rays.
     SurfaceHit hit;
     bool done = false;
+    // On a grade the roof stands on the level under the camera (the fast path's brackets
+    // then fail where the ramp bends the roof, and the general marcher takes over).
+    const double h =
+        world_.graded() ? w.ceiling_height_m + world_.level(o.x(), o.y()) : w.ceiling_height_m;
     if (kind_ == Kind::Ceiling && d.z() > 0.3) {
-        const double h = w.ceiling_height_m;
         // Flat part: fixed-point iteration on the relief alone.
         double t = (h - o.z()) / d.z();
-        for (int k = 0; k < 3; ++k) {
+        // A ramp tilts the roof under the ray and slows the iteration's convergence.
+        const int iterations = world_.graded() ? 10 : 3;
+        for (int k = 0; k < iterations; ++k) {
             const Vector3d p = o + t * d;
             t = (world_.roofHeight(p.x(), p.y(), 1e9) - o.z()) / d.z();
         }
@@ -282,9 +287,15 @@ double CameraRenderer::shadePixel(int index, const View& view, double* depth) co
                 const double dw = -qq->sdf;
                 return dw <= 0 ? 0.05 - dw : pp.z() - world_.roofHeight(pp.x(), pp.y(), dw);
             };
-            double ta =
-                std::max(0.02, (h - w.arch_radius_m - w.bump_amplitude_m - 0.02 - o.z()) / d.z());
-            double tb = (h + w.bump_amplitude_m + 0.02 - o.z()) / d.z();
+            // On a grade the roof over the ray's reach differs from the roof over the camera
+            // by up to the steepest grade times the ray's plan reach.
+            const double slack = world_.graded()
+                                     ? world_.maxGrade() * std::hypot(d.x(), d.y()) *
+                                           (h + w.bump_amplitude_m + 1.0 - o.z()) / d.z()
+                                     : 0.0;
+            double ta = std::max(
+                0.02, (h - w.arch_radius_m - w.bump_amplitude_m - 0.02 - slack - o.z()) / d.z());
+            double tb = (h + w.bump_amplitude_m + 0.02 + slack - o.z()) / d.z();
             WallQuery qa, qb;
             double ga = G(ta, &qa), gb = G(tb, &qb);
             if (ga < 0 && -qa.sdf > 0 && gb > 0) {
@@ -365,7 +376,7 @@ double CameraRenderer::shadePixel(int index, const View& view, double* depth) co
     }
 
     // Vehicle light at the camera, along its optical axis.
-    const double r0 = kind_ == Kind::Ceiling ? std::max(w.ceiling_height_m - o.z(), 0.5) : 6.0;
+    const double r0 = kind_ == Kind::Ceiling ? std::max(h - o.z(), 0.5) : 6.0;
     const double beam = beam_[index];
     double e =
         opt_.light_gain * beam * std::max(0.0, -n.dot(d)) * r0 * r0 / (t_best * t_best + 0.05);
@@ -401,9 +412,14 @@ CameraRenderer::View CameraRenderer::makeView(const mrpt::poses::CPose3D& camera
     // Only furniture that can be in view is tested per pixel.
     double reach = opt_.max_range_m;
     if (kind_ == Kind::Ceiling) {
-        reach = std::min(reach, (w.ceiling_height_m + w.bump_amplitude_m + 0.3 - o.z()) /
-                                        std::cos(std::min(half_diag_fov_, 1.4)) +
-                                    1.0);
+        const double h =
+            world_.graded() ? w.ceiling_height_m + world_.level(o.x(), o.y()) : w.ceiling_height_m;
+        reach = std::min(
+            reach,
+            (h + w.bump_amplitude_m + 0.3 - o.z()) / std::cos(std::min(half_diag_fov_, 1.4)) + 1.0);
+        // The roof ahead on a ramp rises or falls by up to the grade times the distance.
+        if (world_.graded())
+            reach = std::min(opt_.max_range_m, reach * (1 + 2 * world_.maxGrade()));
     }
     const Eigen::Matrix3d Rt = R.transpose();
     const double f = camera_.fx(), cx = camera_.cx(), cy = camera_.cy();

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <filesystem>
 #include <functional>
+#include <iomanip>
 #include <sstream>
 #include <stdexcept>
 #include <type_traits>
@@ -53,6 +54,9 @@ class KeyTable {
         entries_.push_back({key, [&v, key](const IniSection& s) { v = s.getString(key, v); },
                             [&v]() { return v; }});
     }
+    /// The last key added is written only while `save_if` holds (keys that a scenario without
+    /// the feature never had, so its resolved scenario.ini stays as it was).
+    void saveOnlyIf(std::function<bool()> save_if) { entries_.back().save_if = std::move(save_if); }
     void add(const std::string& prefix, MountPose& m) {
         add(prefix + "x_m", m.x_m);
         add(prefix + "y_m", m.y_m);
@@ -74,7 +78,9 @@ class KeyTable {
         for (const auto& e : entries_) e.load(s);
     }
     void save(mrpt::config::CConfigFileBase& target, const std::string& section) const {
-        for (const auto& e : entries_) target.write(section, e.key, e.text());
+        for (const auto& e : entries_) {
+            if (!e.save_if || e.save_if()) target.write(section, e.key, e.text());
+        }
     }
 
   private:
@@ -85,9 +91,13 @@ class KeyTable {
         return os.str();
     }
     struct Entry {
+        Entry(std::string k, std::function<void(const IniSection&)> l,
+              std::function<std::string()> t)
+            : key(std::move(k)), load(std::move(l)), text(std::move(t)) {}
         std::string key;
         std::function<void(const IniSection&)> load;
         std::function<std::string()> text;
+        std::function<bool()> save_if;
     };
     std::vector<Entry> entries_;
 };
@@ -145,6 +155,10 @@ KeyTable worldKeys(WorldOptions& w) {
     t.add("niche_spacing_m", w.niche_spacing_m);
     t.add("niche_depth_m", w.niche_depth_m);
     t.add("niche_width_m", w.niche_width_m);
+    t.add("grade", w.grade);
+    t.saveOnlyIf([&w]() { return !w.grade.empty(); });
+    t.add("grade_transition_m", w.grade_transition_m);
+    t.saveOnlyIf([&w]() { return !w.grade.empty(); });
     addAppearanceKeys(t, w);
     return t;
 }
@@ -399,6 +413,23 @@ void checkPlan(common::OptionsCheck& c, const TraverseOptions& t, const std::str
     }
 }
 
+void checkGrade(common::OptionsCheck& c, const WorldOptions& w) {
+    c.require(w.grade_transition_m >= 0 && w.grade_transition_m <= 200, "world.grade_transition_m",
+              "in [0, 200]");
+    if (w.grade.empty()) return;
+    try {
+        const std::vector<GradeRamp> ramps = parseGrade(w.grade);
+        for (std::size_t k = 1; k < ramps.size(); ++k) {
+            c.require(ramps[k].start_m >= ramps[k - 1].end_m,
+                      "world.grade ramp " + std::to_string(k + 1),
+                      "starts after ramp " + std::to_string(k) + " ends (ramps in route order)");
+        }
+    } catch (const std::invalid_argument& e) {
+        c.require(false, "world.grade",
+                  std::string("ramps 'S0 S1 G', none steeper than 1:4 (") + e.what() + ")");
+    }
+}
+
 void checkAppearance(common::OptionsCheck& c, const WorldOptions& w, const std::string& p) {
     c.require(w.rock_contrast >= 0 && w.rock_contrast <= 2, p + ".rock_contrast", "in [0, 2]");
     c.require(w.bolt_spacing_m == 0 || w.bolt_spacing_m >= 0.3, p + ".bolt_spacing_m",
@@ -484,6 +515,53 @@ std::vector<PlanLeg> parsePlan(const std::string& plan) {
     }
     if (legs.empty()) throw std::invalid_argument("no legs");
     return legs;
+}
+
+std::vector<GradeRamp> parseGrade(const std::string& grade) {
+    std::vector<GradeRamp> ramps;
+    std::stringstream list(grade);
+    std::string item;
+    while (std::getline(list, item, ',')) {
+        std::istringstream words(item);
+        std::string g, rest;
+        GradeRamp r;
+        const std::string n = "ramp " + std::to_string(ramps.size() + 1);
+        if (!(words >> r.start_m >> r.end_m >> g) || (words >> rest)) {
+            throw std::invalid_argument(n + " '" + item + "' is not 'S0 S1 G'");
+        }
+        std::size_t used = 0;
+        try {
+            const auto colon = g.find(':');
+            if (colon == std::string::npos) {
+                r.grade = std::stod(g, &used);
+            } else {  // "1:7" (rise:run), sign in front
+                const double rise = std::stod(g.substr(0, colon), &used);
+                if (used != colon) throw std::invalid_argument(g);
+                const std::string run_text = g.substr(colon + 1);
+                const double run = std::stod(run_text, &used);
+                if (used != run_text.size() || !(run > 0)) throw std::invalid_argument(g);
+                r.grade = rise / run;
+                used = g.size();
+            }
+        } catch (const std::exception&) {
+            used = 0;
+        }
+        if (used != g.size() || !std::isfinite(r.grade)) {
+            throw std::invalid_argument(n + ": grade '" + g + "' is not a number or 'RISE:RUN'");
+        }
+        if (!(r.start_m >= 0 && r.end_m > r.start_m)) {
+            throw std::invalid_argument(n + ": needs 0 <= S0 < S1");
+        }
+        if (std::abs(r.grade) > 0.25) {
+            std::ostringstream os;
+            os << n << ": grade " << g << " (1:" << std::setprecision(3) << 1 / std::abs(r.grade)
+               << ") is steeper than 1:4, which no mine vehicle climbs";
+            throw std::invalid_argument(os.str());
+        }
+        ramps.push_back(r);
+    }
+    if (ramps.empty()) throw std::invalid_argument("no ramps");
+    return ramps;
 }
 
 const WorldOptions& ScenarioOptions::worldFor(std::size_t i) const {
@@ -700,6 +778,7 @@ void ScenarioOptions::check() const {
     c.require(w.niche_depth_m > 0 && w.niche_depth_m <= 10, "world.niche_depth_m", "in (0, 10]");
     c.require(w.niche_width_m >= 0.5 && w.niche_width_m <= 10, "world.niche_width_m",
               "in [0.5, 10]");
+    checkGrade(c, w);
     c.require(vehicle.wheelbase_m > 0.5, "vehicle.wheelbase_m", "> 0.5");
     c.require(vehicle.track_m > 0.5, "vehicle.track_m", "> 0.5");
     checkCamera(c, ceiling_camera, "ceiling_camera");

@@ -182,15 +182,20 @@ struct OdometryState {
     mrpt::poses::CPose2D odometry;   ///< accumulated, drifting
     mrpt::poses::CPose2D last_true;  ///< true pose at the previous record
     bool have_last = false;
-    double last_t = 0;    ///< capture time of the previous record [s]
-    double distance = 0;  ///< true distance so far [m]
+    double last_t = 0;            ///< capture time of the previous record [s]
+    double distance = 0;          ///< true distance so far [m]
+    double last_z = 0;            ///< true height at the previous record [m]
+    bool slope_distance = false;  ///< wheels measure the 3-D distance (a graded mine)
 };
 
 /// One odometry record: true increment with scale error (times slip_factor in a slip episode),
 /// heading drift and noise; a vehicle standing still reads exactly zero.
 mrpt::obs::CObservationOdometry odometryRecord(const OdometryOptions& o,
-                                               const mrpt::poses::CPose2D& now, const Event& ev,
+                                               const mrpt::poses::CPose3D& now3, const Event& ev,
                                                uint32_t seed, OdometryState& st) {
+    const mrpt::poses::CPose2D now(now3);
+    const double dz = now3.z() - st.last_z;
+    st.last_z = now3.z();
     mrpt::obs::CObservationOdometry obs;
     obs.sensorLabel = o.label;
     obs.hasVelocities = true;
@@ -205,6 +210,7 @@ mrpt::obs::CObservationOdometry odometryRecord(const OdometryOptions& o,
     const double dist = std::hypot(delta.x(), delta.y());
     const uint32_t key = hash3(seed, 2000 + ev.index, 11);
     double k = 1 + o.scale_error;
+    if (st.slope_distance && dist > 0) k *= std::hypot(dist, dz) / dist;
     if (o.slip_fraction > 0) {
         const double cell = std::floor((st.distance + 0.5 * dist) / o.slip_episode_m);
         const uint32_t c = static_cast<uint32_t>(static_cast<int64_t>(cell));
@@ -322,6 +328,42 @@ std::string operatorStartPose(const ScenarioOptions& sc, const common::PoseTrack
     return buf;
 }
 
+/// A scan of `lidar`'s geometry with no ranges yet.
+mrpt::obs::CObservation2DRangeScan emptyScan(const LidarOptions& lidar) {
+    mrpt::obs::CObservation2DRangeScan scan;
+    scan.sensorLabel = lidar.label;
+    scan.aperture = static_cast<float>(mrpt::DEG2RAD(lidar.aperture_deg));
+    scan.rightToLeft = true;
+    scan.maxRange = static_cast<float>(lidar.max_range_m);
+    scan.stdError = static_cast<float>(lidar.noise_std_m);
+    scan.sensorPose = lidar.mount.pose();
+    scan.resizeScan(
+        static_cast<std::size_t>(std::lround(lidar.aperture_deg / lidar.resolution_deg)) + 1);
+    return scan;
+}
+
+/// Ray r of `scan` from its first rock hit: dust, range noise, or invalid beyond range.
+void setRange(mrpt::obs::CObservation2DRangeScan& scan, std::size_t r, SurfaceHit hit,
+              const LidarOptions& lidar, uint32_t noise_key) {
+    if (lidar.dust_rate > 0 && unit(hash3(noise_key, r, 3)) < lidar.dust_rate) {
+        // Airborne dust returns the pulse early, uniformly along the beam's first metres.
+        const double d = 0.3 + unit(hash3(noise_key, r, 4)) * (lidar.dust_max_range_m - 0.3);
+        if (d < hit.t) {
+            hit.t = d;
+            hit.kind = SurfaceKind::Wall;
+        }
+    }
+    if (hit.kind == SurfaceKind::None || !(hit.t < lidar.max_range_m)) {
+        scan.setScanRange(r, scan.maxRange);
+        scan.setScanRangeValidity(r, false);
+        return;
+    }
+    const double noise =
+        lidar.noise_std_m * gaussian(hash3(noise_key, r, 1), hash3(noise_key, r, 2));
+    scan.setScanRange(r, static_cast<float>(std::max(0.0, hit.t + noise)));
+    scan.setScanRangeValidity(r, true);
+}
+
 void writeDatasetIni(const std::string& path, const ScenarioOptions& sc,
                      const std::vector<common::PoseTrack>& tracks) {
     std::ofstream f(path);
@@ -358,16 +400,8 @@ mrpt::obs::CObservation2DRangeScan simulateLidar(const TunnelWorld& world,
                                                  const mrpt::poses::CPose2D& vehicle,
                                                  const LidarOptions& lidar, uint32_t noise_key,
                                                  const mrpt::poses::CPose2D* vehicle_at_end) {
-    mrpt::obs::CObservation2DRangeScan scan;
-    scan.sensorLabel = lidar.label;
-    scan.aperture = static_cast<float>(mrpt::DEG2RAD(lidar.aperture_deg));
-    scan.rightToLeft = true;
-    scan.maxRange = static_cast<float>(lidar.max_range_m);
-    scan.stdError = static_cast<float>(lidar.noise_std_m);
-    scan.sensorPose = lidar.mount.pose();
-    const std::size_t rays =
-        static_cast<std::size_t>(std::lround(lidar.aperture_deg / lidar.resolution_deg)) + 1;
-    scan.resizeScan(rays);
+    mrpt::obs::CObservation2DRangeScan scan = emptyScan(lidar);
+    const std::size_t rays = scan.getScanSize();
     const mrpt::poses::CPose2D sensor = vehicle + mrpt::poses::CPose2D(scan.sensorPose);
     // A horizontal scan plane at the mount height; only the rock counts (walls, and the floor
     // or roof where the plane meets them), as for a 2-D scanner above the furniture's reach.
@@ -389,24 +423,48 @@ mrpt::obs::CObservation2DRangeScan simulateLidar(const TunnelWorld& world,
         const double angle = ray_sensor.phi() - scan.aperture / 2 +
                              r * scan.aperture / static_cast<double>(rays - 1);
         const Eigen::Vector3d dir(std::cos(angle), std::sin(angle), 0.0);
-        SurfaceHit hit = world.traceStatic(ray_origin, dir, 0.0, lidar.max_range_m, rad_per_ray);
-        if (lidar.dust_rate > 0 && unit(hash3(noise_key, r, 3)) < lidar.dust_rate) {
-            // Airborne dust returns the pulse early, uniformly along the beam's first metres.
-            const double d = 0.3 + unit(hash3(noise_key, r, 4)) * (lidar.dust_max_range_m - 0.3);
-            if (d < hit.t) {
-                hit.t = d;
-                hit.kind = SurfaceKind::Wall;
-            }
+        setRange(scan, r, world.traceStatic(ray_origin, dir, 0.0, lidar.max_range_m, rad_per_ray),
+                 lidar, noise_key);
+    }
+    return scan;
+}
+
+mrpt::obs::CObservation2DRangeScan simulateLidar(const TunnelWorld& world,
+                                                 const mrpt::poses::CPose3D& vehicle,
+                                                 const LidarOptions& lidar, uint32_t noise_key,
+                                                 const mrpt::poses::CPose3D* vehicle_at_end) {
+    if (!world.graded()) {
+        const mrpt::poses::CPose2D end =
+            vehicle_at_end ? mrpt::poses::CPose2D(*vehicle_at_end) : mrpt::poses::CPose2D();
+        return simulateLidar(world, mrpt::poses::CPose2D(vehicle), lidar, noise_key,
+                             vehicle_at_end ? &end : nullptr);
+    }
+    mrpt::obs::CObservation2DRangeScan scan = emptyScan(lidar);
+    const std::size_t rays = scan.getScanSize();
+    const mrpt::poses::CPose3D mount = lidar.mount.pose();
+    const double rad_per_ray = mrpt::DEG2RAD(lidar.resolution_deg);
+    for (std::size_t r = 0; r < rays; ++r) {
+        // The scan plane is the scanner's x-y plane: on a grade, and where the grade changes
+        // under the wheelbase, it meets the rock at an angle and may reach floor or roof.
+        mrpt::poses::CPose3D v = vehicle;
+        if (vehicle_at_end) {
+            const double a = r / static_cast<double>(rays - 1);
+            const mrpt::poses::CPose3D& e = *vehicle_at_end;
+            auto lerp = [a](double x, double y) { return x + a * (y - x); };
+            auto lerpAngle = [a](double x, double y) {
+                return x + a * mrpt::math::wrapToPi(y - x);
+            };
+            v = mrpt::poses::CPose3D(lerp(v.x(), e.x()), lerp(v.y(), e.y()), lerp(v.z(), e.z()),
+                                     lerpAngle(v.yaw(), e.yaw()), lerpAngle(v.pitch(), e.pitch()),
+                                     lerpAngle(v.roll(), e.roll()));
         }
-        if (hit.kind == SurfaceKind::None || !(hit.t < lidar.max_range_m)) {
-            scan.setScanRange(r, scan.maxRange);
-            scan.setScanRangeValidity(r, false);
-            continue;
-        }
-        const double noise =
-            lidar.noise_std_m * gaussian(hash3(noise_key, r, 1), hash3(noise_key, r, 2));
-        scan.setScanRange(r, static_cast<float>(std::max(0.0, hit.t + noise)));
-        scan.setScanRangeValidity(r, true);
+        const mrpt::poses::CPose3D sensor = v + mount;
+        const double angle = -scan.aperture / 2 + r * scan.aperture / static_cast<double>(rays - 1);
+        const Eigen::Vector3d dir = sensor.getRotationMatrix().asEigen() *
+                                    Eigen::Vector3d(std::cos(angle), std::sin(angle), 0);
+        const Eigen::Vector3d origin(sensor.x(), sensor.y(), sensor.z());
+        setRange(scan, r, world.traceStatic(origin, dir, 0.0, lidar.max_range_m, rad_per_ray),
+                 lidar, noise_key);
     }
     return scan;
 }
@@ -638,28 +696,33 @@ TraverseSummary Simulator::runTraverse(std::size_t index, const std::string& out
             case Sensor::Ceiling:
             case Sensor::Forward: {
                 const bool is_ceiling = ev.sensor == Sensor::Ceiling;
-                mrpt::obs::CObservationImage obs =
-                    captureFrame(track, is_ceiling ? ceiling_opt : forward_opt,
-                                 is_ceiling ? ceiling : forward, ev, t0, seed, is_ceiling,
-                                 scenario_.world.ceiling_height_m, cam_state[is_ceiling ? 0 : 1]);
+                const double roof_z = world_->graded() ? scenario_.world.ceiling_height_m +
+                                                             world_->level(vehicle.x(), vehicle.y())
+                                                       : scenario_.world.ceiling_height_m;
+                mrpt::obs::CObservationImage obs = captureFrame(
+                    track, is_ceiling ? ceiling_opt : forward_opt, is_ceiling ? ceiling : forward,
+                    ev, t0, seed, is_ceiling, roof_z, cam_state[is_ceiling ? 0 : 1]);
                 obs.timestamp = stamp;
                 writer.writeWithExternalImage(obs, frameName(obs.sensorLabel, ev.index));
                 (is_ceiling ? sum.ceiling_frames : sum.forward_frames)++;
                 break;
             }
             case Sensor::Lidar: {
-                const mrpt::poses::CPose2D at_end(poseAt(track, t_abs + 1e-3 * lidar_opt.sweep_ms));
-                mrpt::obs::CObservation2DRangeScan scan = simulateLidar(
-                    *world_, mrpt::poses::CPose2D(vehicle), lidar_opt,
-                    hash3(seed, 1000 + ev.index, 7), lidar_opt.sweep_ms > 0 ? &at_end : nullptr);
+                const mrpt::poses::CPose3D at_end =
+                    poseAt(track, t_abs + 1e-3 * lidar_opt.sweep_ms);
+                mrpt::obs::CObservation2DRangeScan scan =
+                    simulateLidar(*world_, vehicle, lidar_opt, hash3(seed, 1000 + ev.index, 7),
+                                  lidar_opt.sweep_ms > 0 ? &at_end : nullptr);
                 scan.timestamp = stamp;
                 writer.write(scan);
                 sum.lidar_scans++;
                 break;
             }
             case Sensor::Odometry: {
+                // On a grade the wheels roll the distance along the slope.
+                odo_state.slope_distance = world_->graded();
                 mrpt::obs::CObservationOdometry obs =
-                    odometryRecord(odo_opt, mrpt::poses::CPose2D(vehicle), ev, seed, odo_state);
+                    odometryRecord(odo_opt, vehicle, ev, seed, odo_state);
                 obs.timestamp = stamp;
                 writer.write(obs);
                 sum.odometry_records++;

@@ -20,6 +20,10 @@ constexpr double kPi = 3.14159265358979323846;
 constexpr double kRouteStep = 0.25;  // spacing of route() points [m]
 constexpr double kBumpCell = 0.2;    // sampling of the ceiling relief [m]
 constexpr double kReliefCell = 0.1;  // sampling of the wall relief [m]
+constexpr double kLevelStep = 0.25;  // sampling of the grade profile along the route [m]
+constexpr double kLevelCell = 0.5;   // plan-view sampling of level() [m]
+// Ducts and pipes on a grade are split into pieces this long, so they follow the roof.
+constexpr double kGradedPiece = 2.0;
 
 // Feature streams of the texture: each gets its own seed offset.
 enum Stream : uint32_t {
@@ -215,6 +219,7 @@ void TunnelWorld::buildLayout() {
     buildBuckets();
     buildBumps();
     buildRelief();
+    buildLevels(raw_route);
     buildRoute(raw_route);
     buildFurniture(raw_route);
 }
@@ -353,6 +358,77 @@ double TunnelWorld::bumpAt(double x, double y, double* gx, double* gy) const {
     return (1 - b) * ((1 - a) * r0[0] + a * r0[1]) + b * ((1 - a) * r1[0] + a * r1[1]);
 }
 
+void TunnelWorld::buildLevels(const std::vector<Vector2d>& raw) {
+    if (opt_.grade.empty() || raw.size() < 2) return;
+    const std::vector<GradeRamp> ramps = parseGrade(opt_.grade);
+    std::vector<double> arc{0.0};  // route distance at each raw point
+    for (std::size_t i = 1; i < raw.size(); ++i)
+        arc.push_back(arc.back() + (raw[i] - raw[i - 1]).norm());
+    const int n = static_cast<int>(std::ceil(arc.back() / kLevelStep)) + 2;
+    std::vector<double> g(n, 0.0);
+    for (int i = 0; i < n; ++i) {
+        for (const GradeRamp& r : ramps) {
+            if (i * kLevelStep >= r.start_m && i * kLevelStep < r.end_m) g[i] += r.grade;
+        }
+    }
+    // Vertical curves: the grade changes linearly over grade_transition_m (a box filter of the
+    // grade, a parabola in height), as a road is built so the vehicle does not ground.
+    const int half = static_cast<int>(std::lround(0.5 * opt_.grade_transition_m / kLevelStep));
+    std::vector<double> sum(n + 1, 0.0);
+    for (int i = 0; i < n; ++i) sum[i + 1] = sum[i] + g[i];
+    profile_.assign(n, 0.0);
+    double prev_g = 0;
+    for (int i = 0; i < n; ++i) {
+        const int lo = std::max(0, i - half), hi = std::min(n, i + half + 1);
+        const double gi = (sum[hi] - sum[lo]) / (hi - lo);
+        if (i > 0) profile_[i] = profile_[i - 1] + 0.5 * (prev_g + gi) * kLevelStep;
+        max_grade_ = std::max(max_grade_, std::abs(gi));
+        prev_g = gi;
+    }
+    max_grade_ = 1.05 * max_grade_ + 1e-3;  // margin for the bilinear plan-view samples
+    level_nx_ = static_cast<int>(std::ceil((hi_.x() - lo_.x() + 4) / kLevelCell)) + 2;
+    level_ny_ = static_cast<int>(std::ceil((hi_.y() - lo_.y() + 4) / kLevelCell)) + 2;
+    level_.assign(static_cast<std::size_t>(level_nx_) * level_ny_, 0.0f);
+    for (int j = 0; j < level_ny_; ++j) {
+        for (int i = 0; i < level_nx_; ++i) {
+            const Vector2d p = bump_origin_ + kLevelCell * Vector2d(i, j);
+            double best = 1e18, s_best = 0;
+            for (std::size_t k = 1; k < raw.size(); ++k) {
+                const Vector2d ab = raw[k] - raw[k - 1];
+                const double len = ab.norm();
+                if (len < 1e-9) continue;
+                const double t = std::clamp((p - raw[k - 1]).dot(ab) / len, 0.0, len);
+                const double d = (p - raw[k - 1] - ab * (t / len)).squaredNorm();
+                if (d < best) {
+                    best = d;
+                    s_best = arc[k - 1] + t;
+                }
+            }
+            level_[static_cast<std::size_t>(j) * level_nx_ + i] =
+                static_cast<float>(levelAtRoute(s_best));
+        }
+    }
+}
+
+double TunnelWorld::levelAtRoute(double s) const {
+    if (profile_.empty()) return 0;
+    const double f = std::clamp(s / kLevelStep, 0.0, double(profile_.size() - 1));
+    const std::size_t i = std::min(static_cast<std::size_t>(f), profile_.size() - 2);
+    const double a = f - i;
+    return (1 - a) * profile_[i] + a * profile_[i + 1];
+}
+
+double TunnelWorld::level(double x, double y) const {
+    if (level_.empty()) return 0;
+    const double u = std::clamp((x - bump_origin_.x()) / kLevelCell, 0.0, level_nx_ - 1.001);
+    const double v = std::clamp((y - bump_origin_.y()) / kLevelCell, 0.0, level_ny_ - 1.001);
+    const int i = static_cast<int>(u), j = static_cast<int>(v);
+    const double a = u - i, b = v - j;
+    const float* r0 = &level_[static_cast<std::size_t>(j) * level_nx_ + i];
+    const float* r1 = r0 + level_nx_;
+    return (1 - b) * ((1 - a) * r0[0] + a * r0[1]) + b * ((1 - a) * r1[0] + a * r1[1]);
+}
+
 void TunnelWorld::buildRoute(const std::vector<Vector2d>& raw) {
     std::vector<Vector2d> pts = resample(raw, kRouteStep);
     // Two box-filter passes round the corners so the vehicle's heading is continuous.
@@ -371,38 +447,57 @@ void TunnelWorld::buildRoute(const std::vector<Vector2d>& raw) {
     route_ = resample(pts, kRouteStep);
 }
 
-void TunnelWorld::buildFurniture(const std::vector<Vector2d>& raw) {
+void TunnelWorld::addCylinder(const Vector3d& a, const Vector3d& b, double radius,
+                              SurfaceKind kind) {
+    Cylinder c;
+    c.a = a;
+    c.length = (b - a).norm();
+    if (c.length < 1e-6) return;
+    c.axis = (b - a) / c.length;
+    c.radius = radius;
+    c.kind = kind;
+    c.lo = a.cwiseMin(b) - Vector3d::Constant(radius);
+    c.hi = a.cwiseMax(b) + Vector3d::Constant(radius);
+    cylinders_.push_back(c);
+}
+
+void TunnelWorld::buildServices(const std::vector<Vector2d>& raw) {
     const double h = opt_.ceiling_height_m;
-    auto addCylinder = [&](const Vector3d& a, const Vector3d& b, double radius, SurfaceKind kind) {
-        Cylinder c;
-        c.a = a;
-        c.length = (b - a).norm();
-        if (c.length < 1e-6) return;
-        c.axis = (b - a) / c.length;
-        c.radius = radius;
-        c.kind = kind;
-        c.lo = a.cwiseMin(b) - Vector3d::Constant(radius);
-        c.hi = a.cwiseMax(b) + Vector3d::Constant(radius);
-        cylinders_.push_back(c);
-    };
     for (std::size_t i = 1; i < raw.size(); ++i) {
-        const Vector2d a = raw[i - 1], b = raw[i];
-        const Vector2d left = rot90((b - a).normalized());
+        const Vector2d left = rot90((raw[i] - raw[i - 1]).normalized());
         auto lift = [&](const Vector2d& p, double off, double z) {
             const Vector2d q = p + left * off;
-            return Vector3d(q.x(), q.y(), z);
+            return Vector3d(q.x(), q.y(), graded() ? z + level(q.x(), q.y()) : z);
         };
-        if (opt_.duct_radius_m > 0) {
-            addCylinder(lift(a, opt_.duct_offset_m, h - opt_.duct_drop_m),
-                        lift(b, opt_.duct_offset_m, h - opt_.duct_drop_m), opt_.duct_radius_m,
-                        SurfaceKind::Duct);
-        }
-        if (opt_.pipe_radius_m > 0) {
-            addCylinder(lift(a, opt_.pipe_offset_m, h - opt_.pipe_drop_m),
-                        lift(b, opt_.pipe_offset_m, h - opt_.pipe_drop_m), opt_.pipe_radius_m,
-                        SurfaceKind::Pipe);
+        // On a grade, short pieces that follow the roof; a level mine keeps one per piece.
+        const int pieces = graded() ? std::max(1, static_cast<int>(std::ceil(
+                                                      (raw[i] - raw[i - 1]).norm() / kGradedPiece)))
+                                    : 1;
+        for (int k = 0; k < pieces; ++k) {
+            const Vector2d a =
+                k == 0 ? raw[i - 1]
+                       : Vector2d(raw[i - 1] + (raw[i] - raw[i - 1]) * (double(k) / pieces));
+            const Vector2d b =
+                k + 1 == pieces
+                    ? raw[i]
+                    : Vector2d(raw[i - 1] + (raw[i] - raw[i - 1]) * (double(k + 1) / pieces));
+            if (opt_.duct_radius_m > 0) {
+                addCylinder(lift(a, opt_.duct_offset_m, h - opt_.duct_drop_m),
+                            lift(b, opt_.duct_offset_m, h - opt_.duct_drop_m), opt_.duct_radius_m,
+                            SurfaceKind::Duct);
+            }
+            if (opt_.pipe_radius_m > 0) {
+                addCylinder(lift(a, opt_.pipe_offset_m, h - opt_.pipe_drop_m),
+                            lift(b, opt_.pipe_offset_m, h - opt_.pipe_drop_m), opt_.pipe_radius_m,
+                            SurfaceKind::Pipe);
+            }
         }
     }
+}
+
+void TunnelWorld::buildFurniture(const std::vector<Vector2d>& raw) {
+    const double h = opt_.ceiling_height_m;
+    buildServices(raw);
     // Cable hangers and lamps follow the route's arc length.
     const std::vector<Vector2d> fine = resample(raw, kRouteStep);
     auto sample = [&](double s, Vector2d* left) {
@@ -423,8 +518,12 @@ void TunnelWorld::buildFurniture(const std::vector<Vector2d>& raw) {
             for (int k = 0; k < pieces; ++k) {
                 const double u0 = double(k) / pieces, u1 = double(k + 1) / pieces;
                 const Vector2d q0 = a + (b - a) * u0, q1 = a + (b - a) * u1;
-                const double z0 = top - 4 * opt_.cable_sag_m * u0 * (1 - u0);
-                const double z1 = top - 4 * opt_.cable_sag_m * u1 * (1 - u1);
+                double z0 = top - 4 * opt_.cable_sag_m * u0 * (1 - u0);
+                double z1 = top - 4 * opt_.cable_sag_m * u1 * (1 - u1);
+                if (graded()) {
+                    z0 += level(q0.x(), q0.y());
+                    z1 += level(q1.x(), q1.y());
+                }
                 addCylinder({q0.x(), q0.y(), z0}, {q1.x(), q1.y(), z1}, 0.02, SurfaceKind::Cable);
             }
         }
@@ -433,7 +532,8 @@ void TunnelWorld::buildFurniture(const std::vector<Vector2d>& raw) {
         for (double s = 0.5 * opt_.light_spacing_m; s < length; s += opt_.light_spacing_m) {
             Vector2d left;
             const Vector2d p = sample(s, &left) - left * 0.4;
-            lamps_.push_back({Vector3d(p.x(), p.y(), h - 0.3), 0.12});
+            const double z = graded() ? h - 0.3 + level(p.x(), p.y()) : h - 0.3;
+            lamps_.push_back({Vector3d(p.x(), p.y(), z), 0.12});
         }
     }
 }
@@ -476,6 +576,7 @@ double TunnelWorld::roofHeight(double x, double y, double dw) const {
         const double u = r - std::max(dw, 0.0);
         z = h - r + std::sqrt(std::max(r * r - u * u, 0.0));
     }
+    if (graded()) z += level(x, y);
     return z + bumpAt(x, y, nullptr, nullptr);
 }
 
@@ -511,9 +612,11 @@ Vector2d TunnelWorld::roofSlope(double x, double y, const WallQuery& q) const {
 }
 
 double TunnelWorld::floorHeight(double x, double y) const {
-    if (opt_.floor_roughness_m <= 0) return 0;
+    const double base = graded() ? level(x, y) : 0.0;
+    if (opt_.floor_roughness_m <= 0) return base;
     const NoiseSample n = fbm(x, y, seed_ + kFloor, 3, 3.0, 0.5, 0);
-    return std::clamp(2.6 * (n.v - 0.5), -1.0, 1.0) * opt_.floor_roughness_m;
+    const double relief = std::clamp(2.6 * (n.v - 0.5), -1.0, 1.0) * opt_.floor_roughness_m;
+    return graded() ? base + relief : relief;
 }
 
 double TunnelWorld::roofAlbedo(double x, double y, const WallQuery& q, double fp, double* slope_x,
@@ -656,11 +759,13 @@ double TunnelWorld::objectAlbedo(const Cylinder& c, const Vector3d& p) const {
 bool TunnelWorld::solid(const Vector3d& p, WallQuery* q) const {
     *q = query(p.x(), p.y());
     const double dw = -q->sdf;
-    return dw <= 0 || p.z() <= 0 || p.z() >= roofHeight(p.x(), p.y(), dw);
+    const double floor = graded() ? level(p.x(), p.y()) : 0.0;
+    return dw <= 0 || p.z() <= floor || p.z() >= roofHeight(p.x(), p.y(), dw);
 }
 
 SurfaceHit TunnelWorld::traceStatic(const Vector3d& o, const Vector3d& d, double t_min,
                                     double t_max, double rad_per_px) const {
+    if (graded()) return traceGraded(o, d, t_min, t_max, rad_per_px);
     // Bound on the roof slope (arches and relief) except within a few cm of a wall.
     constexpr double kSlope = 3.0;
     const double dxy = std::hypot(d.x(), d.y());
@@ -719,6 +824,60 @@ SurfaceHit TunnelWorld::traceStatic(const Vector3d& o, const Vector3d& d, double
     if (p.z() <= 1e-3) {
         hit.kind = SurfaceKind::Floor;
     } else if (-hit.q.sdf <= 0.003 && p.z() < opt_.ceiling_height_m - opt_.arch_radius_m + 0.02) {
+        hit.kind = SurfaceKind::Wall;
+    } else {
+        hit.kind = SurfaceKind::Roof;
+    }
+    return hit;
+}
+
+SurfaceHit TunnelWorld::traceGraded(const Vector3d& o, const Vector3d& d, double t_min,
+                                    double t_max, double rad_per_px) const {
+    // As traceStatic(), with a floor that is no longer the plane z = 0: its clearance closes
+    // at most at the rate the ray descends plus the steepest grade times its plan speed.
+    constexpr double kSlope = 3.0;
+    const double dxy = std::hypot(d.x(), d.y());
+    const double roof_rate = std::max(d.z(), 0.0) + (kSlope + max_grade_) * dxy;
+    const double floor_rate = std::max(-d.z(), 0.0) + max_grade_ * dxy;
+    SurfaceHit hit;
+    double t = t_min, prev = t_min;
+    bool inside_hit = false;
+    for (int it = 0; it < 400; ++it) {
+        const Vector3d p = o + t * d;
+        const WallQuery q = query(p.x(), p.y());
+        const double dw = -q.sdf;
+        const double gap = dw > 0 ? roofHeight(p.x(), p.y(), dw) - p.z() : -1;
+        const double floor_gap = p.z() - level(p.x(), p.y());
+        if (dw <= 0 || gap <= 0 || floor_gap <= 0) {
+            inside_hit = true;
+            break;
+        }
+        if (t >= t_max) break;
+        const double clear =
+            std::max(dw + q.relief - opt_.wall_roughness_m, dw / (1 + relief_lipschitz_));
+        const double step_wall = dxy > 1e-9 ? clear / dxy : 1e9;
+        const double step_roof = roof_rate > 1e-9 ? gap / roof_rate : 1e9;
+        const double step_floor = floor_rate > 1e-9 ? floor_gap / floor_rate : 1e9;
+        const double step =
+            std::max({std::min({step_wall, step_roof, step_floor}), 0.004, 0.8 * t * rad_per_px});
+        prev = t;
+        t = std::min(t + step, t_max);
+    }
+    if (!inside_hit) return hit;
+    double lo = prev, hi = t;
+    for (int k = 0; k < 14 && hi - lo > 1e-4; ++k) {
+        const double mid = 0.5 * (lo + hi);
+        WallQuery qm;
+        (solid(o + mid * d, &qm) ? hi : lo) = mid;
+    }
+    const Vector3d p = o + hi * d;
+    const double above_floor = p.z() - level(p.x(), p.y());
+    hit.t = hi;
+    hit.q = query(p.x(), p.y());
+    if (above_floor <= 1e-3) {
+        hit.kind = SurfaceKind::Floor;
+    } else if (-hit.q.sdf <= 0.003 &&
+               above_floor < opt_.ceiling_height_m - opt_.arch_radius_m + 0.02) {
         hit.kind = SurfaceKind::Wall;
     } else {
         hit.kind = SurfaceKind::Roof;

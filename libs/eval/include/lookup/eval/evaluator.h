@@ -4,7 +4,9 @@
 
 #include <mrpt/config/CLoadableOptions.h>
 
+#include <array>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "lookup/common/pose_files.h"
@@ -68,16 +70,48 @@ struct MethodResult {
     std::string flagged;      ///< Run::flagged: why this row scores an incomplete run ("" if not)
 };
 
+/// One frame of a run beside its truth (what the per-traverse pictures draw).
+struct FrameTrace {
+    double distance_m = 0;            ///< driven along the truth since the run's first frame
+    double truth_x = 0, truth_y = 0;  ///< true vehicle position [m]
+    std::string status;               ///< refined | fallback | lost | dropped
+    bool has_pose = false;
+    double x = 0, y = 0;         ///< emitted position (has_pose) [m]
+    double error_m = 0;          ///< its position error (has_pose) [m]
+    double coarse_error_m = -1;  ///< the coarse pose's error, -1 = none [m]
+    bool excluded = false;       ///< by the coarse-error rule
+};
+
+/// The frames with ground truth of one scored run.
+struct RunTrace {
+    std::string traverse, method;
+    std::vector<FrameTrace> frames;
+};
+
 struct Report {
     std::vector<MethodResult> rows;
     EvalOptions options;
     std::vector<std::string> warnings;  ///< e.g. a run that matches no ground truth
+    std::vector<RunTrace> traces;       ///< one per scored run, in the runs' order
+    /// Wall cells of the map (plan positions [m]) drawn under the trajectories; empty = none.
+    std::vector<std::array<double, 2>> map_walls;
 };
+
+/// Method names the evaluator knows (lookup-localize's defaults, the demo's and the FCN
+/// oracles' names, and "coarse"), each with its fixed chart colour "#rrggbb".
+const std::vector<std::pair<std::string, std::string>>& methodColourTable();
+/// The colour of `method` in every chart: its table entry, else a spare colour chosen by its
+/// rank among the unknown names of `methods` (distinct for up to 8 unknown names).
+std::string methodColour(const std::string& method, const std::vector<std::string>& methods);
+
+/// Wall cells (occupied cells beside free space) of an MRPT occupancy grid (.gridmap.gz, as
+/// lookup-sim and lookup-survey write it). Throws common::ConfigError naming the file.
+std::vector<std::array<double, 2>> loadMapWalls(const std::string& gridmap_path);
 
 /// Scores one run against its traverse's truth; `coarse` (optional) receives the coarse
 /// stage's row for the same frames (frames = 0 when the run carries no coarse poses).
 MethodResult scoreRun(const Run& run, const GroundTruth& truth, const EvalOptions& options,
-                      MethodResult* coarse = nullptr);
+                      MethodResult* coarse = nullptr, RunTrace* trace = nullptr);
 
 /// Matches each run to the ground truth covering its time stamps, interpolates the truth at
 /// every frame and computes the statistics. Adds one "coarse" row per traverse (from the first
@@ -85,9 +119,13 @@ MethodResult scoreRun(const Run& run, const GroundTruth& truth, const EvalOption
 Report evaluate(const std::vector<GroundTruth>& truths, const std::vector<Run>& runs,
                 const EvalOptions& options);
 
-/// report.md (tables), report.json, and errors.png (mean error per traverse and method, drawn
-/// with gnuplot; skipped with a warning in the report if gnuplot is not installed). Each file
-/// is written atomically; a failed write throws common::WriteError naming it.
+/// report.md (tables), report.json, and with gnuplot (skipped with a warning in the report if
+/// it is not installed): errors.png (mean error per traverse and method) and, per run and
+/// traverse, trajectory_<traverse>_<method>.png (truth line, estimates coloured by error,
+/// fallback and lost frames marked, over the map walls when given) and
+/// error_along_<traverse>.png (error against the distance driven, one line per method);
+/// every method in its methodColour(). Each file is written atomically; a failed write throws
+/// common::WriteError naming it.
 void writeReport(const Report& report, const std::string& out_dir);
 
 }  // namespace lookup::eval

@@ -73,7 +73,23 @@ struct WorldOptions {
                                   ///< tunnel, random side, 0 = none [m]
     double niche_depth_m = 1.5;   ///< depth of a niche into the wall [m]
     double niche_width_m = 3.0;   ///< width of a niche's mouth along the wall [m]
+    /// Grade profile along the route (declines, ramps between levels): comma list of ramps
+    /// "S0 S1 G", the floor rising G metres per metre (negative: descending; "1:7" or "-1:7"
+    /// also read) from route distance S0 to S1 [m]. Floor, roof, furniture and lamps follow
+    /// it; empty = a level mine (the old geometry, bit for bit).
+    std::string grade;
+    double grade_transition_m = 20;  ///< length of the vertical curve at each ramp end [m]
 };
+
+/// One ramp of WorldOptions::grade.
+struct GradeRamp {
+    double start_m = 0, end_m = 0;  ///< route distances [m]
+    double grade = 0;               ///< rise per metre along the route (negative: descending)
+};
+
+/// Parses WorldOptions::grade; throws std::invalid_argument saying which ramp is malformed or
+/// steeper than 1:4 (what a rubber-tyred vehicle cannot climb).
+std::vector<GradeRamp> parseGrade(const std::string& grade);
 
 /// The vehicle body: where its wheels touch the floor (pitch and roll follow the floor relief).
 struct VehicleOptions {

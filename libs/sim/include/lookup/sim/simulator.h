@@ -66,6 +66,15 @@ mrpt::obs::CObservation2DRangeScan simulateLidar(
     const TunnelWorld& world, const mrpt::poses::CPose2D& vehicle, const LidarOptions& lidar,
     uint32_t noise_key, const mrpt::poses::CPose2D* vehicle_at_end = nullptr);
 
+/// The scanner on a vehicle with its full attitude (x, y, z, yaw, pitch, roll). In a level
+/// mine: the model above, bit for bit (the scan plane stays horizontal at the mount height).
+/// On a grade (TunnelWorld::graded()) the scan plane is the scanner's own x-y plane, tilted
+/// with the vehicle: its rays meet the walls at an angle and, where the grade changes under
+/// the vehicle, may reach the floor or the roof; those ranges are what it returns.
+mrpt::obs::CObservation2DRangeScan simulateLidar(
+    const TunnelWorld& world, const mrpt::poses::CPose3D& vehicle, const LidarOptions& lidar,
+    uint32_t noise_key, const mrpt::poses::CPose3D* vehicle_at_end = nullptr);
+
 class Simulator {
   public:
     /// Called now and then during run(): traverse name and its fraction done in [0, 1].
