@@ -45,6 +45,9 @@ constexpr double kCoarseContradictedM = 10;
 constexpr double kTrackDisagreementM = 0.3;
 constexpr double kTrackDisagreementPerM = 0.1;
 constexpr int kDisagreeingFixesToDrop = 3;
+// The track check verifies only the index's places with at least this share of its best
+// place's feature inliers.
+constexpr double kRivalInlierShare = 0.5;
 
 mrpt::poses::CPose2D toPose2D(const mrpt::poses::CPose3D& p) {
     return mrpt::poses::CPose2D(p.x(), p.y(), p.yaw());
@@ -839,6 +842,9 @@ std::optional<std::string> Localizer::trackContradicted(const mrpt::obs::CObserv
     out.times.place_ms += found.ms;
     std::optional<std::string> why;
     for (const auto& place : found.places) {
+        // A place with far fewer feature inliers than the index's best is not a rival; on an
+        // aliased ceiling the rivals score alike and are verified.
+        if (place.inliers < kRivalInlierShare * found.places.front().inliers) break;
         const auto& t = tracked.pose.mean;
         const double d = std::hypot(place.vehicle_pose.x() - t.x(), place.vehicle_pose.y() - t.y());
         if (d <= options_.acquisition_ambiguity_distance_m) continue;
