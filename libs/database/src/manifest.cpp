@@ -114,4 +114,16 @@ bool verifyManifest(const std::string& dir) {
     return true;
 }
 
+void verifyHeatMaps(const std::string& db_dir, const std::string& heatmaps_dir) {
+    if (heatmaps_dir.empty()) return;
+    const fs::path rel(heatmaps_dir);
+    const std::string where = (fs::path(db_dir) / kDbIni).string() + " [heatmaps] directory: ";
+    if (rel.is_absolute() || heatmaps_dir.find("..") != std::string::npos) {
+        throw DatabaseError(where + "'" + heatmaps_dir + "' is not a folder inside the database");
+    }
+    const fs::path dir = fs::path(db_dir) / rel;
+    if (!fs::is_directory(dir)) throw DatabaseError(where + dir.string() + " is missing");
+    verifyManifest(dir.string());
+}
+
 }  // namespace lookup::database
