@@ -100,7 +100,8 @@ bool verifyManifest(const std::string& dir) {
         }
         const fs::path file = fs::path(dir) / rel;
         if (!fs::is_regular_file(file)) {
-            throw DatabaseError(file.string() + ": missing (listed in " + kManifest + ")");
+            throw DatabaseError(file.string() + ": missing (listed in " + path.string() + ":" +
+                                std::to_string(number) + ")");
         }
         const Digest d = digestOf(file, rel);
         if (d.size != size || d.crc != crc) {
