@@ -64,4 +64,7 @@ function(lookup_add_test)
     gtest_discover_tests(${ARG_NAME} DISCOVERY_TIMEOUT 60
                          PROPERTIES LABELS "${ARG_LABELS}"
                                     ENVIRONMENT "TMPDIR=${CMAKE_BINARY_DIR}/test-tmp")
+    if("fault" IN_LIST ARG_LABELS AND TARGET lookup_fault_tests)
+        add_dependencies(lookup_fault_tests ${ARG_NAME})
+    endif()
 endfunction()

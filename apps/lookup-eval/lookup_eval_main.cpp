@@ -10,6 +10,7 @@
 #include <iostream>
 
 #include "lookup/common/cli.h"
+#include "lookup/common/config.h"
 #include "lookup/common/errors.h"
 #include "lookup/eval/evaluator.h"
 
@@ -22,6 +23,8 @@ int run(int argc, char** argv) {
                                    "with non-finite values are refused unless --partial. ") +
                            lookup::common::kExitCodesHelp,
                        ' ', "0.1");
+    lookup::common::OneLineOutput one_line_errors;
+    cmd.setOutput(&one_line_errors);
     TCLAP::ValueArg<std::string> gt_arg("", "gt", "ground-truth file(s), comma separated", true, "",
                                         "GT.txt[,...]", cmd);
     TCLAP::ValueArg<std::string> runs_arg("", "runs", "lookup-localize output folder(s)", true, "",
@@ -39,8 +42,8 @@ int run(int argc, char** argv) {
 
     lookup::eval::EvalOptions options;
     if (!ini_arg.getValue().empty()) {
-        mrpt::config::CConfigFile cfg(ini_arg.getValue());
-        options.loadFromConfigFile(cfg, "eval");
+        const auto cfg = lookup::common::loadIniFile(ini_arg.getValue());
+        options.loadFromConfigFile(*cfg, "eval");
     }
     std::vector<std::string> gt_files, run_dirs;
     mrpt::system::tokenize(gt_arg.getValue(), ",", gt_files);

@@ -30,6 +30,8 @@ int run(int argc, char** argv) {
     TCLAP::CmdLine cmd(std::string("lookup-localize: LookUP precise localisation. ") +
                            lookup::common::kExitCodesHelp,
                        ' ', "0.1");
+    lookup::common::OneLineOutput one_line_errors;
+    cmd.setOutput(&one_line_errors);
     TCLAP::ValueArg<std::string> db("", "db", "reference database folder", true, "", "DB", cmd);
     TCLAP::ValueArg<std::string> rawlog("", "rawlog", "query rawlog to replay", false, "", "FILE",
                                         cmd);
@@ -97,7 +99,11 @@ int run(int argc, char** argv) {
     req.coarse_poses = poses.getValue();
     req.sampling = sampling.getValue();
     if (realtime.getValue()) req.realtime = 1;
-    req.max_frames = static_cast<std::size_t>(std::max(0, max_frames.getValue()));
+    if (max_frames.getValue() < 0) {
+        throw lookup::common::ConfigError("--max-frames " + std::to_string(max_frames.getValue()) +
+                                          ": must be >= 0 (0: every frame)");
+    }
+    req.max_frames = static_cast<std::size_t>(max_frames.getValue());
     req.repeat = repeat.getValue();
     req.kidnap_every = std::max(0, kidnap_every.getValue());
     req.publish = publish.getValue();

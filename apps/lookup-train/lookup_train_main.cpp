@@ -68,6 +68,8 @@ int main(int argc, char** argv) {
                                        "heat maps. ") +
                                lookup::common::kExitCodesHelp,
                            ' ', "0.1");
+        lookup::common::OneLineOutput one_line_errors;
+        cmd.setOutput(&one_line_errors);
         TCLAP::ValueArg<std::string> db("", "db", "reference database folder", true, "", "DB", cmd);
         TCLAP::ValueArg<std::string> train("", "train",
                                            "training query rawlogs, comma separated (each with "

@@ -3,9 +3,10 @@
 #include <iostream>
 
 #include "lookup/coarse/coarse_tool.h"
+#include "lookup/common/errors.h"
 
 int main(int argc, char** argv) {
     lookup::coarse::CoarseTool tool;
     if (!tool.initialize(argc, argv)) return tool.exitCode();
-    return tool.run(std::cout, std::cerr);
+    return lookup::common::checkedStdout("lookup-coarse", tool.run(std::cout, std::cerr));
 }

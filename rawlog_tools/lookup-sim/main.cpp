@@ -35,6 +35,8 @@ int run(int argc, char** argv) {
                                    "(MRPT rawlogs). ") +
                            lookup::common::kExitCodesHelp,
                        ' ', "0.1");
+    lookup::common::OneLineOutput one_line_errors;
+    cmd.setOutput(&one_line_errors);
     TCLAP::ValueArg<std::string> preset(
         "p", "preset",
         "built-in scenario: mine-a, mine-b, mine-a-mini, mine-b-mini, mine-a-real, mine-b-real, "

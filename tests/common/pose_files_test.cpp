@@ -50,7 +50,7 @@ TEST(PoseFiles, MalformedRowNamesFileAndLine) {
     try {
         readPoseFile(path);
         FAIL();
-    } catch (const ConfigError& e) {
+    } catch (const PoseFileError& e) {
         EXPECT_NE(std::string(e.what()).find("lookup_bad.tum:3"), std::string::npos) << e.what();
     }
 }

@@ -131,8 +131,44 @@ TEST(DatabaseFault, FlippedByteInAnyFileRefusedNamingIt) {
     EXPECT_NE(loadError(dir / "db").find("refs.rawlog: damaged"), std::string::npos);
     // lookup-train's rewrite of [heatmaps] keeps the database valid.
     writeDatabase(dir / "db", 4);
+    fs::create_directory(dir / "db" / "h1");
     { std::ofstream(dir / "db" / "db.ini", std::ios::app) << "\n[heatmaps]\ndirectory = h1\n"; }
     EXPECT_EQ(loadError(dir / "db"), "");
+}
+
+// Heat maps as lookup-train leaves them: a folder with a manifest of its own, listed in db.ini.
+TEST(DatabaseFault, DamagedOrMissingHeatMapsNamed) {
+    const auto dir = tempDir("heatmaps");
+    const fs::path db = dir / "db";
+    const fs::path heat = db / "heatmaps_001";
+    const auto withHeatMaps = [&](const std::string& listed) {
+        writeDatabase(db, 3);
+        fs::create_directory(heat);
+        for (int i = 0; i < 3; ++i) {
+            std::ofstream(heat / ("heat_00000" + std::to_string(i) + ".png"), std::ios::binary)
+                << std::string(200, char('a' + i));
+        }
+        writeManifest(heat.string());
+        std::ofstream(db / "db.ini", std::ios::app)
+            << "\n[heatmaps]\ndirectory = " << listed << "\n";
+    };
+    withHeatMaps("heatmaps_001");
+    ASSERT_EQ(loadError(db), "");
+    flipByte(heat / "heat_000001.png", 100);
+    std::string m = loadError(db);
+    EXPECT_NE(m.find((heat / "heat_000001.png").string() + ": damaged"), std::string::npos) << m;
+    withHeatMaps("heatmaps_001");
+    fs::remove(heat / "heat_000002.png");
+    m = loadError(db);
+    EXPECT_NE(m.find((heat / "heat_000002.png").string() + ": missing"), std::string::npos) << m;
+    withHeatMaps("heatmaps_009");
+    m = loadError(db);
+    EXPECT_NE(
+        m.find("db.ini [heatmaps] directory: " + (db / "heatmaps_009").string() + " is missing"),
+        std::string::npos)
+        << m;
+    withHeatMaps("../elsewhere");
+    EXPECT_NE(loadError(db).find("is not a folder inside the database"), std::string::npos);
 }
 
 TEST(DatabaseFault, MalformedDbIniValuesNamed) {

@@ -7,6 +7,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "fixture.h"
+#include "lookup/database/manifest.h"
 #include "lookup/database/reference_database.h"
 #include "lookup/fcn/heat_maps.h"
 #include "lookup/localize/localizer.h"
@@ -78,6 +79,30 @@ TEST(HeatMaps, WrittenInTheLocalisersFormatAndListedInDbIni) {
     EXPECT_NE(w2.directory, first_dir);
     EXPECT_FALSE(fs::exists(fs::path(db_dir) / first_dir));
     EXPECT_EQ(database::ReferenceDatabase::load(db_dir).info().heatmaps_dir, w2.directory);
+}
+
+TEST(HeatMaps, ChecksummedInTheirFolderAndADamagedOneRefusedByName) {
+    const auto dir = fixture::freshDir("heat_crc");
+    const std::string db_dir = (dir / "db").string();
+    fixture::writeDatabase(db_dir, {0.0, 0.5});
+    const std::string survey_manifest = slurp(fs::path(db_dir) / database::kManifest);
+    const auto w = writeHeatMaps(database::ReferenceDatabase::load(db_dir),
+                                 HeatMapModel(fixture::smallOptions().network, 5));
+    const fs::path heat = fs::path(db_dir) / w.directory;
+    EXPECT_TRUE(fs::is_regular_file(heat / database::kManifest));
+    EXPECT_EQ(slurp(fs::path(db_dir) / database::kManifest), survey_manifest);
+    ASSERT_NO_THROW(database::ReferenceDatabase::load(db_dir));
+    const fs::path file = heat / localize::heatMapFileName(1);
+    std::string bytes = slurp(file);
+    bytes[bytes.size() / 2] ^= 0x04;
+    std::ofstream(file, std::ios::binary) << bytes;
+    try {
+        database::ReferenceDatabase::load(db_dir);
+        ADD_FAILURE() << "a damaged heat map was accepted";
+    } catch (const database::DatabaseError& e) {
+        EXPECT_NE(std::string(e.what()).find(file.string() + ": damaged"), std::string::npos)
+            << e.what();
+    }
 }
 
 TEST(HeatMaps, SetDirectoryAddsTheSectionWhenAbsentAndRefusesAMissingFile) {

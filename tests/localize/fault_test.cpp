@@ -226,3 +226,24 @@ TEST(Fault, LookupEvalRefusesDamagedRunFilesNamingThem) {
         EXPECT_EQ(std::count(o.log.begin(), o.log.end(), '\n'), 1) << o.log;
     }
 }
+
+TEST(Fault, LookupEvalRefusesBadGroundTruthAsBadInputNamingLine) {
+    const auto dir = freshDir("fault_eval_gt");
+    const auto req = planarRun(dir, [](int, auto&, auto&) {});
+    ASSERT_EQ(localizeWithTimeout(req, dir / "ok.log").code, 0);
+    const fs::path gt = dir / "gt.tum";
+    const std::string good = "100.0 0 0 0 0 0 0 1\n";
+    // Second row bad: a word, NaN, a time past the clock's range, a row of 5 columns.
+    for (const std::string bad : {"100.1 0 zero 0 0 0 0 1", "100.1 nan 0 0 0 0 0 1",
+                                  "1e300 0 0 0 0 0 0 1", "100.1 0 0 0 1"}) {
+        std::ofstream(gt) << good << bad << "\n";
+        const int code = runProgram(
+            "lookup-eval",
+            {"--gt", gt.string(), "--runs", req.out_dir, "--out", (dir / "report").string()},
+            dir / "eval.log");
+        const std::string log = readText(dir / "eval.log");
+        EXPECT_EQ(code, 2) << bad << ": " << log;
+        EXPECT_NE(log.find(gt.string() + ":2: "), std::string::npos) << log;
+        EXPECT_EQ(std::count(log.begin(), log.end(), '\n'), 1) << log;
+    }
+}

@@ -127,6 +127,24 @@ TEST(SurveyCliFault, BadOptionsInEverySectionAreOneLineNamingFileSectionKey) {
     EXPECT_NE(r.out.find("Exit codes: 0 success, 1 usage"), std::string::npos) << r.out;
 }
 
+TEST(SurveyCliFault, BadPoseFilesAreBadInputNamingFileAndLine) {
+    const auto& d = data();
+    const std::string rows = slurp(d.f.ground_truth);
+    const std::string first = rows.substr(0, rows.find('\n') + 1);
+    const fs::path poses = d.dir / "poses.txt";
+    // Second row bad: a word, inf, a time past the clock's range, 6 columns.
+    for (const std::string bad : {"2000000000.1 0 abc 0 0 0 0", "2000000000.1 inf 0 0 0 0 0",
+                                  "-1e300 0 0 0 0 0 0", "2000000000.1 0 0 0 0 0"}) {
+        std::ofstream(poses) << first << bad << "\n";
+        const auto r = survey(d.dir, "--rawlogs " + d.f.rawlog + " --poses " + poses.string() +
+                                         " --out " + (d.dir / "dbp").string());
+        EXPECT_EQ(r.code, 2) << bad << ": " << r.err;
+        EXPECT_EQ(lines(r.err), 1u) << r.err;
+        EXPECT_NE(r.err.find(poses.string() + ":2: "), std::string::npos) << r.err;
+        EXPECT_FALSE(fs::exists(d.dir / "dbp"));
+    }
+}
+
 TEST(SurveyCliFault, DamagedRawlogsRefusedNamingTheFileNeverASignal) {
     const auto& d = data();
     const std::string bytes = slurp(d.f.rawlog);

@@ -87,6 +87,8 @@ bool CoarseTool::initialize(int argc, const char* const* argv) {
                                    "one CSV row per query image. ") +
                            common::kExitCodesHelp,
                        ' ', "0.1");
+    lookup::common::OneLineOutput one_line_errors;
+    cmd.setOutput(&one_line_errors);
     TCLAP::ValueArg<std::string> ref("", "ref", "Reference rawlog", false, "", "REF.rawlog", cmd);
     TCLAP::ValueArg<std::string> ref_desc("", "ref-descriptors",
                                           "Reference descriptors saved before (instead of --ref)",
@@ -173,12 +175,16 @@ int CoarseTool::run(std::ostream& out, std::ostream& err) {
 int CoarseTool::runOrThrow(std::ostream& out, std::ostream& err) {
     CoarseOptions options;
     if (!ini_.empty()) {
-        if (!std::filesystem::exists(ini_)) throw common::ConfigError(ini_ + ": file not found");
-        mrpt::config::CConfigFile file(ini_);
-        options.loadFromConfigFile(file, section_);
+        const auto file = common::loadIniFile(ini_);  // missing, binary or garbled: refused
+        options.loadFromConfigFile(*file, section_);
     }
     if (!camera_.empty()) options.camera_label = camera_;
-    options.check();
+    try {
+        options.check();
+    } catch (const common::ConfigError& e) {
+        if (ini_.empty()) throw;
+        throw common::ConfigError(ini_ + " [" + section_ + "]: " + e.what());
+    }
 
     std::optional<common::PoseTrack> ref_track, query_track;
     if (!ref_poses_.empty()) ref_track = common::readPoseFile(ref_poses_);

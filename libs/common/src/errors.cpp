@@ -3,6 +3,9 @@
 #include <mrpt/3rdparty/tclap/ArgException.h>
 #include <mrpt/core/exceptions.h>
 
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
 #include <iostream>
 #include <new>
 #include <sstream>
@@ -73,11 +76,21 @@ bool verboseRequested(int argc, const char* const* argv) {
     return false;
 }
 
+int checkedStdout(const char* program, int code) {
+    std::cout.flush();
+    const bool failed = !std::cout || std::fflush(stdout) != 0 || std::ferror(stdout);
+    if (!failed) return code;
+    const int err = errno;
+    std::cerr << program << ": stdout: write error"
+              << (err != 0 ? std::string(": ") + std::strerror(err) : std::string()) << std::endl;
+    return code == kExitOk ? kExitWriteError : code;
+}
+
 int guardedMain(const char* program, int argc, const char* const* argv,
                 const std::function<int()>& body) {
     const bool verbose = verboseRequested(argc, argv);
     try {
-        return body();
+        return checkedStdout(program, body());
     } catch (const std::exception& e) {
         std::cerr << program << ": " << errorText(e, verbose) << std::endl;
         return exitCodeFor(e);

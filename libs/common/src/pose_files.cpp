@@ -13,9 +13,62 @@
 
 namespace lookup::common {
 
+namespace {
+
+// Beyond these a value is a unit or format mistake, and times would overflow the 64-bit
+// clock (mrpt::Clock ticks of 100 ns) when converted.
+constexpr double kMaxTimeS = 1e10;       // year 2286
+constexpr double kMaxCoordinateM = 1e8;  // beyond any UTM northing
+
+PoseFileError rowError(const std::string& path, int line_no, const std::string& reason) {
+    return PoseFileError(path + ":" + std::to_string(line_no) + ": " + reason);
+}
+
+// The numbers of one row, checked; the pose it describes.
+StampedPose parseRow(const std::string& path, int line_no, const std::string& line,
+                     std::size_t& columns_seen) {
+    std::istringstream row(line);
+    std::vector<double> v;
+    double x;
+    while (row >> x) v.push_back(x);
+    if (!row.eof()) throw rowError(path, line_no, "not a number in row");
+    if (v.size() != 7 && v.size() != 8) {
+        throw rowError(path, line_no,
+                       "expected 7 (MRPT) or 8 (TUM) columns, found " + std::to_string(v.size()));
+    }
+    if (columns_seen != 0 && v.size() != columns_seen) {
+        throw rowError(path, line_no, "column count changes within the file");
+    }
+    columns_seen = v.size();
+    for (double value : v) {
+        if (!std::isfinite(value)) throw rowError(path, line_no, "value not finite");
+    }
+    if (std::abs(v[0]) > kMaxTimeS) throw rowError(path, line_no, "time stamp out of range");
+    for (int i = 1; i <= 3; ++i) {
+        if (std::abs(v[i]) > kMaxCoordinateM) {
+            throw rowError(path, line_no, "coordinate out of range (|value| > 1e8 m)");
+        }
+    }
+    StampedPose p;
+    p.time_s = v[0];
+    if (v.size() == 7) {
+        p.pose = mrpt::poses::CPose3D(v[1], v[2], v[3], v[4], v[5], v[6]);
+        return p;
+    }
+    if (std::hypot(std::hypot(v[4], v[5]), std::hypot(v[6], v[7])) < 1e-6) {
+        throw rowError(path, line_no, "zero quaternion");
+    }
+    mrpt::math::CQuaternionDouble q(v[7], v[4], v[5], v[6]);  // w, x, y, z
+    q.normalize();  // printed quaternions are unit only to their digits
+    p.pose = mrpt::poses::CPose3D(q, v[1], v[2], v[3]);
+    return p;
+}
+
+}  // namespace
+
 PoseTrack readPoseFile(const std::string& path) {
     std::ifstream in(path);
-    if (!in) throw ConfigError(path + ": cannot open pose file");
+    if (!in) throw PoseFileError(path + ": cannot open pose file");
     PoseTrack track;
     std::string line;
     int line_no = 0;
@@ -24,44 +77,14 @@ PoseTrack readPoseFile(const std::string& path) {
         ++line_no;
         const auto first = line.find_first_not_of(" \t\r");
         if (first == std::string::npos || line[first] == '#' || line[first] == '%') continue;
-        std::istringstream row(line);
-        std::vector<double> v;
-        double x;
-        while (row >> x) v.push_back(x);
-        if (!row.eof()) {
-            throw ConfigError(path + ":" + std::to_string(line_no) + ": not a number in row");
-        }
-        if (v.size() != 7 && v.size() != 8) {
-            throw ConfigError(path + ":" + std::to_string(line_no) + ": expected 7 (MRPT) or " +
-                              "8 (TUM) columns, found " + std::to_string(v.size()));
-        }
-        if (columns_seen != 0 && v.size() != columns_seen) {
-            throw ConfigError(path + ":" + std::to_string(line_no) +
-                              ": column count changes within the file");
-        }
-        for (double value : v) {
-            if (!std::isfinite(value)) {
-                throw ConfigError(path + ":" + std::to_string(line_no) + ": value not finite");
-            }
-        }
-        if (v.size() == 8 && std::hypot(std::hypot(v[4], v[5]), std::hypot(v[6], v[7])) < 1e-6) {
-            throw ConfigError(path + ":" + std::to_string(line_no) + ": zero quaternion");
-        }
-        columns_seen = v.size();
-        StampedPose p;
-        p.time_s = v[0];
-        if (v.size() == 7) {
-            p.pose = mrpt::poses::CPose3D(v[1], v[2], v[3], v[4], v[5], v[6]);
-        } else {
-            const mrpt::math::CQuaternionDouble q(v[7], v[4], v[5], v[6]);  // w, x, y, z
-            p.pose = mrpt::poses::CPose3D(q, v[1], v[2], v[3]);
-        }
+        StampedPose p = parseRow(path, line_no, line, columns_seen);
         if (!track.empty() && p.time_s <= track.back().time_s) {
-            throw ConfigError(path + ":" + std::to_string(line_no) + ": time stamps must increase");
+            throw rowError(path, line_no, "time stamps must increase");
         }
         track.push_back(p);
     }
-    if (track.empty()) throw ConfigError(path + ": no poses in file");
+    if (in.bad()) throw PoseFileError(path + ": read error");
+    if (track.empty()) throw PoseFileError(path + ": no poses in file");
     return track;
 }
 

@@ -100,7 +100,8 @@ bool verifyManifest(const std::string& dir) {
         }
         const fs::path file = fs::path(dir) / rel;
         if (!fs::is_regular_file(file)) {
-            throw DatabaseError(file.string() + ": missing (listed in " + kManifest + ")");
+            throw DatabaseError(file.string() + ": missing (listed in " + path.string() + ":" +
+                                std::to_string(number) + ")");
         }
         const Digest d = digestOf(file, rel);
         if (d.size != size || d.crc != crc) {
@@ -112,6 +113,18 @@ bool verifyManifest(const std::string& dir) {
         }
     }
     return true;
+}
+
+void verifyHeatMaps(const std::string& db_dir, const std::string& heatmaps_dir) {
+    if (heatmaps_dir.empty()) return;
+    const fs::path rel(heatmaps_dir);
+    const std::string where = (fs::path(db_dir) / kDbIni).string() + " [heatmaps] directory: ";
+    if (rel.is_absolute() || heatmaps_dir.find("..") != std::string::npos) {
+        throw DatabaseError(where + "'" + heatmaps_dir + "' is not a folder inside the database");
+    }
+    const fs::path dir = fs::path(db_dir) / rel;
+    if (!fs::is_directory(dir)) throw DatabaseError(where + dir.string() + " is missing");
+    verifyManifest(dir.string());
 }
 
 }  // namespace lookup::database

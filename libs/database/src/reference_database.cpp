@@ -70,6 +70,7 @@ ReferenceDatabase ReferenceDatabase::load(const std::string& dir, std::size_t ca
     }
     verifyManifest(impl->dir);
     impl->info = readDatabaseInfo(impl->dir + "/" + kDbIni);
+    verifyHeatMaps(impl->dir, impl->info.heatmaps_dir);
 
     const std::string rawlog_path = impl->dir + "/" + kRefsRawlog;
     const std::string images_dir = common::imagesDirectoryFor(rawlog_path);

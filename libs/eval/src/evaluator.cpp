@@ -15,12 +15,13 @@ namespace lookup::eval {
 
 void EvalOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
                                      const std::string& section) {
-    const common::IniSection s(source, section, "eval options");
+    const common::IniSection s(source, section);
+    s.rejectUnknownKeys({"coarse_exclusion_m", "max_gt_gap_s", "confident_wrong_min_error_m"});
     coarse_exclusion_m = s.getDouble("coarse_exclusion_m", coarse_exclusion_m);
     max_gt_gap_s = s.getDouble("max_gt_gap_s", max_gt_gap_s);
     confident_wrong_min_error_m =
         s.getDouble("confident_wrong_min_error_m", confident_wrong_min_error_m);
-    check();
+    s.validate([&] { check(); });
 }
 
 void EvalOptions::saveToConfigFile(mrpt::config::CConfigFileBase& target,

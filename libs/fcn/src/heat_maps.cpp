@@ -10,6 +10,8 @@
 #include <stdexcept>
 
 #include "lookup/common/errors.h"
+#include "lookup/common/rawlog_io.h"
+#include "lookup/database/manifest.h"
 #include "lookup/database/reference.h"
 #include "lookup/localize/localizer.h"
 
@@ -77,17 +79,15 @@ void setHeatMapsDirectory(const std::string& db_ini_path, const std::string& dir
     if (!written) out.push_back("directory = " + directory);
 
     const std::string tmp = db_ini_path + ".tmp";
-    {
-        std::ofstream o(tmp);
-        for (const auto& l : out) o << l << "\n";
-        o.close();
-        if (!o) {
-            std::error_code ec;
-            fs::remove(tmp, ec);
-            throw common::WriteError(tmp, "write failed");
-        }
-    }
     std::error_code ec;
+    try {
+        common::OutputFile o(tmp);
+        for (const auto& l : out) o.write(l + "\n");
+        o.close();
+    } catch (const common::WriteError&) {
+        fs::remove(tmp, ec);
+        throw;
+    }
     try {
         database::readDatabaseInfo(tmp);  // the rewritten file must still parse
     } catch (const std::exception& e) {
@@ -121,7 +121,12 @@ HeatMapsWritten writeHeatMaps(const database::ReferenceDatabase& db, const HeatM
             }
             if (progress) progress(i + 1, db.size());
         }
+        // The folder's own checksums: the survey's manifest stays as it is.
+        database::writeManifest(staging.string());
+        for (const auto& e : fs::directory_iterator(staging)) common::syncFile(e.path().string());
+        common::syncDirectory(staging.string());
         fs::rename(staging, final_dir);
+        common::syncDirectory(db_dir.string());
     } catch (const common::WriteError&) {
         std::error_code ec;
         fs::remove_all(staging, ec);

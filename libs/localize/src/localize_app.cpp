@@ -214,7 +214,8 @@ class Session {
         RunWriter::cleanLeftovers(req.out_dir);
         // Options: defaults, then the ini file, then command-line overrides.
         if (!req.ini_file.empty()) {
-            mrpt::config::CConfigFile ini(req.ini_file);
+            const auto file = common::loadIniFile(req.ini_file);  // binary or garbled: refused
+            const auto& ini = *file;
             if (ini.sectionExists("localizer")) options_.loadFromConfigFile(ini, "localizer");
             refiner_options_.loadFromConfigFile(ini, "refine");
             if (ini.sectionExists("coarse")) coarse_options_.loadFromConfigFile(ini, "coarse");
@@ -224,6 +225,11 @@ class Session {
             clock_ = SensorClock::fromConfig(ini, req.ini_file);
         }
         if (req.realtime >= 0) options_.realtime = req.realtime == 1;
+        if (!req.sampling.empty() && req.sampling != "grid" && req.sampling != "heatmap" &&
+            req.sampling != "auto") {
+            throw common::ConfigError("--sampling '" + req.sampling +
+                                      "': not one of grid, heatmap, auto");
+        }
         if (req.sampling == "grid") refiner_options_.sampler.mode = refine::SamplingMode::Grid;
         if (req.sampling == "heatmap") {
             refiner_options_.sampler.mode = refine::SamplingMode::HeatMap;

@@ -17,6 +17,8 @@ bool SuiteApp::initialize(int argc, const char* const* argv) {
         "table (suite.md, suite.json). Exit codes: 0 every job ran, 1 bad arguments or suite "
         "file, 2 some jobs failed (their rows say why), 3 the report could not be written.",
         ' ', "0.1");
+    lookup::common::OneLineOutput one_line_errors;
+    cmd.setOutput(&one_line_errors);
     TCLAP::ValueArg<std::string> suite("s", "suite", "suite .ini file", true, "", "FILE.ini", cmd);
     TCLAP::ValueArg<std::string> out("o", "out", "output folder", true, "", "DIR", cmd);
     TCLAP::ValueArg<std::string> seeds("", "seeds", "overrides the suite's seeds, e.g. 6-10", false,

@@ -98,6 +98,8 @@ bool SurveyApp::initialize(int argc, const char* const* argv) {
                                    "rawlogs. ") +
                            common::kExitCodesHelp,
                        ' ', "0.1");
+    lookup::common::OneLineOutput one_line_errors;
+    cmd.setOutput(&one_line_errors);
     TCLAP::ValueArg<std::string> dataset("d", "dataset", "lookup-sim dataset.ini", false, "",
                                          "DATASET.ini", cmd);
     TCLAP::ValueArg<std::string> rawlogs("r", "rawlogs", "comma-separated survey rawlogs", false,

@@ -47,8 +47,13 @@ int exitCodeFor(const std::exception& e);
 /// True when argv holds --verbose (or -v).
 bool verboseRequested(int argc, const char* const* argv);
 
+/// Flushes stdout; when anything written to it was lost (a closed pipe, /dev/full) prints
+/// "<program>: stdout: write error" on stderr and turns a success `code` into kExitWriteError.
+int checkedStdout(const char* program, int code);
+
 /// Runs `body` and turns any exception into "<program>: <errorText>" on stderr and its exit
-/// code; a non-std exception is an internal error. Returns body's own code otherwise.
+/// code; a non-std exception is an internal error. Returns body's own code otherwise, passed
+/// through checkedStdout.
 int guardedMain(const char* program, int argc, const char* const* argv,
                 const std::function<int()>& body);
 

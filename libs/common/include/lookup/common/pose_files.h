@@ -6,10 +6,18 @@
 #include <mrpt/poses/CPose3D.h>
 #include <mrpt/poses/CPose3DInterpolator.h>
 
+#include <stdexcept>
 #include <string>
 #include <vector>
 
 namespace lookup::common {
+
+/// A pose file that cannot be read or holds a bad row: bad input data (exit code 2), the
+/// message names the file and line.
+class PoseFileError : public std::runtime_error {
+  public:
+    using std::runtime_error::runtime_error;
+};
 
 struct StampedPose {
     double time_s = 0;          ///< seconds (UNIX epoch, as mrpt::Clock::toDouble)
@@ -17,8 +25,9 @@ struct StampedPose {
 };
 using PoseTrack = std::vector<StampedPose>;
 
-/// Reads a 7-column MRPT or 8-column TUM file ('#' comments and blank lines skipped). Throws
-/// ConfigError naming the file and line for a malformed row, mixed forms or decreasing times.
+/// Reads a 7-column MRPT or 8-column TUM file ('#' comments and blank lines skipped); TUM
+/// quaternions are normalised. Throws PoseFileError naming the file and line for a malformed
+/// or non-finite row, a time or coordinate out of range, mixed forms or decreasing times.
 PoseTrack readPoseFile(const std::string& path);
 
 /// Writes `t x y z yaw pitch roll` rows (MRPT ground-truth form). Throws WriteError.
