@@ -189,7 +189,8 @@ TEST(RunFolder, EvalRefusesUnfinishedRunsFlagsThemOnRequestAndReportsAFullDisk) 
 
 TEST(RunFolder, ProgramsDocumentTheirExitCodesAndFailOnOneLine) {
     const auto dir = freshDir("exit_codes");
-    for (const char* program : {"lookup-localize", "lookup-eval", "lookup-coarse"}) {
+    for (const char* program :
+         {"lookup-localize", "lookup-eval", "lookup-coarse", "lookup-place"}) {
         EXPECT_EQ(runProgram(program, {"--help"}, dir / "help.log"), 0) << program;
         std::string help;  // TCLAP wraps lines: compare with whitespace collapsed
         for (char c : readText(dir / "help.log")) {

@@ -67,6 +67,8 @@ bool PlaceApp::initialize(int argc, const char* const* argv) {
     TCLAP::ValueArg<std::string> json("j", "json", "write the evaluation as JSON", false, "",
                                       "FILE", cmd);
     TCLAP::SwitchArg quiet("q", "quiet", "no progress", cmd, false);
+    common::OneLineOutput one_line_errors;
+    cmd.setOutput(&one_line_errors);
     std::vector<const char*> args(argv, argv + argc);
     if (!cmd.parse(argc, args.data())) {
         exit_code_ = common::parseFailureExitCode(argc, argv, common::kExitUsage);
