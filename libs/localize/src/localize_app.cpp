@@ -181,7 +181,8 @@ QuerySpan checkQuery(const LocalizeRequest& req, const LocalizerOptions& o,
 /// camera alone.
 std::unique_ptr<place::PlaceIndex> loadPlaceIndex(const database::ReferenceDatabase& db,
                                                   const LocalizerOptions& o,
-                                                  const place::PlaceIndexOptions& query) {
+                                                  const place::PlaceIndexOptions& query,
+                                                  bool coarse_from_files) {
     if (o.coarse == "none" || !o.place_search) return nullptr;
     const std::string path = db.directory() + "/" + place::kPlaceIndexFile;
     const std::string fallback = ": start-up and recovery from the forward camera only";
@@ -189,7 +190,9 @@ std::unique_ptr<place::PlaceIndex> loadPlaceIndex(const database::ReferenceDatab
         const std::string why =
             path + ": no place index (build it: lookup-place --db " + db.directory() + ")";
         if (o.coarse == "ceiling") throw std::runtime_error(why + ", which coarse = ceiling needs");
-        std::cerr << "lookup-localize: warning: " << why << fallback << "\n";
+        // With coarse results from a file the start-up comes from them: nothing to warn of.
+        if (!coarse_from_files)
+            std::cerr << "lookup-localize: warning: " << why << fallback << "\n";
         return nullptr;
     }
     try {
@@ -260,7 +263,7 @@ class Session {
             coarse = makeSequenceCoarseSource(*db_, coarse_options_, options_.coarse_traverse);
         }
         const bool coarse_from_files = !req.coarse_matches.empty() || !req.coarse_poses.empty();
-        places_ = loadPlaceIndex(*db_, options_, place_options_);
+        places_ = loadPlaceIndex(*db_, options_, place_options_, coarse_from_files);
         if (!req.rawlog.empty() && source_name == req.rawlog) {
             span_ = checkQuery(req, options_, *db_, coarse.get(), coarse && !coarse_from_files);
         }

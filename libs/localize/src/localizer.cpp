@@ -735,11 +735,7 @@ Localizer::GlobalOutcome Localizer::acquireGlobally(const mrpt::obs::CObservatio
     const auto found = searchPlaces(
         *places_, db_, query, static_cast<std::size_t>(options_.place_candidates), separation_m);
     out.times.place_ms += found.ms;
-    struct Verified {
-        std::shared_ptr<const refine::RefineResult> result;
-        std::vector<std::size_t> references;
-    };
-    std::vector<Verified> verified;
+    std::vector<VerifiedPlace> verified;
     for (const auto& place : found.places) {
         auto single = refineAgainst(query, {place.reference}, place.vehicle_pose, out, true);
         if (!single->accepted()) continue;
@@ -756,6 +752,32 @@ Localizer::GlobalOutcome Localizer::acquireGlobally(const mrpt::obs::CObservatio
                  std::to_string(found.features) + " features), none verified";
         return g;
     }
+    return bestPlace(verified, out);
+}
+
+Localizer::GlobalOutcome Localizer::separatePlaces(const mrpt::obs::CObservationImage& query,
+                                                   FrameResult& out) {
+    // Each open place moves with odometry since it was seen; one whose ceiling no longer
+    // matches closes. One left (or one clearly best): the fix. Several: still ambiguous.
+    std::vector<VerifiedPlace> alive;
+    const auto now = odometryAt(out.time_s);
+    for (const auto& open : open_places_) {
+        if (out.time_s - open.time_s > options_.max_tracking_gap_s) continue;
+        const auto then = odometryAt(open.time_s);
+        const mrpt::poses::CPose2D moved = now && then ? open.pose + (*now - *then) : open.pose;
+        auto r = refineAgainst(query, referencesNear(moved), moved, out);
+        if (r->accepted()) alive.push_back({r, out.reference_indices});
+    }
+    open_places_.clear();
+    return bestPlace(alive, out);  // none holds: nothing, and the index searches again
+}
+
+Localizer::GlobalOutcome Localizer::bestPlace(const std::vector<VerifiedPlace>& verified,
+                                              FrameResult& out) {
+    // The best verified place is the fix unless another one farther than the ambiguity distance
+    // scores within the margin of it: then the frame is ambiguous and every place stays open.
+    GlobalOutcome g;
+    if (verified.empty()) return g;
     const auto best = std::max_element(verified.begin(), verified.end(), [](auto& a, auto& b) {
         return a.result->inlier_share < b.result->inlier_share;
     });
@@ -767,62 +789,18 @@ Localizer::GlobalOutcome Localizer::acquireGlobally(const mrpt::obs::CObservatio
         const auto& a = best->result->pose.mean;
         const auto& b = other.result->pose.mean;
         const double d = std::hypot(a.x() - b.x(), a.y() - b.y());
-        if (d > separation_m &&
-            other.result->inlier_share >
-                best->result->inlier_share - options_.acquisition_ambiguity_margin) {
-            for (const auto& v : verified)
-                open_places_.push_back({out.time_s, v.result->pose.mean});
-            g.ambiguous = true;
-            g.note = "places " + number(d) + " m apart explain the frame with inlier shares " +
-                     number(best->result->inlier_share) + " and " +
-                     number(other.result->inlier_share);
-            return g;
-        }
-    }
-    return g;
-}
-
-Localizer::GlobalOutcome Localizer::separatePlaces(const mrpt::obs::CObservationImage& query,
-                                                   FrameResult& out) {
-    // Each open place moves with odometry since it was seen; one whose ceiling no longer
-    // matches closes. One left (or one clearly best): the fix. Several: still ambiguous.
-    struct Alive {
-        std::shared_ptr<const refine::RefineResult> result;
-        std::vector<std::size_t> references;
-    };
-    std::vector<Alive> alive;
-    const auto now = odometryAt(out.time_s);
-    for (const auto& open : open_places_) {
-        if (out.time_s - open.time_s > options_.max_tracking_gap_s) continue;
-        const auto then = odometryAt(open.time_s);
-        const mrpt::poses::CPose2D moved = now && then ? open.pose + (*now - *then) : open.pose;
-        auto r = refineAgainst(query, referencesNear(moved), moved, out);
-        if (r->accepted()) alive.push_back({r, out.reference_indices});
-    }
-    open_places_.clear();
-    GlobalOutcome g;
-    if (alive.empty()) return g;  // none holds: the index searches again
-    const auto best = std::max_element(alive.begin(), alive.end(), [](auto& a, auto& b) {
-        return a.result->inlier_share < b.result->inlier_share;
-    });
-    out.refinement = best->result;
-    out.inlier_share = best->result->inlier_share;
-    out.reference_indices = best->references;
-    g.result = best->result;
-    for (const auto& other : alive) {
-        const auto& a = best->result->pose.mean;
-        const auto& b = other.result->pose.mean;
-        const double d = std::hypot(a.x() - b.x(), a.y() - b.y());
         if (d > options_.acquisition_ambiguity_distance_m &&
             other.result->inlier_share >
                 best->result->inlier_share - options_.acquisition_ambiguity_margin) {
             g.ambiguous = true;
-            g.note = std::to_string(alive.size()) + " places still explain the frame (" +
-                     number(d) + " m apart)";
+            g.note = std::to_string(verified.size()) + " places explain the frame: " + number(d) +
+                     " m apart with inlier shares " + number(best->result->inlier_share) + " and " +
+                     number(other.result->inlier_share);
+            break;
         }
     }
     if (g.ambiguous) {
-        for (const auto& a : alive) open_places_.push_back({out.time_s, a.result->pose.mean});
+        for (const auto& v : verified) open_places_.push_back({out.time_s, v.result->pose.mean});
     }
     return g;
 }

@@ -210,6 +210,12 @@ class Localizer {
                                                  const refine::RefineResult& tracked,
                                                  FrameResult& out);
     GlobalOutcome separatePlaces(const mrpt::obs::CObservationImage& query, FrameResult& out);
+    /// A place the SAD refinement confirmed, with the references it refined against.
+    struct VerifiedPlace {
+        std::shared_ptr<const refine::RefineResult> result;
+        std::vector<std::size_t> references;
+    };
+    GlobalOutcome bestPlace(const std::vector<VerifiedPlace>& verified, FrameResult& out);
     std::optional<std::string> trackDisagreesWithOdometry(const refine::RefineResult& tracked,
                                                           const Prediction& prediction);
     const place::PlaceIndex* places_ = nullptr;
