@@ -8,7 +8,6 @@
 #include "lookup/database/reference_database.h"
 #include "lookup/place/place_index.h"
 #include "lookup/place/place_pose.h"
-#include "lookup/refine/rectifier.h"
 
 namespace lookup::localize {
 
@@ -34,13 +33,9 @@ PlaceSearchResult searchPlaces(const place::PlaceIndex& index,
     out.features = times.query_features;
     // The query is rectified (Localizer::process), as the indexed references were.
     const place::QueryCamera camera{query.cameraParams, query.cameraPose};
-    const mrpt::img::TCamera reference_camera = refine::idealPinhole(db.info().ceiling_camera);
     for (const auto& c : candidates) {
         if (out.places.size() >= max_places) break;
-        const auto& ref = db.reference(c.reference);
-        const auto pose =
-            place::vehiclePose(c, reference_camera, ref.vehicle_pose, ref.ceiling_camera_mount,
-                               camera, db.info().ceiling_height_m);
+        const auto pose = place::vehiclePose(c, db, camera);
         if (!pose) continue;
         // Candidates come most inliers first: a later one near a kept place is the same place.
         bool known = false;

@@ -129,7 +129,6 @@ int PlaceApp::evaluate() {
     const auto truth = common::makeInterpolator(common::readPoseFile(gt_file_), 1.0);
     common::RawlogReader reader(query_rawlog_);
     const refine::Rectifier rectifier(db.info().ceiling_camera);
-    const mrpt::img::TCamera reference_camera = rectifier.target();
     mrpt::obs::CObservation::Ptr obs;
     int frames = 0, scored = 0, top1_right = 0, top1_wrong = 0, any_right = 0, none = 0;
     std::vector<double> ms, top1_error;
@@ -150,10 +149,7 @@ int PlaceApp::evaluate() {
         std::vector<mrpt::poses::CPose2D> poses;
         const QueryCamera camera{rectifier.target(), img->cameraPose};
         for (const auto& c : candidates) {
-            const auto& ref = db.reference(c.reference);
-            if (auto p =
-                    vehiclePose(c, reference_camera, ref.vehicle_pose, ref.ceiling_camera_mount,
-                                camera, db.info().ceiling_height_m)) {
+            if (auto p = vehiclePose(c, db, camera)) {
                 poses.push_back(*p);
             }
         }

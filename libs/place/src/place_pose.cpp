@@ -3,7 +3,9 @@
 #include <cmath>
 #include <vector>
 
+#include "lookup/database/reference_database.h"
 #include "lookup/refine/geometry.h"
+#include "lookup/refine/rectifier.h"
 
 namespace lookup::place {
 
@@ -55,6 +57,14 @@ std::optional<mrpt::poses::CPose2D> vehiclePose(const PlaceCandidate& candidate,
     const double x = cb.x - (c * ca.x - s * ca.y), y = cb.y - (s * ca.x + c * ca.y);
     if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(yaw)) return std::nullopt;
     return mrpt::poses::CPose2D(x, y, yaw);
+}
+
+std::optional<mrpt::poses::CPose2D> vehiclePose(const PlaceCandidate& candidate,
+                                                const database::ReferenceDatabase& db,
+                                                const QueryCamera& query) {
+    const auto& ref = db.reference(candidate.reference);
+    return vehiclePose(candidate, refine::idealPinhole(db.info().ceiling_camera), ref.vehicle_pose,
+                       ref.ceiling_camera_mount, query, db.info().ceiling_height_m);
 }
 
 }  // namespace lookup::place

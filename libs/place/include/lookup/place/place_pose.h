@@ -10,6 +10,10 @@
 
 #include "lookup/place/place_index.h"
 
+namespace lookup::database {
+class ReferenceDatabase;
+}
+
 namespace lookup::place {
 
 struct QueryCamera {
@@ -27,5 +31,12 @@ std::optional<mrpt::poses::CPose2D> vehiclePose(const PlaceCandidate& candidate,
                                                 const mrpt::poses::CPose3D& reference_vehicle,
                                                 const mrpt::poses::CPose3D& reference_mount,
                                                 const QueryCamera& query, double ceiling_height_m);
+
+/// The same for a candidate of `db`'s index: its reference's pose and mount, the database's
+/// ceiling height, and the reference camera the index was built in (the ideal pinhole twin of
+/// db.ini's; `query.intrinsics` must be of a rectified query likewise).
+std::optional<mrpt::poses::CPose2D> vehiclePose(const PlaceCandidate& candidate,
+                                                const database::ReferenceDatabase& db,
+                                                const QueryCamera& query);
 
 }  // namespace lookup::place
