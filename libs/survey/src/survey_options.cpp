@@ -40,7 +40,7 @@ void SurveyOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& sour
                          "odometry_min_std_xy_m",
                          "odometry_min_std_yaw_deg",
                          "start_at_ground_truth",
-                         "icp_max_range_m",
+                         "icp_max_range_m", "lidar_sweep_ms",
                          "map_std_xy_m",
                          "map_std_yaw_deg",
                          "pose_file_std_xy_m",
@@ -102,6 +102,7 @@ void SurveyOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& sour
     odometry_min_std_yaw_deg = s.getDouble("odometry_min_std_yaw_deg", odometry_min_std_yaw_deg);
     start_at_ground_truth = s.getBool("start_at_ground_truth", start_at_ground_truth);
     icp_max_range_m = s.getDouble("icp_max_range_m", icp_max_range_m);
+    lidar_sweep_ms = s.getDouble("lidar_sweep_ms", lidar_sweep_ms, 0.0, 1000.0);
     map_std_xy_m = s.getDouble("map_std_xy_m", map_std_xy_m);
     map_std_yaw_deg = s.getDouble("map_std_yaw_deg", map_std_yaw_deg);
     pose_file_std_xy_m = s.getDouble("pose_file_std_xy_m", pose_file_std_xy_m);
@@ -149,6 +150,7 @@ void SurveyOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
     c.write(section, "odometry_min_std_yaw_deg", odometry_min_std_yaw_deg);
     c.write(section, "start_at_ground_truth", start_at_ground_truth);
     c.write(section, "icp_max_range_m", icp_max_range_m);
+    c.write(section, "lidar_sweep_ms", lidar_sweep_ms);
     c.write(section, "map_std_xy_m", map_std_xy_m);
     c.write(section, "map_std_yaw_deg", map_std_yaw_deg);
     c.write(section, "pose_file_std_xy_m", pose_file_std_xy_m);
@@ -196,6 +198,8 @@ void SurveyOptions::check() const {
     c.require(odometry_min_std_xy_m > 0, "odometry_min_std_xy_m", "> 0");
     c.require(odometry_min_std_yaw_deg > 0, "odometry_min_std_yaw_deg", "> 0");
     c.require(icp_max_range_m >= 0, "icp_max_range_m", ">= 0 (0 = no limit)");
+    c.require(lidar_sweep_ms >= 0 && lidar_sweep_ms <= 1000, "lidar_sweep_ms",
+              "in [0, 1000] (0 = scans taken at one instant)");
     c.require(map_std_xy_m >= 0, "map_std_xy_m", ">= 0");
     c.require(map_std_yaw_deg >= 0, "map_std_yaw_deg", ">= 0");
     c.require(pose_file_std_xy_m >= 0, "pose_file_std_xy_m", ">= 0");

@@ -1,5 +1,7 @@
 #include "lookup/survey/traverse.h"
 
+#include "lookup/survey/scan_deskew.h"
+
 #include <mrpt/obs/CObservation2DRangeScan.h>
 #include <mrpt/obs/CObservationOdometry.h>
 
@@ -175,6 +177,7 @@ TraverseData readTraverse(const std::string& rawlog, const SurveyOptions& option
                                               options.odometry_label +
                                               "' (labels present: " + listLabels(t.labels) + ")");
     }
+    t.scans_deskewed = deskewTraverse(t, 1e-3 * options.lidar_sweep_ms);
     return t;
 }
 

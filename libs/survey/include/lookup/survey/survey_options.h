@@ -84,6 +84,10 @@ struct SurveyOptions : public mrpt::config::CLoadableOptions {
     /// returns graze the walls of a long drive sparsely and match the frontier of the map
     /// built so far, which pulls every scan back and shrinks the map along the drive.
     double icp_max_range_m = 0;
+    /// Time the lidar takes from its first ray to its last (the scanner's data sheet: a 270°
+    /// aperture at 10 Hz sweeps in 75 ms); every scan is de-skewed with the odometry's motion
+    /// over it (scan_deskew.h). The time stamp refers to the first ray. 0 = instantaneous [ms].
+    double lidar_sweep_ms = 0;
     /// Error of the ICP-SLAM map itself, added to every laser pose's covariance: MCL's particle
     /// spread is relative to the map and alone is over-confident (measured on mine-b-mini and
     /// mine-a-mini: reference poses 0.03-0.11 m off with MCL sigmas of a few cm) [m].

@@ -41,6 +41,7 @@ struct TraverseData {
     std::vector<mrpt::obs::CObservation::Ptr> laser_sequence;
     std::size_t scan_count = 0;
     std::size_t odometry_count = 0;
+    std::size_t scans_deskewed = 0;  ///< scans redrawn for the motion over the sweep
     std::set<std::string> labels;  ///< every sensor label seen
     SkippedRecords skipped;        ///< refused sensor data
 };
