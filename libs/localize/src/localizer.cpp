@@ -53,15 +53,6 @@ mrpt::poses::CPose2D toPose2D(const mrpt::poses::CPose3D& p) {
     return mrpt::poses::CPose2D(p.x(), p.y(), p.yaw());
 }
 
-mrpt::poses::CPosePDFGaussian gaussian(const mrpt::poses::CPose2D& mean, double sigma_xy_m,
-                                       double sigma_yaw_rad) {
-    mrpt::math::CMatrixDouble33 cov;
-    cov.setZero();
-    cov(0, 0) = cov(1, 1) = sigma_xy_m * sigma_xy_m;
-    cov(2, 2) = sigma_yaw_rad * sigma_yaw_rad;
-    return mrpt::poses::CPosePDFGaussian(mean, cov);
-}
-
 // Coarse source that reports database reference indices instead of sequence indices.
 class DatabaseSequenceSource : public coarse::CoarseSource {
   public:
@@ -1013,18 +1004,14 @@ void Localizer::emit(const Attempt& a, const std::optional<Prediction>& predicti
     }
     out.status = FrameStatus::Fallback;
     out.reason = a.result ? a.result->reason : "no references to refine against";
-    const auto& acc = refiner_.options().acceptance;
     if (prediction) {
         out.has_pose = true;
         out.pose_source = "prediction";
-        // Dead reckoning since the last fix: a few percent of the distance travelled.
-        out.pose = gaussian(prediction->pose, 0.05 + 0.05 * prediction->travelled_m,
-                            mrpt::DEG2RAD(1.0 + 2.0 * prediction->travelled_m));
+        out.pose = refiner_.acceptance().deadReckoned(prediction->pose, prediction->travelled_m);
     } else if (out.coarse_pose) {
         out.has_pose = true;
         out.pose_source = "coarse";
-        out.pose = gaussian(*out.coarse_pose, acc.fallback_sigma_xy_m,
-                            mrpt::DEG2RAD(acc.fallback_sigma_yaw_deg));
+        out.pose = refiner_.acceptance().fallback(*out.coarse_pose);
     } else {
         out.status = FrameStatus::Lost;
         out.reason = last_coarse_ ? "coarse stage not confident: " + last_coarse_->reason

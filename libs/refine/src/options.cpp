@@ -237,11 +237,20 @@ void AcceptanceOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& 
                                            const std::string& section) {
     const IniSection s(source, section, sourceName(source));
     s.rejectUnknownKeys(
-        {"min_inlier_share", "max_offset_m", "fallback_sigma_xy_m", "fallback_sigma_yaw_deg"});
+        {"min_inlier_share", "max_offset_m", "fallback_sigma_xy_m", "fallback_sigma_yaw_deg",
+         "dead_reckoning_sigma_xy_m", "dead_reckoning_sigma_xy_per_m",
+         "dead_reckoning_sigma_yaw_deg", "dead_reckoning_sigma_yaw_deg_per_m"});
     min_inlier_share = s.getDouble("min_inlier_share", min_inlier_share);
     max_offset_m = s.getDouble("max_offset_m", max_offset_m);
     fallback_sigma_xy_m = s.getDouble("fallback_sigma_xy_m", fallback_sigma_xy_m);
     fallback_sigma_yaw_deg = s.getDouble("fallback_sigma_yaw_deg", fallback_sigma_yaw_deg);
+    dead_reckoning_sigma_xy_m = s.getDouble("dead_reckoning_sigma_xy_m", dead_reckoning_sigma_xy_m);
+    dead_reckoning_sigma_xy_per_m =
+        s.getDouble("dead_reckoning_sigma_xy_per_m", dead_reckoning_sigma_xy_per_m);
+    dead_reckoning_sigma_yaw_deg =
+        s.getDouble("dead_reckoning_sigma_yaw_deg", dead_reckoning_sigma_yaw_deg);
+    dead_reckoning_sigma_yaw_deg_per_m =
+        s.getDouble("dead_reckoning_sigma_yaw_deg_per_m", dead_reckoning_sigma_yaw_deg_per_m);
 }
 
 void AcceptanceOptions::saveToConfigFile(mrpt::config::CConfigFileBase& t,
@@ -250,6 +259,10 @@ void AcceptanceOptions::saveToConfigFile(mrpt::config::CConfigFileBase& t,
     write(t, s, "max_offset_m", max_offset_m);
     write(t, s, "fallback_sigma_xy_m", fallback_sigma_xy_m);
     write(t, s, "fallback_sigma_yaw_deg", fallback_sigma_yaw_deg);
+    write(t, s, "dead_reckoning_sigma_xy_m", dead_reckoning_sigma_xy_m);
+    write(t, s, "dead_reckoning_sigma_xy_per_m", dead_reckoning_sigma_xy_per_m);
+    write(t, s, "dead_reckoning_sigma_yaw_deg", dead_reckoning_sigma_yaw_deg);
+    write(t, s, "dead_reckoning_sigma_yaw_deg_per_m", dead_reckoning_sigma_yaw_deg_per_m);
 }
 
 void AcceptanceOptions::check() const {
@@ -258,6 +271,11 @@ void AcceptanceOptions::check() const {
     c.require(max_offset_m > 0.0, "max_offset_m", "> 0");
     c.require(fallback_sigma_xy_m > 0.0, "fallback_sigma_xy_m", "> 0");
     c.require(fallback_sigma_yaw_deg > 0.0, "fallback_sigma_yaw_deg", "> 0");
+    c.require(dead_reckoning_sigma_xy_m > 0.0, "dead_reckoning_sigma_xy_m", "> 0");
+    c.require(dead_reckoning_sigma_xy_per_m >= 0.0, "dead_reckoning_sigma_xy_per_m", ">= 0");
+    c.require(dead_reckoning_sigma_yaw_deg > 0.0, "dead_reckoning_sigma_yaw_deg", "> 0");
+    c.require(dead_reckoning_sigma_yaw_deg_per_m >= 0.0, "dead_reckoning_sigma_yaw_deg_per_m",
+              ">= 0");
     c.throwIfFailed();
 }
 

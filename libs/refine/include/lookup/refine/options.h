@@ -153,6 +153,12 @@ struct AcceptanceOptions : public mrpt::config::CLoadableOptions {
     double max_offset_m = 2.0;         ///< d_th: max |refined - coarse (or reference)| in x, y [m]
     double fallback_sigma_xy_m = 2.0;  ///< sigma reported with a fallback pose [m]
     double fallback_sigma_yaw_deg = 10.0;  ///< sigma reported with a fallback pose [deg]
+    /// Sigma of a pose dead-reckoned from the last fix: this much [m] plus `_per_m` of the
+    /// odometry's distance since the fix (wheel odometry drifts by a few percent).
+    double dead_reckoning_sigma_xy_m = 0.05;
+    double dead_reckoning_sigma_xy_per_m = 0.05;
+    double dead_reckoning_sigma_yaw_deg = 1.0;        ///< ... in heading [deg]
+    double dead_reckoning_sigma_yaw_deg_per_m = 2.0;  ///< [deg per m]
 
     void loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
                             const std::string& section) override;

@@ -13,23 +13,13 @@
 #include <string>
 #include <vector>
 
+#include "lookup/refine/acceptance.h"
 #include "lookup/refine/estimator.h"
 #include "lookup/refine/homography.h"
 #include "lookup/refine/options.h"
 #include "lookup/refine/types.h"
 
 namespace lookup::refine {
-
-enum class RefineStatus {
-    Accepted,         ///< refined pose
-    InvalidQuery,     ///< query image missing/unreadable, or its intrinsics invalid
-    NoReferences,     ///< no usable reference (none given, ids not found, bad intrinsics)
-    TooFewMatches,    ///< not enough matched / inlier points to estimate a pose
-    LowInlierShare,   ///< inliers / sample points < N_th
-    OffsetTooLarge,   ///< |refined - coarse (or reference)| > d_th
-    EstimationFailed  ///< solver or covariance failed
-};
-const char* toString(RefineStatus s);
 
 /// Where RefineResult::pose comes from.
 enum class PoseSource { Refined, Coarse, Reference, None };
@@ -84,9 +74,11 @@ class Refiner {
                         const std::vector<Reference>& references) const;
 
     const RefinerOptions& options() const { return options_; }
+    const AcceptancePolicy& acceptance() const { return acceptance_; }
 
   private:
     RefinerOptions options_;
+    AcceptancePolicy acceptance_;
 };
 
 }  // namespace lookup::refine

@@ -86,6 +86,18 @@ struct Reference {
 
 /// What the coarse stage tells the refiner (paper Sec. III-E: the matched reference time
 /// stamp; here reference ids and/or a pose).
+/// Outcome of one refinement (RefineResult::status).
+enum class RefineStatus {
+    Accepted,         ///< refined pose
+    InvalidQuery,     ///< query image missing/unreadable, or its intrinsics invalid
+    NoReferences,     ///< no usable reference (none given, ids not found, bad intrinsics)
+    TooFewMatches,    ///< not enough matched / inlier points to estimate a pose
+    LowInlierShare,   ///< inliers / sample points < N_th
+    OffsetTooLarge,   ///< |refined - coarse (or reference)| > d_th
+    EstimationFailed  ///< solver or covariance failed
+};
+const char* toString(RefineStatus s);
+
 struct CoarseHint {
     std::vector<std::int64_t> reference_ids;  ///< references to use; empty = all given
     /// Coarse query vehicle pose in the map: x, y and yaw are used (the query's height and tilt

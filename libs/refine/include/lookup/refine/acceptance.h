@@ -1,0 +1,46 @@
+#pragma once
+// The one acceptance policy (paper Sec. III-E) and the uncertainty of every pose that is not a
+// fix: when the Refiner accepts a refined pose, the covariance it reports with a coarse or
+// reference pose instead, and the one the localiser reports with a pose dead-reckoned from its
+// last fix. All of it is read from `[refine.acceptance]`.
+
+#include <mrpt/poses/CPose2D.h>
+#include <mrpt/poses/CPosePDFGaussian.h>
+
+#include <optional>
+#include <string>
+
+#include "lookup/refine/options.h"
+#include "lookup/refine/types.h"
+
+namespace lookup::refine {
+
+class AcceptancePolicy {
+  public:
+    struct Rejection {
+        RefineStatus status;  ///< LowInlierShare or OffsetTooLarge
+        std::string reason;   ///< "(share 0.30 < N_th 0.45)", "refined pose is ... (d_th ...)"
+    };
+
+    /// Throws common::ConfigError when the options are invalid.
+    explicit AcceptancePolicy(AcceptanceOptions options = {});
+
+    /// nullopt when a refined pose with this inlier share and this offset from the coarse pose
+    /// (`from_coarse`) or from the nearest reference is accepted.
+    std::optional<Rejection> judge(double inlier_share, double offset_m, bool from_coarse) const;
+
+    /// A coarse or reference pose reported in place of a fix.
+    mrpt::poses::CPosePDFGaussian fallback(const mrpt::poses::CPose2D& pose) const;
+
+    /// A pose dead-reckoned over `travelled_m` of odometry since the last fix: the uncertainty
+    /// grows by a share of the distance.
+    mrpt::poses::CPosePDFGaussian deadReckoned(const mrpt::poses::CPose2D& pose,
+                                               double travelled_m) const;
+
+    const AcceptanceOptions& options() const { return options_; }
+
+  private:
+    AcceptanceOptions options_;
+};
+
+}  // namespace lookup::refine

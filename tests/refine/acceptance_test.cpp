@@ -1,0 +1,70 @@
+// The acceptance policy: N_th and d_th decide, and every pose that is not a fix carries the
+// configured uncertainty, growing with the distance dead-reckoned.
+#include <gtest/gtest.h>
+#include <mrpt/config/CConfigFileMemory.h>
+
+#include <cmath>
+
+#include "lookup/common/config.h"
+#include "lookup/refine/acceptance.h"
+
+namespace {
+
+using lookup::refine::AcceptanceOptions;
+using lookup::refine::AcceptancePolicy;
+using lookup::refine::RefineStatus;
+
+AcceptanceOptions options() {
+    AcceptanceOptions o;
+    o.min_inlier_share = 0.5;
+    o.max_offset_m = 1.0;
+    return o;
+}
+
+TEST(AcceptancePolicy, InlierShareThenOffsetDecide) {
+    const AcceptancePolicy policy(options());
+    EXPECT_FALSE(policy.judge(0.5, 1.0, true));
+    const auto low = policy.judge(0.49, 0.1, true);
+    ASSERT_TRUE(low);
+    EXPECT_EQ(low->status, RefineStatus::LowInlierShare);
+    EXPECT_NE(low->reason.find("N_th"), std::string::npos) << low->reason;
+    const auto far = policy.judge(0.9, 1.01, false);
+    ASSERT_TRUE(far);
+    EXPECT_EQ(far->status, RefineStatus::OffsetTooLarge);
+    EXPECT_NE(far->reason.find("nearest reference"), std::string::npos) << far->reason;
+    EXPECT_NE(policy.judge(0.9, 1.01, true)->reason.find("coarse pose"), std::string::npos);
+}
+
+TEST(AcceptancePolicy, DeadReckoningGrowsWithTheDistance) {
+    AcceptanceOptions o = options();
+    o.dead_reckoning_sigma_xy_m = 0.1;
+    o.dead_reckoning_sigma_xy_per_m = 0.02;
+    o.dead_reckoning_sigma_yaw_deg = 1.0;
+    o.dead_reckoning_sigma_yaw_deg_per_m = 0.5;
+    const AcceptancePolicy policy(o);
+    const auto at_fix = policy.deadReckoned(mrpt::poses::CPose2D(1, 2, 0.3), 0.0);
+    const auto later = policy.deadReckoned(mrpt::poses::CPose2D(1, 2, 0.3), 10.0);
+    EXPECT_NEAR(std::sqrt(at_fix.cov(0, 0)), 0.1, 1e-12);
+    EXPECT_NEAR(std::sqrt(later.cov(1, 1)), 0.3, 1e-12);
+    EXPECT_NEAR(std::sqrt(later.cov(2, 2)), mrpt::DEG2RAD(6.0), 1e-12);
+    EXPECT_DOUBLE_EQ(later.mean.x(), 1.0);
+    const auto fallback = policy.fallback(mrpt::poses::CPose2D(0, 0, 0));
+    EXPECT_NEAR(std::sqrt(fallback.cov(0, 0)), o.fallback_sigma_xy_m, 1e-12);
+}
+
+TEST(AcceptancePolicy, ReadFromItsSectionAndRefusedWhenInvalid) {
+    lookup::common::NamedConfigFile ini(
+        "[refine.acceptance]\ndead_reckoning_sigma_xy_per_m = 0.03\n", "loc.ini");
+    AcceptanceOptions o;
+    o.loadFromConfigFile(ini, "refine.acceptance");
+    EXPECT_DOUBLE_EQ(o.dead_reckoning_sigma_xy_per_m, 0.03);
+    mrpt::config::CConfigFileMemory saved;
+    o.saveToConfigFile(saved, "refine.acceptance");
+    AcceptanceOptions back;
+    back.loadFromConfigFile(saved, "refine.acceptance");
+    EXPECT_DOUBLE_EQ(back.dead_reckoning_sigma_xy_per_m, 0.03);
+    o.dead_reckoning_sigma_xy_m = 0.0;
+    EXPECT_THROW(AcceptancePolicy{o}, lookup::common::ConfigError);
+}
+
+}  // namespace
