@@ -513,12 +513,14 @@ void addOdometryEdges(const KeyframeSet& set, const PoseGraphOptions& options,
     }
 }
 
+// Ceres solves on one thread: with more it sums costs and Jacobian products per thread, and the
+// last bits of the optimised poses would depend on the thread count.
 void solveGraph(ceres::Problem& problem, const std::vector<GraphTraverse>& traverses,
-                const PoseGraphOptions& options, unsigned threads, PoseGraphReport& rep) {
+                const PoseGraphOptions& options, PoseGraphReport& rep) {
     ceres::Solver::Options solver;
     solver.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
     solver.max_num_iterations = options.max_iterations;
-    solver.num_threads = int(threads);
+    solver.num_threads = 1;
     ceres::Solver::Summary summary;
     ceres::Solve(solver, &problem, &summary);
     if (!summary.IsSolutionUsable()) {
@@ -555,6 +557,8 @@ std::vector<std::optional<Eigen::Matrix3d>> keyframeCovariances(
     mrpt::system::CTicTac cov_timer;
     ceres::Covariance::Options cov_options;
     cov_options.algorithm_type = ceres::SPARSE_QR;
+    // Columns of the inverse are independent solves, so threads do not reorder sums; the
+    // factorisation (SuiteSparseQR) can still differ in the last bits from run to run.
     cov_options.num_threads = int(threads);
     ceres::Covariance covariance(cov_options);
     const std::vector<std::size_t> sampled = covarianceKeyframes(set, options.covariance_stride);
@@ -645,7 +649,7 @@ std::vector<common::PoseTrack> optimisePoseGraph(
     addRegistrationEdges(set.keyframes, pairs, registrations, options, state, problem, rep);
     addOdometryEdges(set, options, state, problem);
     problem.SetParameterBlockConstant(&state[0]);
-    solveGraph(problem, traverses, options, threads, rep);
+    solveGraph(problem, traverses, options, rep);
 
     std::vector<Eigen::Matrix3d> keyframe_cov;
     if (covariances && options.covariance_stride > 0) {
