@@ -17,11 +17,11 @@
 #include "lookup/common/config.h"
 #include "lookup/common/errors.h"
 #include "lookup/common/share_dirs.h"
+#include "lookup/database/heat_maps.h"
 #include "lookup/database/reference_database.h"
 #include "lookup/fcn/heat_maps.h"
 #include "lookup/fcn/model.h"
 #include "lookup/fcn/train_app.h"
-#include "lookup/localize/localizer.h"
 #include "lookup/refine/sampler.h"
 
 namespace {
@@ -49,7 +49,7 @@ void drawFigure(const std::string& db_dir, int index, const std::string& png) {
     if (db.size() == 0) throw std::runtime_error(db_dir + ": no references");
     const std::size_t i = index < 0 ? db.size() / 2 : std::size_t(index);
     if (i >= db.size()) throw std::runtime_error(db_dir + ": no reference " + std::to_string(i));
-    const cv::Mat heat = lookup::localize::loadHeatMap(db, i);
+    const cv::Mat heat = lookup::database::loadHeatMap(db, i);
     if (heat.empty()) throw std::runtime_error(db_dir + "/db.ini: no heat maps (train first)");
     const lookup::refine::SamplerOptions s;
     const auto points = lookup::refine::heatMapPoints(heat, s.heat_map_points, s.damping_ratio,

@@ -1,4 +1,4 @@
-// Heat maps are written in the localiser's format (localize::loadHeatMap reads them back), db.ini
+// Heat maps are written in the localiser's format (database::loadHeatMap reads them back), db.ini
 // lists them, a second run replaces them, and db.ini keeps every other line.
 
 #include <gtest/gtest.h>
@@ -7,10 +7,10 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "fixture.h"
+#include "lookup/database/heat_maps.h"
 #include "lookup/database/manifest.h"
 #include "lookup/database/reference_database.h"
 #include "lookup/fcn/heat_maps.h"
-#include "lookup/localize/localizer.h"
 
 using namespace lookup;
 using namespace lookup::fcn;
@@ -42,14 +42,14 @@ TEST(HeatMaps, WrittenInTheLocalisersFormatAndListedInDbIni) {
     ASSERT_FALSE(db.info().heatmaps_dir.empty());
     const std::string first_dir = db.info().heatmaps_dir;
     for (std::size_t i = 0; i < db.size(); ++i) {
-        const fs::path file = fs::path(db_dir) / first_dir / localize::heatMapFileName(i);
+        const fs::path file = fs::path(db_dir) / first_dir / database::heatMapFileName(i);
         // Stored at the network's resolution (input_scale 0.5), read back at the image's.
         const cv::Mat raw = cv::imread(file.string(), cv::IMREAD_UNCHANGED);
         const cv::Mat image = db.ceilingImage(i);
         ASSERT_EQ(raw.type(), CV_16UC1) << file;
         EXPECT_EQ(raw.size(), model.predictAtNetworkScale(image).size());
         EXPECT_EQ(raw.size(), cv::Size(image.cols / 2, image.rows / 2));
-        const cv::Mat stored = localize::loadHeatMap(db, i);
+        const cv::Mat stored = database::loadHeatMap(db, i);
         const cv::Mat predicted = model.predict(image);
         ASSERT_EQ(stored.size(), predicted.size());
         EXPECT_LT(cv::norm(stored, predicted, cv::NORM_INF), 1.0 / 65535 + 1e-6);
@@ -57,12 +57,12 @@ TEST(HeatMaps, WrittenInTheLocalisersFormatAndListedInDbIni) {
     // A heat map larger than the image is refused by name, not cropped or shrunk.
     {
         const auto db = database::ReferenceDatabase::load(db_dir);
-        const fs::path file = fs::path(db_dir) / first_dir / localize::heatMapFileName(1);
+        const fs::path file = fs::path(db_dir) / first_dir / database::heatMapFileName(1);
         const cv::Mat image = db.ceilingImage(1);
         ASSERT_TRUE(cv::imwrite(file.string(),
                                 cv::Mat(image.rows + 2, image.cols, CV_16UC1, cv::Scalar(100))));
         try {
-            localize::loadHeatMap(db, 1);
+            database::loadHeatMap(db, 1);
             ADD_FAILURE() << "an oversized heat map was accepted";
         } catch (const std::runtime_error& e) {
             EXPECT_NE(std::string(e.what()).find(file.string()), std::string::npos) << e.what();
@@ -92,7 +92,7 @@ TEST(HeatMaps, ChecksummedInTheirFolderAndADamagedOneRefusedByName) {
     EXPECT_TRUE(fs::is_regular_file(heat / database::kManifest));
     EXPECT_EQ(slurp(fs::path(db_dir) / database::kManifest), survey_manifest);
     ASSERT_NO_THROW(database::ReferenceDatabase::load(db_dir));
-    const fs::path file = heat / localize::heatMapFileName(1);
+    const fs::path file = heat / database::heatMapFileName(1);
     std::string bytes = slurp(file);
     bytes[bytes.size() / 2] ^= 0x04;
     std::ofstream(file, std::ios::binary) << bytes;
@@ -128,7 +128,7 @@ TEST(HeatMaps, SetDirectoryAddsTheSectionWhenAbsentAndRefusesAMissingFile) {
 
 TEST(HeatMaps, EncodingSaturatesToSixteenBits) {
     cv::Mat heat = (cv::Mat_<float>(1, 4) << -0.5f, 0.f, 0.5f, 2.f);
-    const cv::Mat e = encodeHeatMap(heat);
+    const cv::Mat e = database::encodeHeatMap(heat);
     ASSERT_EQ(e.type(), CV_16UC1);
     EXPECT_EQ(e.at<std::uint16_t>(0), 0);
     EXPECT_EQ(e.at<std::uint16_t>(1), 0);

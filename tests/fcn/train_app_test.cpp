@@ -9,9 +9,9 @@
 #include <nlohmann/json.hpp>
 
 #include "fixture.h"
+#include "lookup/database/heat_maps.h"
 #include "lookup/database/reference_database.h"
 #include "lookup/fcn/train_app.h"
-#include "lookup/localize/localizer.h"
 
 using namespace lookup;
 using namespace lookup::fcn;
@@ -135,7 +135,7 @@ TEST(TrainApp, HeatMapsOnlyDrawsAnotherDatabaseWithASavedModel) {
     const auto db = database::ReferenceDatabase::load(other.string());
     EXPECT_EQ(db.info().heatmaps_dir, w.directory);
     for (std::size_t i = 0; i < db.size(); ++i) {
-        const cv::Mat stored = localize::loadHeatMap(db, i);
+        const cv::Mat stored = database::loadHeatMap(db, i);
         const cv::Mat predicted = model.predict(db.ceilingImage(i));
         ASSERT_EQ(stored.size(), predicted.size());
         EXPECT_LT(cv::norm(stored, predicted, cv::NORM_INF), 1.0 / 65535 + 1e-6);

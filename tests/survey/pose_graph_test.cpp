@@ -149,6 +149,45 @@ TEST(PoseGraph, TwoTraversesAreTiedTogether) {
     EXPECT_GT(errors(shifted, b.truth).first, 0.2);
 }
 
+TEST(PoseGraph, SameResultWhateverTheThreadCount) {
+    const lookup::sim::TunnelWorld world(bentTunnel(), 5);
+    const Drive d = drive(world, 0.0, 1000, 1);
+    PoseGraphOptions options;
+    options.max_correction_m = 3.0;
+    options.max_correction_deg = 3.0;
+    const auto run = [&](int threads, std::vector<std::vector<mrpt::math::CMatrixDouble33>>& covs) {
+        options.threads = threads;
+        PoseGraphReport report;
+        auto out = optimisePoseGraph({{&d.data, d.odometry}}, options, &report, {}, &covs);
+        EXPECT_TRUE(report.covariance_ok);
+        return out;
+    };
+    std::vector<std::vector<mrpt::math::CMatrixDouble33>> one_covs;
+    const auto one = run(1, one_covs);
+    for (const int threads : {3}) {
+        std::vector<std::vector<mrpt::math::CMatrixDouble33>> covs;
+        const auto out = run(threads, covs);
+        ASSERT_EQ(out.size(), one.size());
+        ASSERT_EQ(covs.size(), one_covs.size());
+        for (std::size_t t = 0; t < out.size(); ++t) {
+            ASSERT_EQ(out[t].size(), one[t].size());
+            ASSERT_EQ(covs[t].size(), one_covs[t].size());
+            for (std::size_t i = 0; i < out[t].size(); ++i) {
+                // The poses bit for bit: exact comparisons on purpose.
+                ASSERT_EQ(out[t][i].pose.x(), one[t][i].pose.x()) << threads << " threads";
+                ASSERT_EQ(out[t][i].pose.y(), one[t][i].pose.y()) << threads << " threads";
+                ASSERT_EQ(out[t][i].pose.yaw(), one[t][i].pose.yaw()) << threads << " threads";
+                // SuiteSparseQR's factorisation may differ in the last bits between runs.
+                for (int k = 0; k < 9; ++k) {
+                    const double want = one_covs[t][i](k / 3, k % 3);
+                    ASSERT_NEAR(covs[t][i](k / 3, k % 3), want, 1e-9 * std::abs(want) + 1e-18)
+                        << threads << " threads, pose " << i;
+                }
+            }
+        }
+    }
+}
+
 TEST(PoseGraph, MismatchedTrackIsRefusedNamingTheRawlog) {
     const lookup::sim::TunnelWorld world(bentTunnel(), 5);
     const Drive d = drive(world, 0.0, 1000, 1);

@@ -585,10 +585,189 @@ void CoarseLocalizer::auditTrack(CoarseResult& r) {
     }
 }
 
+/// What one searched frame can use: the buffered sequence, its odometry, the frame's step.
+struct CoarseLocalizer::FramePlan {
+    std::chrono::steady_clock::time_point t0;  ///< when the frame arrived
+    int n_cols = 0;                            ///< buffered frames
+    long n_refs = 0;
+    int odometry_cols = 0;  ///< newest buffered frames whose steps all have odometry
+    int track_cols = 0;     ///< frames a tracking search scores
+    bool odometry = false;  ///< surveyed references and odometry over the whole sequence
+    bool full = false;      ///< sequence_length frames buffered
+    double step_m = 0;      ///< odometry since the previous frame [m]
+};
+
+void CoarseLocalizer::agePending(const std::optional<double>& travelled_m,
+                                 std::size_t query_index) {
+    // Pending global matches move with the vehicle; without odometry they cannot.
+    if (!travelled_m) {
+        pending_.clear();
+        return;
+    }
+    for (auto& p : pending_) p.travelled_m += *travelled_m;
+    // A match older than a few sequences no longer helps: the tolerance has grown loose.
+    const std::size_t max_age = 4 * static_cast<std::size_t>(options_.sequence_length);
+    pending_.erase(std::remove_if(pending_.begin(), pending_.end(),
+                                  [&](const PendingMatch& p) {
+                                      return query_index > p.query_index + max_age;
+                                  }),
+                   pending_.end());
+}
+
+void CoarseLocalizer::skipSearch(const std::optional<double>& travelled_m, double step_m,
+                                 CoarseResult& r) {
+    // With odometry the track moves on unsearched; otherwise the next search is global.
+    const bool coast = tracking_ && travelled_m && options_.use_odometry &&
+                       references_->hasPoses() && coasted_m_ + step_m <= options_.max_coast_m;
+    if (coast) {
+        coasted_m_ += step_m;
+        track_arc_m_ += step_m;
+        last_match_ = static_cast<std::size_t>(nearestArc(*references_, track_arc_m_));
+    }
+    tracking_ = coast;
+    r.status = CoarseStatus::kNotSearched;
+    r.reason = "search skipped: no match needed for this frame";
+}
+
+bool CoarseLocalizer::searchTrack(const FramePlan& plan, bool audit, CoarseResult& r, Search& s,
+                                  bool& held) {
+    long predicted;
+    if (plan.odometry) {
+        // From the continuous arc length: snapping to a reference every frame while
+        // coasting would add up rounding errors of half a reference spacing.
+        predicted = nearestArc(*references_, track_arc_m_ + plan.step_m);
+    } else {
+        predicted = static_cast<long>(last_match_) + std::lround(last_velocity_);
+    }
+    const long w = options_.tracking_half_window_refs, n_refs = plan.n_refs;
+    long lo = predicted - w, hi = predicted + w;
+    if (lo < 0) hi = std::min(n_refs - 1, hi - lo), lo = 0;
+    if (hi > n_refs - 1) lo = std::max(0L, lo - (hi - (n_refs - 1))), hi = n_refs - 1;
+    s = search({{lo, hi}}, plan.odometry, plan.track_cols, 1, r.evaluated_references);
+    r.searched_candidates += s.candidates;
+    bool confident = s.valid && s.second_score - s.best_score >= options_.min_confidence;
+    const double off_m =
+        plan.odometry && s.valid
+            ? std::abs(references_->arcLength(s.best) - (track_arc_m_ + plan.step_m))
+            : 0.0;
+    const bool far =
+        plan.odometry && s.valid && off_m > odometryTolerance(coasted_m_ + plan.step_m);
+    if (far && options_.max_coast_m > 0) confident = false;  // aliasing within the window
+    if (confident) return true;
+    if (plan.odometry && coasted_m_ + plan.step_m <= options_.max_coast_m) {
+        // Aliased stretch: the window cannot tell its places apart, odometry still can.
+        holdByOdometry(plan, predicted, s, far ? std::optional<double>(off_m) : std::nullopt, audit,
+                       r);
+        held = true;
+    }
+    return false;
+}
+
+void CoarseLocalizer::holdByOdometry(const FramePlan& plan, long predicted, const Search& s,
+                                     std::optional<double> far_m, bool audit, CoarseResult& r) {
+    coasted_m_ += plan.step_m;
+    track_arc_m_ += plan.step_m;
+    r.search_ms = msSince(plan.t0);
+    r.status = CoarseStatus::kOdometry;
+    r.reference_index = static_cast<std::size_t>(predicted);
+    r.reference_time_s = references_->time(r.reference_index);
+    r.coarse_pose = references_->pose(r.reference_index);
+    r.velocity = s.velocity;
+    r.confidence = s.valid && std::isfinite(s.second_score)
+                       ? std::max(0.0, s.second_score - s.best_score)
+                       : 0.0;
+    std::ostringstream why;
+    if (far_m) {
+        why << "window match " << *far_m << " m from the odometry prediction";
+    } else {
+        why << "window match not confident (" << r.confidence << ")";
+    }
+    why << ": held by odometry, " << coasted_m_ << " m since the last confident match";
+    r.reason = why.str();
+    last_match_ = r.reference_index;
+    ++coast_frames_;
+    if (++frames_since_audit_ >= kAuditEveryFrames && audit) {
+        frames_since_audit_ = 0;
+        auditTrack(r);
+    }
+}
+
+CoarseLocalizer::Search CoarseLocalizer::searchGlobally(const FramePlan& plan, int global_cols,
+                                                        CoarseResult& r) {
+    // After a track, its place is searched too (the index may miss it in a uniform stretch).
+    const long last = static_cast<long>(last_match_), n_refs = plan.n_refs;
+    const std::pair<long, long> previous =
+        queries_ > 1 && last < n_refs ? std::make_pair(last, last) : std::make_pair(0L, -1L);
+    const int stride = strideFor(global_cols);
+    const int every = options_.global_index_full_search_every;
+    const bool whole = index_ && every > 0 && unconfident_searches_ >= every;
+    if (whole) unconfident_searches_ = 0;
+    Search s = search(whole ? std::vector<std::pair<long, long>>{{0, n_refs - 1}}
+                            : globalWindows(plan.odometry, global_cols, stride, previous),
+                      plan.odometry, global_cols, stride, r.evaluated_references);
+    r.searched_candidates += s.candidates;
+    return s;
+}
+
+void CoarseLocalizer::judgeMatch(const FramePlan& plan, const Search& s, bool global,
+                                 int global_cols, bool audit, CoarseResult& r) {
+    r.reference_index = s.best;
+    r.reference_time_s = references_->time(s.best);
+    if (references_->hasPoses()) r.coarse_pose = references_->pose(s.best);
+    r.velocity = s.velocity;
+    r.confidence = std::isfinite(s.second_score) ? s.second_score - s.best_score : 0.0;
+    last_match_ = s.best;
+    last_velocity_ = s.velocity;
+
+    const int cols = global ? global_cols : plan.track_cols;
+    if (global && plan.full) ++unconfident_searches_;  // (reset below when it is trusted)
+    if (!plan.full) {
+        r.status = CoarseStatus::kNotEnoughFrames;
+        r.reason = "only " + std::to_string(plan.n_cols) +
+                   " of sequence_length = " + std::to_string(options_.sequence_length) +
+                   " query frames seen";
+        tracking_ = false;
+    } else if (!std::isfinite(s.second_score)) {
+        r.status = CoarseStatus::kLost;
+        r.reason = "no competing candidate outside the exclusion window: confidence unknown";
+        tracking_ = false;
+    } else if (r.confidence < minConfidence(cols)) {
+        r.status = CoarseStatus::kLost;
+        r.reason = "confidence " + std::to_string(r.confidence) + " below " +
+                   std::to_string(minConfidence(cols)) + " (min_confidence for " +
+                   std::to_string(cols) + " frames: aliased or unknown place)";
+        tracking_ = false;
+    } else if (global && plan.odometry && options_.confirm_global &&
+               !confirmGlobal(s.best, r.query_index, r.reason)) {
+        r.status = CoarseStatus::kUnconfirmed;
+        tracking_ = false;
+    } else {
+        trust(s.best, global, plan.odometry, audit, r);
+    }
+}
+
+void CoarseLocalizer::trust(std::size_t best, bool global, bool odometry, bool audit,
+                            CoarseResult& r) {
+    r.status = global ? CoarseStatus::kGlobal : CoarseStatus::kTracking;
+    tracking_ = true;
+    unconfident_searches_ = 0;
+    coasted_m_ = 0;
+    coast_frames_ = 0;
+    if (references_->hasPoses()) track_arc_m_ = references_->arcLength(best);
+    if (global) {
+        pending_.clear();
+        frames_since_audit_ = 0;
+    } else if (odometry && ++frames_since_audit_ >= kAuditEveryFrames && audit) {
+        frames_since_audit_ = 0;
+        auditTrack(r);
+    }
+}
+
 CoarseResult CoarseLocalizer::processDescriptor(const Descriptor& descriptor, double time_s,
                                                 std::optional<double> travelled_m, bool search_now,
                                                 bool audit) {
-    const auto t0 = Clock::now();
+    FramePlan plan;
+    plan.t0 = Clock::now();
     CoarseResult r;
     r.query_index = queries_++;
     r.query_time_s = time_s;
@@ -602,180 +781,50 @@ CoarseResult CoarseLocalizer::processDescriptor(const Descriptor& descriptor, do
     if (travelled_m && !(std::isfinite(*travelled_m) && *travelled_m >= 0)) {
         travelled_m.reset();  // a broken odometry reading only disables odometry here
     }
-
-    // Pending global matches move with the vehicle; without odometry they cannot.
-    if (travelled_m) {
-        for (auto& p : pending_) p.travelled_m += *travelled_m;
-        // A match older than a few sequences no longer helps: the tolerance has grown loose.
-        const std::size_t max_age = 4 * static_cast<std::size_t>(options_.sequence_length);
-        pending_.erase(std::remove_if(pending_.begin(), pending_.end(),
-                                      [&](const PendingMatch& p) {
-                                          return r.query_index > p.query_index + max_age;
-                                      }),
-                       pending_.end());
-    } else {
-        pending_.clear();
-    }
-
+    agePending(travelled_m, r.query_index);
     auto column = std::make_shared<Column>();
     column->descriptor = descriptor;
     column->travelled_m = travelled_m;
     columns_.push_front(column);
     while (columns_.size() > bufferLength()) columns_.pop_back();
-    const double step_m = travelled_m.value_or(0);
+    plan.step_m = travelled_m.value_or(0);
     if (!search_now) {
-        // With odometry the track moves on unsearched; otherwise the next search is global.
-        const bool coast = tracking_ && travelled_m && options_.use_odometry &&
-                           references_->hasPoses() && coasted_m_ + step_m <= options_.max_coast_m;
-        if (coast) {
-            coasted_m_ += step_m;
-            track_arc_m_ += step_m;
-            last_match_ = static_cast<std::size_t>(nearestArc(*references_, track_arc_m_));
-        }
-        tracking_ = coast;
-        r.status = CoarseStatus::kNotSearched;
-        r.reason = "search skipped: no match needed for this frame";
+        skipSearch(travelled_m, plan.step_m, r);
         return r;
     }
-    const int n_cols = static_cast<int>(columns_.size());
-    const long n_refs = static_cast<long>(references_->size());
-
+    plan.n_cols = static_cast<int>(columns_.size());
+    plan.n_refs = static_cast<long>(references_->size());
     // Odometry applies when references are surveyed and every step of the sequence has it.
-    const int odometry_cols = odometryFrames(std::numeric_limits<double>::infinity());
-    const int track_cols = std::min(n_cols, options_.sequence_length);
-    const bool odometry =
-        options_.use_odometry && references_->hasPoses() && odometry_cols >= track_cols;
-    r.used_odometry = odometry;
+    plan.odometry_cols = odometryFrames(std::numeric_limits<double>::infinity());
+    plan.track_cols = std::min(plan.n_cols, options_.sequence_length);
+    plan.odometry =
+        options_.use_odometry && references_->hasPoses() && plan.odometry_cols >= plan.track_cols;
+    plan.full = plan.n_cols >= options_.sequence_length;
+    r.used_odometry = plan.odometry;
 
-    const bool full = n_cols >= options_.sequence_length;
     Search s;
     bool global = true;
-    if (tracking_ && full) {
-        long predicted;
-        if (odometry) {
-            // From the continuous arc length: snapping to a reference every frame while
-            // coasting would add up rounding errors of half a reference spacing.
-            predicted = nearestArc(*references_, track_arc_m_ + step_m);
-        } else {
-            predicted = static_cast<long>(last_match_) + std::lround(last_velocity_);
-        }
-        const long w = options_.tracking_half_window_refs;
-        long lo = predicted - w, hi = predicted + w;
-        if (lo < 0) hi = std::min(n_refs - 1, hi - lo), lo = 0;
-        if (hi > n_refs - 1) lo = std::max(0L, lo - (hi - (n_refs - 1))), hi = n_refs - 1;
-        s = search({{lo, hi}}, odometry, track_cols, 1, r.evaluated_references);
-        r.searched_candidates += s.candidates;
-        bool confident = s.valid && s.second_score - s.best_score >= options_.min_confidence;
-        const double off_m =
-            odometry && s.valid ? std::abs(references_->arcLength(s.best) - (track_arc_m_ + step_m))
-                                : 0.0;
-        const bool far = odometry && s.valid && off_m > odometryTolerance(coasted_m_ + step_m);
-        if (far && options_.max_coast_m > 0) confident = false;  // aliasing within the window
-        global = !confident;
-        if (!confident && odometry && coasted_m_ + step_m <= options_.max_coast_m) {
-            // Aliased stretch: the window cannot tell its places apart, odometry still can.
-            coasted_m_ += step_m;
-            track_arc_m_ += step_m;
-            r.search_ms = msSince(t0);
-            r.status = CoarseStatus::kOdometry;
-            r.reference_index = static_cast<std::size_t>(predicted);
-            r.reference_time_s = references_->time(r.reference_index);
-            r.coarse_pose = references_->pose(r.reference_index);
-            r.velocity = s.velocity;
-            r.confidence = s.valid && std::isfinite(s.second_score)
-                               ? std::max(0.0, s.second_score - s.best_score)
-                               : 0.0;
-            std::ostringstream why;
-            if (far) {
-                why << "window match " << off_m << " m from the odometry prediction";
-            } else {
-                why << "window match not confident (" << r.confidence << ")";
-            }
-            why << ": held by odometry, " << coasted_m_ << " m since the last confident match";
-            r.reason = why.str();
-            last_match_ = r.reference_index;
-            ++coast_frames_;
-            if (++frames_since_audit_ >= kAuditEveryFrames && audit) {
-                frames_since_audit_ = 0;
-                auditTrack(r);
-            }
-            return r;
-        }
+    if (tracking_ && plan.full) {
+        bool held = false;
+        global = !searchTrack(plan, audit, r, s, held);
+        if (held) return r;
     }
     // A global search with odometry scores longer sequences: over a long uniform drive a few
     // seconds of forward views alias, a hundred metres of them rarely do.
-    int global_cols = track_cols;
-    if (odometry) {
-        global_cols =
-            std::max(track_cols, std::min(odometry_cols, options_.odometry_sequence_length));
+    int global_cols = plan.track_cols;
+    if (plan.odometry) {
+        global_cols = std::max(plan.track_cols,
+                               std::min(plan.odometry_cols, options_.odometry_sequence_length));
     }
-    if (global) {
-        // After a track, its place is searched too (the index may miss it in a uniform stretch).
-        const long last = static_cast<long>(last_match_);
-        const std::pair<long, long> previous =
-            queries_ > 1 && last < n_refs ? std::make_pair(last, last) : std::make_pair(0L, -1L);
-        const int stride = strideFor(global_cols);
-        const int every = options_.global_index_full_search_every;
-        const bool whole = index_ && every > 0 && unconfident_searches_ >= every;
-        if (whole) unconfident_searches_ = 0;
-        s = search(whole ? std::vector<std::pair<long, long>>{{0, n_refs - 1}}
-                         : globalWindows(odometry, global_cols, stride, previous),
-                   odometry, global_cols, stride, r.evaluated_references);
-        r.searched_candidates += s.candidates;
-    }
-    r.search_ms = msSince(t0);
-
+    if (global) s = searchGlobally(plan, global_cols, r);
+    r.search_ms = msSince(plan.t0);
     if (!s.valid) {
         r.status = CoarseStatus::kLost;
         r.reason = "no sequence path fits inside the reference sequence";
         tracking_ = false;
         return r;
     }
-    r.reference_index = s.best;
-    r.reference_time_s = references_->time(s.best);
-    if (references_->hasPoses()) r.coarse_pose = references_->pose(s.best);
-    r.velocity = s.velocity;
-    r.confidence = std::isfinite(s.second_score) ? s.second_score - s.best_score : 0.0;
-    last_match_ = s.best;
-    last_velocity_ = s.velocity;
-
-    if (global && full) ++unconfident_searches_;  // (reset below when it is trusted)
-    if (!full) {
-        r.status = CoarseStatus::kNotEnoughFrames;
-        r.reason = "only " + std::to_string(n_cols) +
-                   " of sequence_length = " + std::to_string(options_.sequence_length) +
-                   " query frames seen";
-        tracking_ = false;
-    } else if (!std::isfinite(s.second_score)) {
-        r.status = CoarseStatus::kLost;
-        r.reason = "no competing candidate outside the exclusion window: confidence unknown";
-        tracking_ = false;
-    } else if (r.confidence < minConfidence(global ? global_cols : track_cols)) {
-        r.status = CoarseStatus::kLost;
-        r.reason = "confidence " + std::to_string(r.confidence) + " below " +
-                   std::to_string(minConfidence(global ? global_cols : track_cols)) +
-                   " (min_confidence for " + std::to_string(global ? global_cols : track_cols) +
-                   " frames: aliased or unknown place)";
-        tracking_ = false;
-    } else if (global && odometry && options_.confirm_global &&
-               !confirmGlobal(s.best, r.query_index, r.reason)) {
-        r.status = CoarseStatus::kUnconfirmed;
-        tracking_ = false;
-    } else {
-        r.status = global ? CoarseStatus::kGlobal : CoarseStatus::kTracking;
-        tracking_ = true;
-        unconfident_searches_ = 0;
-        coasted_m_ = 0;
-        coast_frames_ = 0;
-        if (references_->hasPoses()) track_arc_m_ = references_->arcLength(s.best);
-        if (global) {
-            pending_.clear();
-            frames_since_audit_ = 0;
-        } else if (odometry && ++frames_since_audit_ >= kAuditEveryFrames && audit) {
-            frames_since_audit_ = 0;
-            auditTrack(r);
-        }
-    }
+    judgeMatch(plan, s, global, global_cols, audit, r);
     return r;
 }
 

@@ -73,6 +73,181 @@ ReferenceDescriptors replicate(const ReferenceDescriptors& refs, int copies) {
     return out;
 }
 
+/// [section] of `ini` (defaults without one), the camera label overridden by `camera`; errors
+/// name the file and section.
+CoarseOptions loadOptions(const std::string& ini, const std::string& section,
+                          const std::string& camera) {
+    CoarseOptions options;
+    if (!ini.empty()) {
+        const auto file = common::loadIniFile(ini);  // missing, binary or garbled: refused
+        options.loadFromConfigFile(*file, section);
+    }
+    if (!camera.empty()) options.camera_label = camera;
+    try {
+        options.check();
+    } catch (const common::ConfigError& e) {
+        if (ini.empty()) throw;
+        throw common::ConfigError(ini + " [" + section + "]: " + e.what());
+    }
+    return options;
+}
+
+/// Number of images of `label` in `rawlog`, for the progress bar (cheap: images are not
+/// loaded).
+std::size_t countImages(const std::string& rawlog, const std::string& label) {
+    std::size_t total = 0;
+    common::RawlogReader counter(rawlog);
+    mrpt::obs::CObservation::Ptr obs;
+    while (counter.next(obs)) total += obs->sensorLabel == label ? 1 : 0;
+    return total;
+}
+
+/// Refuses a query frame whose size differs from the references' images.
+void checkImageSize(const CameraFrameStream& stream, const CameraFrame& frame,
+                    const ReferenceDescriptors& refs, const std::string& rawlog) {
+    if (refs.imageWidth() == 0 ||
+        (stream.imageWidth() == refs.imageWidth() && stream.imageHeight() == refs.imageHeight())) {
+        return;
+    }
+    throw common::RawlogError(rawlog, frame.record,
+                              "query images are " + std::to_string(stream.imageWidth()) + "x" +
+                                  std::to_string(stream.imageHeight()) + ", reference images are " +
+                                  std::to_string(refs.imageWidth()) + "x" +
+                                  std::to_string(refs.imageHeight()));
+}
+
+void writeCsvHeader(std::ostream& csv, bool evaluate) {
+    csv << "query_index,query_time_s,reference_index,reference_time_s,confidence,status"
+        << (evaluate ? ",error_m" : "") << ",reason\n";
+    csv << std::setprecision(15);
+}
+
+void writeCsvRow(std::ostream& csv, const CoarseResult& r, bool evaluate,
+                 std::optional<double> error) {
+    csv << r.query_index << "," << r.query_time_s << ",";
+    if (r.hasMatch())
+        csv << r.reference_index << "," << r.reference_time_s;
+    else
+        csv << ",";
+    csv << "," << r.confidence << "," << toString(r.status);
+    if (evaluate) {
+        csv << ",";
+        if (error) csv << *error;
+    }
+    std::string reason = r.reason;
+    std::replace(reason.begin(), reason.end(), '"', '\'');
+    csv << ",\"" << reason << "\"\n";
+}
+
+/// Closes `csv` (written to `tmp`), syncs it and renames it to `path`: a power cut leaves the
+/// old file or the whole new one.
+void commitCsv(std::ofstream& csv, const std::string& tmp, const std::string& path) {
+    csv.close();
+    if (!csv) throw common::WriteError(tmp, "write failed (disk full?)");
+    common::syncFile(tmp);
+    std::error_code ec;
+    std::filesystem::rename(tmp, path, ec);
+    if (ec) throw common::WriteError(path, "cannot rename " + tmp + " into place: " + ec.message());
+}
+
+/// Counts one frame's result in the run's figures (search times summed; see summarise).
+void countResult(const CoarseResult& r, CoarseRunSummary& s) {
+    if (r.status == CoarseStatus::kTracking || r.status == CoarseStatus::kOdometry) {
+        ++s.tracking_frames;
+        s.mean_tracking_search_ms += r.search_ms;
+    } else if (r.status != CoarseStatus::kInvalidInput && r.status != CoarseStatus::kNotSearched) {
+        ++s.global_frames;
+        s.mean_global_search_ms += r.search_ms;
+    }
+    ++s.frames;
+    if (r.usable()) ++s.usable;
+    if (r.status == CoarseStatus::kGlobal) ++s.global_searches;
+    if (r.status == CoarseStatus::kOdometry) ++s.odometry;
+    if (r.status == CoarseStatus::kUnconfirmed) ++s.unconfirmed;
+    if (r.status == CoarseStatus::kLost || r.status == CoarseStatus::kInvalidInput) ++s.lost;
+    if (r.status == CoarseStatus::kNotEnoughFrames) ++s.not_enough;
+}
+
+/// Per-frame times and errors of a run.
+struct FrameFigures {
+    std::vector<double> frame_ms, search_ms, errors;
+};
+
+/// Means and medians of the run's figures into `s`.
+void summarise(const FrameFigures& f, CoarseRunSummary& s) {
+    s.mean_frame_ms = mean(f.frame_ms);
+    s.median_frame_ms = median(f.frame_ms);
+    s.mean_search_ms = mean(f.search_ms);
+    s.median_search_ms = median(f.search_ms);
+    if (s.tracking_frames > 0) s.mean_tracking_search_ms /= s.tracking_frames;
+    if (s.global_frames > 0) s.mean_global_search_ms /= s.global_frames;
+    if (f.errors.empty()) return;
+    s.evaluated = f.errors.size();
+    s.mean_error_m = mean(f.errors);
+    s.median_error_m = median(f.errors);
+    s.share_over_10m = static_cast<double>(std::count_if(f.errors.begin(), f.errors.end(),
+                                                         [](double e) { return e > 10.0; })) /
+                       f.errors.size();
+}
+
+void printSummary(std::ostream& out, const CoarseRunSummary& s) {
+    out << std::fixed << std::setprecision(3) << "references: " << s.references
+        << (s.indexed ? " (global searches through the descriptor index"
+                      : " (global searches over every reference")
+        << "; set-up " << s.setup_ms << " ms)"
+        << "\nquery frames: " << s.frames << " (usable " << s.usable << ", held by odometry "
+        << s.odometry << ", global " << s.global_searches << ", unconfirmed " << s.unconfirmed
+        << ", lost " << s.lost << ", not enough frames " << s.not_enough << ")"
+        << "\ntime per frame [ms]: mean " << s.mean_frame_ms << ", median " << s.median_frame_ms
+        << " (search only: mean " << s.mean_search_ms << ", median " << s.median_search_ms << ")"
+        << "\nsearch time by frame [ms]: tracking mean " << s.mean_tracking_search_ms << " ("
+        << s.tracking_frames << " frames), global mean " << s.mean_global_search_ms << " ("
+        << s.global_frames << " frames)\n";
+    if (s.evaluated > 0) {
+        out << "coarse error [m] over " << s.evaluated << " frames: mean " << s.mean_error_m
+            << ", median " << s.median_error_m << ", > 10 m " << 100.0 * s.share_over_10m << " %\n";
+    }
+}
+
+/// What the confusion picture needs, collected per frame when it is asked for.
+struct ConfusionInputs {
+    std::vector<Descriptor> query_descriptors;
+    std::vector<CoarseResult> results;
+    std::vector<std::size_t> truth;  ///< reference nearest to the query's true pose
+};
+
+/// The references: saved descriptors, or the reference rawlog's images (with their poses when
+/// `track` is given).
+std::shared_ptr<ReferenceDescriptors> loadReferences(const std::string& descriptors_file,
+                                                     const std::string& rawlog,
+                                                     const CoarseOptions& options,
+                                                     const common::PoseTrack* track, bool quiet,
+                                                     std::ostream& err) {
+    if (!descriptors_file.empty()) {
+        return std::make_shared<ReferenceDescriptors>(
+            ReferenceDescriptors::loadDescriptors(descriptors_file));
+    }
+    if (!quiet) err << "Reading references from " << rawlog << "\n";
+    return std::make_shared<ReferenceDescriptors>(
+        buildReferenceSequence(rawlog, options, track, 1.0));
+}
+
+/// The matched reference's planar distance from the query's true pose at `time_s`, when the
+/// truth covers that time and there is a match. `nearest` (when asked for) gets the reference
+/// nearest to the true pose: a scan of every reference, only for the picture (it would cost
+/// more than the search on a long reference and cool the caches the timing measures).
+std::optional<double> matchError(const CoarseResult& r, const ReferenceDescriptors& refs,
+                                 const mrpt::poses::CPose3DInterpolator& truth, double time_s,
+                                 bool want_nearest, std::size_t& nearest) {
+    mrpt::poses::CPose3D truth_pose;
+    bool valid = false;
+    truth.interpolate(mrpt::Clock::fromDouble(time_s), truth_pose, valid);
+    if (!valid) return std::nullopt;
+    if (want_nearest) nearest = refs.nearestInSpace(truth_pose);
+    if (!r.hasMatch()) return std::nullopt;
+    const auto& p = refs.pose(r.reference_index);
+    return std::hypot(p.x() - truth_pose.x(), p.y() - truth_pose.y());
+}
 }  // namespace
 
 bool CoarseTool::initialize(const std::vector<std::string>& args) {
@@ -173,32 +348,12 @@ int CoarseTool::run(std::ostream& out, std::ostream& err) {
 }
 
 int CoarseTool::runOrThrow(std::ostream& out, std::ostream& err) {
-    CoarseOptions options;
-    if (!ini_.empty()) {
-        const auto file = common::loadIniFile(ini_);  // missing, binary or garbled: refused
-        options.loadFromConfigFile(*file, section_);
-    }
-    if (!camera_.empty()) options.camera_label = camera_;
-    try {
-        options.check();
-    } catch (const common::ConfigError& e) {
-        if (ini_.empty()) throw;
-        throw common::ConfigError(ini_ + " [" + section_ + "]: " + e.what());
-    }
-
+    const CoarseOptions options = loadOptions(ini_, section_, camera_);
     std::optional<common::PoseTrack> ref_track, query_track;
     if (!ref_poses_.empty()) ref_track = common::readPoseFile(ref_poses_);
     if (!query_poses_.empty()) query_track = common::readPoseFile(query_poses_);
-
-    std::shared_ptr<ReferenceDescriptors> refs;
-    if (!ref_descriptors_.empty()) {
-        refs = std::make_shared<ReferenceDescriptors>(
-            ReferenceDescriptors::loadDescriptors(ref_descriptors_));
-    } else {
-        if (!quiet_) err << "Reading references from " << ref_rawlog_ << "\n";
-        refs = std::make_shared<ReferenceDescriptors>(
-            buildReferenceSequence(ref_rawlog_, options, ref_track ? &*ref_track : nullptr, 1.0));
-    }
+    auto refs = loadReferences(ref_descriptors_, ref_rawlog_, options,
+                               ref_track ? &*ref_track : nullptr, quiet_, err);
     if (!save_descriptors_.empty()) refs->saveDescriptors(save_descriptors_);
     if (replicate_ > 1) refs = std::make_shared<ReferenceDescriptors>(replicate(*refs, replicate_));
     summary_.references = refs->size();
@@ -212,154 +367,51 @@ int CoarseTool::runOrThrow(std::ostream& out, std::ostream& err) {
 
     std::optional<mrpt::poses::CPose3DInterpolator> query_truth;
     if (query_track) query_truth = common::makeInterpolator(*query_track, 1.0);
-
-    // Count the query images first, for the progress bar (cheap: images are not loaded).
-    std::size_t total = 0;
-    if (!quiet_) {
-        common::RawlogReader counter(query_rawlog_);
-        mrpt::obs::CObservation::Ptr obs;
-        while (counter.next(obs)) total += obs->sensorLabel == options.camera_label ? 1 : 0;
-    }
+    const std::size_t total = quiet_ ? 0 : countImages(query_rawlog_, options.camera_label);
     CameraFrameStream stream(query_rawlog_, options.camera_label, odometry_label_);
 
     const std::string tmp = out_csv_ + ".tmp";
     std::ofstream csv(tmp);
     if (!csv) throw common::WriteError(tmp, "cannot open for writing");
     const bool evaluate = query_truth && refs->hasPoses();
-    csv << "query_index,query_time_s,reference_index,reference_time_s,confidence,status"
-        << (evaluate ? ",error_m" : "") << ",reason\n";
-    csv << std::setprecision(15);
-
-    std::vector<double> frame_ms, search_ms, errors;
-    std::vector<Descriptor> query_descriptors;
-    std::vector<CoarseResult> results;
-    std::vector<std::size_t> truth;
+    writeCsvHeader(csv, evaluate);
+    const bool picture = !confusion_png_.empty();
+    FrameFigures figures;
+    ConfusionInputs confusion;
     CameraFrame frame;
     while (stream.next(frame)) {
+        checkImageSize(stream, frame, *refs, query_rawlog_);
         const auto& image = frame.observation->image;
-        if (refs->imageWidth() > 0 && (stream.imageWidth() != refs->imageWidth() ||
-                                       stream.imageHeight() != refs->imageHeight())) {
-            throw common::RawlogError(
-                query_rawlog_, frame.record,
-                "query images are " + std::to_string(stream.imageWidth()) + "x" +
-                    std::to_string(stream.imageHeight()) + ", reference images are " +
-                    std::to_string(refs->imageWidth()) + "x" + std::to_string(refs->imageHeight()));
-        }
-        CoarseResult r = localizer.process(image, frame.time_s, frame.travelled_m);
-        if (!confusion_png_.empty()) {
-            query_descriptors.push_back(computeDescriptor(image, options));
-        }
+        const CoarseResult r = localizer.process(image, frame.time_s, frame.travelled_m);
+        if (picture) confusion.query_descriptors.push_back(computeDescriptor(image, options));
         image.unload();
-        frame_ms.push_back(r.descriptor_ms + r.search_ms);
-        search_ms.push_back(r.search_ms);
-        if (r.status == CoarseStatus::kTracking || r.status == CoarseStatus::kOdometry) {
-            ++summary_.tracking_frames;
-            summary_.mean_tracking_search_ms += r.search_ms;
-        } else if (r.status != CoarseStatus::kInvalidInput &&
-                   r.status != CoarseStatus::kNotSearched) {
-            ++summary_.global_frames;
-            summary_.mean_global_search_ms += r.search_ms;
-        }
-
+        figures.frame_ms.push_back(r.descriptor_ms + r.search_ms);
+        figures.search_ms.push_back(r.search_ms);
         std::optional<double> error;
         std::size_t true_ref = CoarseResult::kNone;
-        if (evaluate) {
-            mrpt::poses::CPose3D truth_pose;
-            bool valid = false;
-            query_truth->interpolate(mrpt::Clock::fromDouble(frame.time_s), truth_pose, valid);
-            if (valid) {
-                // (A scan of every reference: only for the picture, it would cost more than
-                // the search on a long reference and cool the caches the timing measures.)
-                if (!confusion_png_.empty()) true_ref = refs->nearestInSpace(truth_pose);
-                if (r.hasMatch()) {
-                    const auto& p = refs->pose(r.reference_index);
-                    error = std::hypot(p.x() - truth_pose.x(), p.y() - truth_pose.y());
-                    errors.push_back(*error);
-                }
-            }
-        }
-        csv << r.query_index << "," << r.query_time_s << ",";
-        if (r.hasMatch())
-            csv << r.reference_index << "," << r.reference_time_s;
-        else
-            csv << ",";
-        csv << "," << r.confidence << "," << toString(r.status);
-        if (evaluate) {
-            csv << ",";
-            if (error) csv << *error;
-        }
-        std::string reason = r.reason;
-        std::replace(reason.begin(), reason.end(), '"', '\'');
-        csv << ",\"" << reason << "\"\n";
-
-        ++summary_.frames;
-        if (r.usable()) ++summary_.usable;
-        if (r.status == CoarseStatus::kGlobal) ++summary_.global_searches;
-        if (r.status == CoarseStatus::kOdometry) ++summary_.odometry;
-        if (r.status == CoarseStatus::kUnconfirmed) ++summary_.unconfirmed;
-        if (r.status == CoarseStatus::kLost || r.status == CoarseStatus::kInvalidInput) {
-            ++summary_.lost;
-        }
-        if (r.status == CoarseStatus::kNotEnoughFrames) ++summary_.not_enough;
-        if (!confusion_png_.empty()) {
-            results.push_back(r);
-            truth.push_back(true_ref);
+        if (evaluate) error = matchError(r, *refs, *query_truth, frame.time_s, picture, true_ref);
+        if (error) figures.errors.push_back(*error);
+        writeCsvRow(csv, r, evaluate, error);
+        countResult(r, summary_);
+        if (picture) {
+            confusion.results.push_back(r);
+            confusion.truth.push_back(true_ref);
         }
         if (!quiet_ && total > 0 && (summary_.frames % 20 == 0 || summary_.frames == total)) {
             err << "\r" << mrpt::system::progress(double(summary_.frames) / total, 30) << " "
                 << summary_.frames << "/" << total << " usable " << summary_.usable << std::flush;
         }
     }
-    csv.close();
-    if (!csv) throw common::WriteError(tmp, "write failed (disk full?)");
-    common::syncFile(tmp);  // a power cut leaves the old file or the whole new one
-    std::error_code ec;
-    std::filesystem::rename(tmp, out_csv_, ec);
-    if (ec)
-        throw common::WriteError(out_csv_, "cannot rename " + tmp + " into place: " + ec.message());
+    commitCsv(csv, tmp, out_csv_);
     if (!quiet_) err << "\n";
-
-    summary_.mean_frame_ms = mean(frame_ms);
-    summary_.median_frame_ms = median(frame_ms);
-    summary_.mean_search_ms = mean(search_ms);
-    summary_.median_search_ms = median(search_ms);
-    if (summary_.tracking_frames > 0) summary_.mean_tracking_search_ms /= summary_.tracking_frames;
-    if (summary_.global_frames > 0) summary_.mean_global_search_ms /= summary_.global_frames;
-    if (!errors.empty()) {
-        summary_.evaluated = errors.size();
-        summary_.mean_error_m = mean(errors);
-        summary_.median_error_m = median(errors);
-        summary_.share_over_10m =
-            static_cast<double>(
-                std::count_if(errors.begin(), errors.end(), [](double e) { return e > 10.0; })) /
-            errors.size();
-    }
-    if (!confusion_png_.empty()) {
+    summarise(figures, summary_);
+    if (picture) {
         ConfusionImageOptions png;
         png.contrast_window_refs = options.contrast_window_refs;
-        writeConfusionImage(confusion_png_, *refs, query_descriptors, results,
-                            evaluate ? truth : std::vector<std::size_t>{}, png);
+        writeConfusionImage(confusion_png_, *refs, confusion.query_descriptors, confusion.results,
+                            evaluate ? confusion.truth : std::vector<std::size_t>{}, png);
     }
-
-    out << std::fixed << std::setprecision(3) << "references: " << summary_.references
-        << (summary_.indexed ? " (global searches through the descriptor index"
-                             : " (global searches over every reference")
-        << "; set-up " << summary_.setup_ms << " ms)"
-        << "\nquery frames: " << summary_.frames << " (usable " << summary_.usable
-        << ", held by odometry " << summary_.odometry << ", global " << summary_.global_searches
-        << ", unconfirmed " << summary_.unconfirmed << ", lost " << summary_.lost
-        << ", not enough frames " << summary_.not_enough << ")"
-        << "\ntime per frame [ms]: mean " << summary_.mean_frame_ms << ", median "
-        << summary_.median_frame_ms << " (search only: mean " << summary_.mean_search_ms
-        << ", median " << summary_.median_search_ms << ")"
-        << "\nsearch time by frame [ms]: tracking mean " << summary_.mean_tracking_search_ms << " ("
-        << summary_.tracking_frames << " frames), global mean " << summary_.mean_global_search_ms
-        << " (" << summary_.global_frames << " frames)\n";
-    if (summary_.evaluated > 0) {
-        out << "coarse error [m] over " << summary_.evaluated << " frames: mean "
-            << summary_.mean_error_m << ", median " << summary_.median_error_m << ", > 10 m "
-            << 100.0 * summary_.share_over_10m << " %\n";
-    }
+    printSummary(out, summary_);
     return 0;
 }
 

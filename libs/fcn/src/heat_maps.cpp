@@ -11,9 +11,9 @@
 
 #include "lookup/common/errors.h"
 #include "lookup/common/rawlog_io.h"
+#include "lookup/database/heat_maps.h"
 #include "lookup/database/manifest.h"
 #include "lookup/database/reference.h"
-#include "lookup/localize/localizer.h"
 
 namespace fs = std::filesystem;
 
@@ -38,13 +38,6 @@ std::string freshDirectoryName(const fs::path& db_dir) {
 }
 
 }  // namespace
-
-cv::Mat encodeHeatMap(const cv::Mat& heat) {
-    CV_Assert(heat.type() == CV_32FC1);
-    cv::Mat out;
-    heat.convertTo(out, CV_16U, 65535.0);  // saturates outside [0, 1]
-    return out;
-}
 
 void setHeatMapsDirectory(const std::string& db_ini_path, const std::string& directory) {
     std::ifstream in(db_ini_path);
@@ -115,8 +108,8 @@ HeatMapsWritten writeHeatMaps(const database::ReferenceDatabase& db, const HeatM
             // At the network's resolution: a quarter of the pixels to decode in the localiser,
             // which resizes on load exactly as predict() does.
             const cv::Mat heat = model.predictAtNetworkScale(db.ceilingImage(i));
-            const fs::path file = staging / localize::heatMapFileName(i);
-            if (!cv::imwrite(file.string(), encodeHeatMap(heat))) {
+            const fs::path file = staging / database::heatMapFileName(i);
+            if (!cv::imwrite(file.string(), database::encodeHeatMap(heat))) {
                 throw common::WriteError(file.string(), "cannot write the heat map");
             }
             if (progress) progress(i + 1, db.size());

@@ -10,9 +10,10 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "lookup/coarse/coarse_localizer.h"
 #include "lookup/coarse/descriptor.h"
+#include "lookup/coarse/traverse_sources.h"
 #include "lookup/common/camera_params.h"
+#include "lookup/database/heat_maps.h"
 #include "lookup/localize/place_search.h"
 
 namespace lookup::localize {
@@ -52,103 +53,6 @@ constexpr double kRivalInlierShare = 0.5;
 mrpt::poses::CPose2D toPose2D(const mrpt::poses::CPose3D& p) {
     return mrpt::poses::CPose2D(p.x(), p.y(), p.yaw());
 }
-
-// Coarse source that reports database reference indices instead of sequence indices.
-class DatabaseSequenceSource : public coarse::CoarseSource {
-  public:
-    DatabaseSequenceSource(std::unique_ptr<coarse::CoarseLocalizer> inner,
-                           std::vector<std::size_t> db_index)
-        : inner_(std::move(inner)), db_index_(std::move(db_index)) {}
-    coarse::CoarseResult locate(const coarse::CoarseQuery& query) override {
-        auto r = inner_->locate(query);
-        if (r.hasMatch()) r.reference_index = db_index_.at(r.reference_index);
-        return r;
-    }
-    std::string name() const override { return inner_->name(); }
-    void rejectLastMatch() override { inner_->rejectLastMatch(); }
-    void restart() override { inner_->restart(); }
-
-  private:
-    std::unique_ptr<coarse::CoarseLocalizer> inner_;
-    std::vector<std::size_t> db_index_;
-};
-
-// One sequence matcher per survey traverse; per frame the most confident usable match wins.
-// Laterally offset traverses see the tunnel from different places: matched as separate
-// sequences they do not alias each other, and the one driven nearest the query's line wins.
-class MultiTraverseSource : public coarse::CoarseSource {
-  public:
-    /// Every source is a sequence matcher with `descriptor_options`.
-    MultiTraverseSource(std::vector<std::unique_ptr<coarse::CoarseSource>> sources,
-                        const coarse::CoarseOptions& descriptor_options)
-        : sources_(std::move(sources)), descriptor_options_(descriptor_options) {}
-    coarse::CoarseResult locate(const coarse::CoarseQuery& query) override {
-        // One descriptor for all sequences (it was computed once per traverse); a broken image
-        // leaves it to each sequence to say why.
-        coarse::CoarseQuery shared = query;
-        coarse::Descriptor descriptor;
-        if (query.forward_image && !query.forward_descriptor) {
-            try {
-                if (query.forward_image->isExternallyStored()) query.forward_image->forceLoad();
-                descriptor = coarse::computeDescriptor(*query.forward_image, descriptor_options_);
-            } catch (const std::exception&) {
-                descriptor.clear();
-            }
-            if (!descriptor.empty()) shared.forward_descriptor = &descriptor;
-        }
-        std::vector<coarse::CoarseResult> all;
-        for (auto& source : sources_) all.push_back(source->locate(shared));
-        last_source_ = 0;
-        for (std::size_t k = 1; k < all.size(); ++k) {
-            const int rank = trust(all[k]), best_rank = trust(all[last_source_]);
-            if (rank > best_rank ||
-                (rank == best_rank && all[k].confidence > all[last_source_].confidence)) {
-                last_source_ = k;
-            }
-        }
-        coarse::CoarseResult best = std::move(all[last_source_]);
-        all.erase(all.begin() + static_cast<long>(last_source_));
-        std::stable_sort(all.begin(), all.end(), [](const auto& a, const auto& b) {
-            return trust(a) != trust(b) ? trust(a) > trust(b) : a.confidence > b.confidence;
-        });
-        others_ = std::move(all);  // most trusted first
-        return best;
-    }
-    std::vector<coarse::CoarseResult> otherMatches() const override { return others_; }
-    void rejectLastMatch() override { sources_.at(last_source_)->rejectLastMatch(); }
-    void restart() override {
-        for (auto& source : sources_) source->restart();
-        others_.clear();
-    }
-    std::string name() const override {
-        std::string out;
-        for (const auto& s : sources_) out += (out.empty() ? "" : "+") + s->name();
-        return out;
-    }
-
-  private:
-    /// Confident match > held by odometry > unconfirmed (an acquisition seed) > the rest.
-    static int trust(const coarse::CoarseResult& r) {
-        using coarse::CoarseStatus;
-        if (!r.hasMatch()) return 0;
-        switch (r.status) {
-            case CoarseStatus::kTracking:
-            case CoarseStatus::kGlobal:
-            case CoarseStatus::kExternal:
-                return 4;
-            case CoarseStatus::kOdometry:
-                return 3;
-            case CoarseStatus::kUnconfirmed:
-                return 2;
-            default:
-                return 1;
-        }
-    }
-    std::vector<std::unique_ptr<coarse::CoarseSource>> sources_;
-    coarse::CoarseOptions descriptor_options_;
-    std::size_t last_source_ = 0;
-    std::vector<coarse::CoarseResult> others_;
-};
 
 // Odometry and mounts beyond this are garbage (a mine spans kilometres; UTM northings 1e7 m).
 constexpr double kMaxCoordinateM = 1e8;
@@ -244,42 +148,11 @@ bool finite(const mrpt::poses::CPosePDFGaussian& p) {
 
 }  // namespace
 
-cv::Mat loadHeatMap(const database::ReferenceDatabase& db, std::size_t index) {
-    const std::string& dir = db.info().heatmaps_dir;
-    if (dir.empty()) return {};
-    const std::string path = db.directory() + "/" + dir + "/" + heatMapFileName(index);
-    cv::Mat stored = cv::imread(path, cv::IMREAD_GRAYSCALE | cv::IMREAD_ANYDEPTH);
-    if (stored.empty()) {
-        throw std::runtime_error(path + ": heat map listed in db.ini is missing or unreadable");
-    }
-    cv::Mat heat;
-    stored.convertTo(heat, CV_32F, stored.depth() == CV_16U ? 1.0 / 65535 : 1.0 / 255);
-    const auto& camera = db.reference(index).ceiling_camera;
-    const cv::Size image_size(int(camera.ncols), int(camera.nrows));
-    if (image_size.area() == 0 || heat.size() == image_size) return heat;
-    if (heat.cols > image_size.width || heat.rows > image_size.height) {
-        throw std::runtime_error(path + ": heat map " + std::to_string(heat.cols) + "x" +
-                                 std::to_string(heat.rows) + " is larger than the " +
-                                 std::to_string(image_size.width) + "x" +
-                                 std::to_string(image_size.height) + " ceiling image");
-    }
-    cv::Mat resized;
-    cv::resize(heat, resized, image_size, 0, 0, cv::INTER_LINEAR);
-    return resized;
-}
-
-std::string heatMapFileName(std::size_t index) {
-    char name[32];
-    std::snprintf(name, sizeof name, "heat_%06zu.png", index);
-    return name;
-}
-
 std::unique_ptr<coarse::CoarseSource> makeSequenceCoarseSource(
     const database::ReferenceDatabase& db, const coarse::CoarseOptions& coarse_options,
     const std::string& traverse) {
     struct Sequence {
-        std::shared_ptr<coarse::ReferenceDescriptors> descriptors;
-        std::vector<std::size_t> db_index;
+        coarse::TraverseSequence sequence;
         double last_forward_time_s = -1;
     };
     std::map<std::string, Sequence> sequences;  // by traverse name
@@ -293,36 +166,28 @@ std::unique_ptr<coarse::CoarseSource> makeSequenceCoarseSource(
         if (ref.forward_time_s == seq.last_forward_time_s) continue;
         seq.last_forward_time_s = ref.forward_time_s;
         const cv::Mat image = db.forwardImage(i);
-        if (!seq.descriptors) {
-            seq.descriptors = std::make_shared<coarse::ReferenceDescriptors>(coarse_options);
-            seq.descriptors->setImageSize(image.cols, image.rows);
+        auto& descriptors = seq.sequence.descriptors;
+        if (!descriptors) {
+            descriptors = std::make_shared<coarse::ReferenceDescriptors>(coarse_options);
+            descriptors->setImageSize(image.cols, image.rows);
         }
-        seq.descriptors->add(ref.forward_time_s,
-                             coarse::computeDescriptor(
-                                 mrpt::img::CImage(image, mrpt::img::SHALLOW_COPY), coarse_options),
-                             ref.vehicle_pose);
-        seq.db_index.push_back(i);
+        descriptors->add(ref.forward_time_s,
+                         coarse::computeDescriptor(
+                             mrpt::img::CImage(image, mrpt::img::SHALLOW_COPY), coarse_options),
+                         ref.vehicle_pose);
+        seq.sequence.reference_index.push_back(i);
     }
-    std::vector<std::unique_ptr<coarse::CoarseSource>> sources;
-    for (auto& [name, seq] : sequences) {
-        // A traverse shorter than one query sequence cannot be matched; others still can.
-        if (seq.descriptors->size() < static_cast<std::size_t>(coarse_options.sequence_length) &&
-            sequences.size() > 1) {
-            continue;
-        }
-        sources.push_back(std::make_unique<DatabaseSequenceSource>(
-            std::make_unique<coarse::CoarseLocalizer>(seq.descriptors, coarse_options),
-            std::move(seq.db_index)));
-    }
-    if (sources.empty()) {
+    std::vector<coarse::TraverseSequence> traverses;
+    for (auto& [name, seq] : sequences) traverses.push_back(std::move(seq.sequence));
+    auto source = coarse::makeTraverseSource(std::move(traverses), coarse_options);
+    if (!source) {
         throw std::runtime_error(db.directory() + ": no forward images" +
                                  (traverse.empty()
                                       ? std::string(" in any traverse long enough for a sequence")
                                       : " for traverse '" + traverse + "'") +
                                  ": the coarse stage needs them (or give a coarse file)");
     }
-    if (sources.size() == 1) return std::move(sources.front());
-    return std::make_unique<MultiTraverseSource>(std::move(sources), coarse_options);
+    return source;
 }
 
 Localizer::Localizer(const database::ReferenceDatabase& db, const LocalizerOptions& options,
@@ -628,7 +493,7 @@ const refine::Reference& Localizer::referenceView(std::size_t index) {
     view.camera_on_vehicle = ref.ceiling_camera_mount;
     // A grid run on a database with heat maps does not pay for decoding them.
     if (refiner_.options().sampler.mode != refine::SamplingMode::Grid) {
-        view.heat_map = loadHeatMap(db_, index);
+        view.heat_map = database::loadHeatMap(db_, index);
     }
     rectifier_.rectify(view);
     view.prepare(refiner_.options().matcher);

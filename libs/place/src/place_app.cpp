@@ -12,9 +12,9 @@
 #include <cstdio>
 #include <fstream>
 #include <iostream>
+#include <nlohmann/json.hpp>
 #include <numeric>
 #include <opencv2/imgproc.hpp>
-#include <sstream>
 
 #include "lookup/common/cli.h"
 #include "lookup/common/config.h"
@@ -196,16 +196,18 @@ int PlaceApp::evaluate() {
             tf_ms / frames, ts_ms / frames, tg_ms / frames, heap_mb);
     }
     if (!json_file_.empty()) {
-        std::ostringstream j;
-        j << "{\"frames\": " << frames << ", \"scored\": " << scored
-          << ", \"top1_right_pct\": " << share(top1_right)
-          << ", \"top1_wrong_pct\": " << share(top1_wrong)
-          << ", \"any_right_pct\": " << share(any_right) << ", \"none_pct\": " << share(none)
-          << ", \"query_ms_mean\": "
-          << (ms.empty() ? 0.0 : std::accumulate(ms.begin(), ms.end(), 0.0) / double(ms.size()))
-          << ", \"query_ms_p99\": " << percentile(ms, 0.99) << ", \"heap_mb\": " << heap_mb
-          << "}\n";
-        common::writeFileAtomically(json_file_, j.str());
+        const nlohmann::ordered_json j = {
+            {"frames", frames},
+            {"scored", scored},
+            {"top1_right_pct", share(top1_right)},
+            {"top1_wrong_pct", share(top1_wrong)},
+            {"any_right_pct", share(any_right)},
+            {"none_pct", share(none)},
+            {"query_ms_mean",
+             ms.empty() ? 0.0 : std::accumulate(ms.begin(), ms.end(), 0.0) / double(ms.size())},
+            {"query_ms_p99", percentile(ms, 0.99)},
+            {"heap_mb", heap_mb}};
+        common::writeFileAtomically(json_file_, j.dump() + "\n");
     }
     return common::kExitOk;
 }

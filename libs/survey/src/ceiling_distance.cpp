@@ -194,17 +194,18 @@ CeilingDistanceEstimate estimateCeilingDistance(const std::vector<CeilingTravers
     return finish();
 }
 
-std::string ceilingJson(const CeilingDistanceEstimate& e, const std::string& source) {
-    char buf[600];
-    std::snprintf(buf, sizeof(buf),
-                  "{\"source\": \"%s\", \"ceiling_height_m\": %.4f, \"camera_to_ceiling_m\": "
-                  "%.4f, \"camera_z_m\": %.4f, \"spread_m\": %.4f, \"prior_m\": %.4f, "
-                  "\"triples_tried\": %zu, \"triples_used\": %zu, \"triples_rejected\": %zu, "
-                  "\"estimated\": %s, \"time_s\": %.2f}",
-                  source.c_str(), e.ceiling_height_m, e.camera_to_ceiling_m, e.camera_z_m,
-                  e.spread_m, e.prior_m, e.tried, e.used, e.rejected,
-                  e.estimated ? "true" : "false", e.time_s);
-    return buf;
+nlohmann::ordered_json ceilingJson(const CeilingDistanceEstimate& e, const std::string& source) {
+    return {{"source", source},
+            {"ceiling_height_m", e.ceiling_height_m},
+            {"camera_to_ceiling_m", e.camera_to_ceiling_m},
+            {"camera_z_m", e.camera_z_m},
+            {"spread_m", e.spread_m},
+            {"prior_m", e.prior_m},
+            {"triples_tried", e.tried},
+            {"triples_used", e.used},
+            {"triples_rejected", e.rejected},
+            {"estimated", e.estimated},
+            {"time_s", e.time_s}};
 }
 
 }  // namespace lookup::survey

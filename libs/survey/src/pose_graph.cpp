@@ -9,15 +9,14 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
-#include <atomic>
 #include <cmath>
-#include <exception>
-#include <mutex>
+#include <functional>
 #include <optional>
 #include <stdexcept>
 #include <thread>
 
 #include "lookup/common/config.h"
+#include "lookup/common/parallel_for.h"
 
 namespace lookup::survey {
 
@@ -297,67 +296,68 @@ void spread(std::size_t first, std::size_t last, int count, F&& take) {
     for (std::size_t e = 1; e <= k; ++e) take(first + e * n / k - 1);
 }
 
-}  // namespace
+/// Keyframes of all traverses, in traverse order, with each traverse's scans.
+struct KeyframeSet {
+    std::vector<std::vector<ScanWithOdometry>> scans;         ///< per traverse
+    std::vector<Keyframe> keyframes;                          ///< all traverses, in order
+    std::vector<std::pair<std::size_t, std::size_t>> ranges;  ///< [first, end) per traverse
+};
 
-std::vector<common::PoseTrack> optimisePoseGraph(
-    const std::vector<GraphTraverse>& traverses, const PoseGraphOptions& options,
-    PoseGraphReport* report, const GraphProgressFn& progress,
-    std::vector<std::vector<mrpt::math::CMatrixDouble33>>* covariances) {
-    mrpt::system::CTicTac timer;
-    PoseGraphReport rep;
-    rep.traverses = traverses.size();
+/// Appends the keyframes of traverse `t`: the first scan, then every scan where the first
+/// estimate has travelled keyframe_spacing_m or turned keyframe_spacing_deg since the last
+/// keyframe, and the last scan.
+void addKeyframes(std::size_t t, const GraphTraverse& tr, const PoseGraphOptions& options,
+                  KeyframeSet& set) {
+    const auto& scans = set.scans[t];
+    auto& keyframes = set.keyframes;
+    const std::size_t first = keyframes.size();
+    double travelled = 0;
+    for (std::size_t i = 0; i < scans.size(); ++i) {
+        const mrpt::poses::CPose2D pose(tr.initial[i].pose);
+        if (i > 0) {
+            const mrpt::poses::CPose2D prev(tr.initial[i - 1].pose);
+            travelled += std::hypot(pose.x() - prev.x(), pose.y() - prev.y());
+        }
+        if (keyframes.size() > first) {
+            const auto& last = keyframes.back();
+            const bool far = travelled - last.travelled_m >= options.keyframe_spacing_m;
+            const bool turned = std::abs(mrpt::math::wrapToPi(pose.phi() - last.initial.phi())) >=
+                                mrpt::DEG2RAD(options.keyframe_spacing_deg);
+            if (!far && !turned && i + 1 < scans.size()) continue;
+        }
+        Keyframe k;
+        k.traverse = t;
+        k.scan = i;
+        k.initial = pose;
+        k.odometry = scans[i].odometry;
+        k.travelled_m = travelled;
+        keyframes.push_back(std::move(k));
+    }
+    set.ranges.emplace_back(first, keyframes.size());
+}
 
-    // 1. Keyframes by first-estimate travel or turn, per traverse.
-    std::vector<std::vector<ScanWithOdometry>> scans;
-    std::vector<Keyframe> keyframes;
-    std::vector<std::pair<std::size_t, std::size_t>> ranges;  // keyframes of each traverse
+KeyframeSet selectKeyframes(const std::vector<GraphTraverse>& traverses,
+                            const PoseGraphOptions& options) {
+    KeyframeSet set;
     for (std::size_t t = 0; t < traverses.size(); ++t) {
         const auto& tr = traverses[t];
-        scans.push_back(scansOf(*tr.data));
-        if (scans[t].size() != tr.initial.size()) {
+        set.scans.push_back(scansOf(*tr.data));
+        if (set.scans[t].size() != tr.initial.size()) {
             throw std::invalid_argument("optimisePoseGraph: " + tr.data->rawlog + ": " +
-                                        std::to_string(scans[t].size()) + " scans but " +
+                                        std::to_string(set.scans[t].size()) + " scans but " +
                                         std::to_string(tr.initial.size()) + " poses");
         }
-        const std::size_t first = keyframes.size();
-        double travelled = 0;
-        for (std::size_t i = 0; i < scans[t].size(); ++i) {
-            const mrpt::poses::CPose2D pose(tr.initial[i].pose);
-            if (i > 0) {
-                const mrpt::poses::CPose2D prev(tr.initial[i - 1].pose);
-                travelled += std::hypot(pose.x() - prev.x(), pose.y() - prev.y());
-            }
-            if (keyframes.size() > first) {
-                const auto& last = keyframes.back();
-                const bool far = travelled - last.travelled_m >= options.keyframe_spacing_m;
-                const bool turned =
-                    std::abs(mrpt::math::wrapToPi(pose.phi() - last.initial.phi())) >=
-                    mrpt::DEG2RAD(options.keyframe_spacing_deg);
-                if (!far && !turned && i + 1 < scans[t].size()) continue;
-            }
-            Keyframe k;
-            k.traverse = t;
-            k.scan = i;
-            k.initial = pose;
-            k.odometry = scans[t][i].odometry;
-            k.travelled_m = travelled;
-            keyframes.push_back(std::move(k));
-        }
-        ranges.emplace_back(first, keyframes.size());
+        addKeyframes(t, tr, options, set);
     }
-    rep.keyframes = keyframes.size();
-    if (keyframes.empty()) {
-        std::vector<common::PoseTrack> same;
-        for (const auto& tr : traverses) same.push_back(tr.initial);
-        return same;
-    }
+    return set;
+}
 
-    // 2. Which keyframes to register: along the own traverse, the next ones within reach,
-    // spread so both short and long baselines tie each keyframe; across traverses, the
-    // keyframes of each other traverse near this one's first estimate.
-    std::vector<Pair> pairs;
-    for (std::size_t t = 0; t < traverses.size(); ++t) {
-        const auto [first, end] = ranges[t];
+/// Along each traverse: the next keyframes within max_edge_distance_m of travel, spread so both
+/// short and long baselines tie each keyframe.
+void addAlongTraversePairs(const KeyframeSet& set, const PoseGraphOptions& options,
+                           std::vector<Pair>& pairs) {
+    const auto& keyframes = set.keyframes;
+    for (const auto& [first, end] : set.ranges) {
         for (std::size_t a = first; a < end; ++a) {
             std::size_t last = a;
             while (last + 1 < end && keyframes[last + 1].travelled_m - keyframes[a].travelled_m <=
@@ -369,101 +369,100 @@ std::vector<common::PoseTrack> optimisePoseGraph(
             });
         }
     }
-    if (options.cross_edges_per_keyframe > 0) {
-        for (std::size_t t = 0; t < traverses.size(); ++t) {
-            for (std::size_t u = t + 1; u < traverses.size(); ++u) {
-                mrpt::maps::CSimplePointsMap positions;
-                for (std::size_t b = ranges[u].first; b < ranges[u].second; ++b) {
-                    positions.insertPoint(float(keyframes[b].initial.x()),
-                                          float(keyframes[b].initial.y()), 0);
-                }
-                if (positions.size() == 0) continue;
-                const double half_window = 0.5 * options.max_edge_distance_m;
-                for (std::size_t a = ranges[t].first; a < ranges[t].second; ++a) {
-                    float d2;
-                    const std::size_t near =
-                        ranges[u].first +
-                        positions.kdTreeClosestPoint2D(float(keyframes[a].initial.x()),
-                                                       float(keyframes[a].initial.y()), d2);
-                    if (d2 > half_window * half_window) continue;
-                    std::size_t lo = near, hi = near;
-                    const auto within = [&](std::size_t b) {
-                        return std::hypot(keyframes[b].initial.x() - keyframes[a].initial.x(),
-                                          keyframes[b].initial.y() - keyframes[a].initial.y()) <=
-                               half_window;
-                    };
-                    while (lo > ranges[u].first && within(lo - 1)) --lo;
-                    while (hi + 1 < ranges[u].second && within(hi + 1)) ++hi;
-                    spread(lo, hi, options.cross_edges_per_keyframe, [&](std::size_t b) {
-                        pairs.push_back({a, b, true});
-                    });
-                }
-            }
-        }
-    }
+}
 
-    // 3. Scan points (normals, KD-trees), then the registrations, on all threads.
-    const unsigned threads = options.threads > 0
-                                 ? unsigned(options.threads)
-                                 : std::max(1u, std::thread::hardware_concurrency());
-    std::vector<Registration> results(pairs.size());
-    {
-        std::atomic<std::size_t> next_keyframe{0}, next_pair{0}, done{0};
-        // A worker's exception would end the process: the first is kept and rethrown here.
-        std::mutex failure_mutex;
-        std::exception_ptr failure;
-        const auto guarded = [&](auto&& body) {
-            return [&, body] {
-                try {
-                    body();
-                } catch (...) {
-                    const std::lock_guard<std::mutex> lock(failure_mutex);
-                    if (!failure) failure = std::current_exception();
-                    next_keyframe = keyframes.size();
-                    next_pair = done = pairs.size();
-                }
-            };
+/// Across traverses t < u: for each keyframe of t, the keyframes of u whose first estimate lies
+/// within half of max_edge_distance_m of its own.
+void addCrossTraversePairs(const KeyframeSet& set, std::size_t t, std::size_t u,
+                           const PoseGraphOptions& options, std::vector<Pair>& pairs) {
+    const auto& keyframes = set.keyframes;
+    const auto [u_first, u_end] = set.ranges[u];
+    mrpt::maps::CSimplePointsMap positions;
+    for (std::size_t b = u_first; b < u_end; ++b) {
+        positions.insertPoint(float(keyframes[b].initial.x()), float(keyframes[b].initial.y()), 0);
+    }
+    if (positions.size() == 0) return;
+    const double half_window = 0.5 * options.max_edge_distance_m;
+    for (std::size_t a = set.ranges[t].first; a < set.ranges[t].second; ++a) {
+        float d2;
+        const std::size_t near =
+            u_first + positions.kdTreeClosestPoint2D(float(keyframes[a].initial.x()),
+                                                     float(keyframes[a].initial.y()), d2);
+        if (d2 > half_window * half_window) continue;
+        std::size_t lo = near, hi = near;
+        const auto within = [&](std::size_t b) {
+            return std::hypot(keyframes[b].initial.x() - keyframes[a].initial.x(),
+                              keyframes[b].initial.y() - keyframes[a].initial.y()) <= half_window;
         };
-        const auto run = [&](auto&& body) {
-            std::vector<std::thread> pool;
-            for (unsigned i = 0; i < threads; ++i) pool.emplace_back(guarded(body));
-            return pool;
-        };
-        for (auto& th : run([&] {
-                 for (std::size_t k; (k = next_keyframe++) < keyframes.size();) {
-                     keyframes[k].points =
-                         scanPoints(*scans[keyframes[k].traverse][keyframes[k].scan].scan);
-                 }
-             })) {
-            th.join();
-        }
-        if (failure) std::rethrow_exception(failure);
-        auto pool = run([&] {
-            for (std::size_t p; (p = next_pair++) < pairs.size();) {
-                const auto& ka = keyframes[pairs[p].a];
-                const auto& kb = keyframes[pairs[p].b];
-                results[p] = registerPointToLine(ka.points, kb.points, kb.initial - ka.initial);
-                ++done;
-            }
+        while (lo > u_first && within(lo - 1)) --lo;
+        while (hi + 1 < u_end && within(hi + 1)) ++hi;
+        spread(lo, hi, options.cross_edges_per_keyframe, [&](std::size_t b) {
+            pairs.push_back({a, b, true});
         });
-        if (progress) {
-            while (done < pairs.size()) {
-                progress(0.95 * double(done) / double(std::max<std::size_t>(1, pairs.size())));
-                std::this_thread::sleep_for(std::chrono::milliseconds(200));
+    }
+}
+
+/// Which keyframes to register: along the own traverse, then across traverses.
+std::vector<Pair> keyframePairs(const KeyframeSet& set, const PoseGraphOptions& options) {
+    std::vector<Pair> pairs;
+    addAlongTraversePairs(set, options, pairs);
+    if (options.cross_edges_per_keyframe > 0) {
+        for (std::size_t t = 0; t < set.ranges.size(); ++t) {
+            for (std::size_t u = t + 1; u < set.ranges.size(); ++u) {
+                addCrossTraversePairs(set, t, u, options, pairs);
             }
         }
-        for (auto& th : pool) th.join();
-        if (failure) std::rethrow_exception(failure);
     }
+    return pairs;
+}
 
-    // 4. One least-squares problem over all keyframe poses.
+/// Scan points (normals, KD-trees) of every keyframe, on all threads.
+void computeScanPoints(KeyframeSet& set, unsigned threads) {
+    common::parallelFor(set.keyframes.size(), threads, [&](std::size_t k) {
+        auto& keyframe = set.keyframes[k];
+        keyframe.points = scanPoints(*set.scans[keyframe.traverse][keyframe.scan].scan);
+    });
+}
+
+/// The registration of every pair from the first estimate, on all threads; `progress` up to
+/// 0.95 while they run.
+std::vector<Registration> registerPairs(const std::vector<Keyframe>& keyframes,
+                                        const std::vector<Pair>& pairs, unsigned threads,
+                                        const GraphProgressFn& progress) {
+    std::vector<Registration> results(pairs.size());
+    std::function<void(std::size_t)> report;
+    if (progress) {
+        report = [&](std::size_t done) {
+            progress(0.95 * double(done) / double(std::max<std::size_t>(1, pairs.size())));
+        };
+    }
+    common::parallelFor(
+        pairs.size(), threads,
+        [&](std::size_t p) {
+            const auto& ka = keyframes[pairs[p].a];
+            const auto& kb = keyframes[pairs[p].b];
+            results[p] = registerPointToLine(ka.points, kb.points, kb.initial - ka.initial);
+        },
+        report);
+    return results;
+}
+
+std::vector<double> initialState(const std::vector<Keyframe>& keyframes) {
     std::vector<double> state(3 * keyframes.size());
     for (std::size_t k = 0; k < keyframes.size(); ++k) {
         state[3 * k] = keyframes[k].initial.x();
         state[3 * k + 1] = keyframes[k].initial.y();
         state[3 * k + 2] = keyframes[k].initial.phi();
     }
-    ceres::Problem problem;
+    return state;
+}
+
+/// One edge per plausible registration (matched enough, correcting the first estimate by less
+/// than max_correction_m / _deg, finite covariance); the others are counted as rejected.
+void addRegistrationEdges(const std::vector<Keyframe>& keyframes, const std::vector<Pair>& pairs,
+                          const std::vector<Registration>& results, const PoseGraphOptions& options,
+                          std::vector<double>& state, ceres::Problem& problem,
+                          PoseGraphReport& rep) {
     const double min_yaw_std = mrpt::DEG2RAD(options.registration_min_std_yaw_deg);
     for (std::size_t p = 0; p < pairs.size(); ++p) {
         const Registration& r = results[p];
@@ -492,11 +491,16 @@ std::vector<common::PoseTrack> optimisePoseGraph(
         ++rep.registrations;
         rep.cross_registrations += pairs[p].cross;
     }
-    // Weak odometry links keep each traverse connected where scans match nothing.
-    for (std::size_t t = 0; t < traverses.size(); ++t) {
-        for (std::size_t a = ranges[t].first; a + 1 < ranges[t].second; ++a) {
-            const auto& ka = keyframes[a];
-            const auto& kb = keyframes[a + 1];
+}
+
+/// Weak odometry links between consecutive keyframes keep each traverse connected where scans
+/// match nothing.
+void addOdometryEdges(const KeyframeSet& set, const PoseGraphOptions& options,
+                      std::vector<double>& state, ceres::Problem& problem) {
+    for (const auto& [first, end] : set.ranges) {
+        for (std::size_t a = first; a + 1 < end; ++a) {
+            const auto& ka = set.keyframes[a];
+            const auto& kb = set.keyframes[a + 1];
             const double d = std::max(0.05, kb.travelled_m - ka.travelled_m);
             const double s_xy = options.odometry_std_per_m * d;
             const double s_yaw = mrpt::DEG2RAD(options.odometry_std_yaw_deg_per_m) * d;
@@ -507,12 +511,16 @@ std::vector<common::PoseTrack> optimisePoseGraph(
                 nullptr, &state[3 * a], &state[3 * (a + 1)]);
         }
     }
-    problem.SetParameterBlockConstant(&state[0]);  // the frame
+}
 
+// Ceres solves on one thread: with more it sums costs and Jacobian products per thread, and the
+// last bits of the optimised poses would depend on the thread count.
+void solveGraph(ceres::Problem& problem, const std::vector<GraphTraverse>& traverses,
+                const PoseGraphOptions& options, PoseGraphReport& rep) {
     ceres::Solver::Options solver;
     solver.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
     solver.max_num_iterations = options.max_iterations;
-    solver.num_threads = int(threads);
+    solver.num_threads = 1;
     ceres::Solver::Summary summary;
     ceres::Solve(solver, &problem, &summary);
     if (!summary.IsSolutionUsable()) {
@@ -523,74 +531,133 @@ std::vector<common::PoseTrack> optimisePoseGraph(
     }
     rep.initial_cost = summary.initial_cost;
     rep.final_cost = summary.final_cost;
+}
 
-    // 5. Marginal covariances of every n-th keyframe (the first is fixed: zero).
-    std::vector<std::optional<Eigen::Matrix3d>> keyframe_cov(keyframes.size());
-    if (covariances && options.covariance_stride > 0) {
-        mrpt::system::CTicTac cov_timer;
-        ceres::Covariance::Options cov_options;
-        cov_options.algorithm_type = ceres::SPARSE_QR;
-        cov_options.num_threads = int(threads);
-        ceres::Covariance covariance(cov_options);
-        std::vector<std::pair<const double*, const double*>> blocks;
-        std::vector<std::size_t> sampled;
-        for (std::size_t t = 0; t < traverses.size(); ++t) {
-            for (std::size_t k = ranges[t].first; k < ranges[t].second;
-                 k += std::size_t(options.covariance_stride)) {
-                if (k != 0) sampled.push_back(k);
-            }
-            if (ranges[t].second > ranges[t].first &&
-                (sampled.empty() || sampled.back() != ranges[t].second - 1)) {
-                sampled.push_back(ranges[t].second - 1);
-            }
+/// Every covariance_stride-th keyframe of each traverse and its last (never keyframe 0, the
+/// fixed frame).
+std::vector<std::size_t> covarianceKeyframes(const KeyframeSet& set, int stride) {
+    std::vector<std::size_t> sampled;
+    for (const auto& [first, end] : set.ranges) {
+        for (std::size_t k = first; k < end; k += std::size_t(stride)) {
+            if (k != 0) sampled.push_back(k);
         }
-        for (const std::size_t k : sampled) blocks.emplace_back(&state[3 * k], &state[3 * k]);
-        if (covariance.Compute(blocks, &problem)) {
-            rep.covariance_ok = true;
-            keyframe_cov[0] = Eigen::Matrix3d::Zero();
-            for (const std::size_t k : sampled) {
-                Eigen::Matrix<double, 3, 3, Eigen::RowMajor> c;
-                covariance.GetCovarianceBlock(&state[3 * k], &state[3 * k], c.data());
-                keyframe_cov[k] = c;
-            }
-        }
-        rep.covariance_time_s = cov_timer.Tac();
-    }
-
-    // Between two computed keyframes (each traverse's first and last are among them) the
-    // covariance is interpolated by keyframe index.
-    std::vector<Eigen::Matrix3d> interpolated_cov;
-    if (rep.covariance_ok) {
-        interpolated_cov.resize(keyframes.size());
-        std::size_t prev = 0;
-        for (std::size_t k = 0; k < keyframes.size(); ++k) {
-            if (!keyframe_cov[k]) continue;
-            for (std::size_t m = prev; m <= k; ++m) {
-                const double w = k == prev ? 1.0 : double(m - prev) / double(k - prev);
-                interpolated_cov[m] = (1 - w) * *keyframe_cov[prev] + w * *keyframe_cov[k];
-            }
-            prev = k;
+        if (end > first && (sampled.empty() || sampled.back() != end - 1)) {
+            sampled.push_back(end - 1);
         }
     }
+    return sampled;
+}
 
-    // 6. Every scan follows the keyframe at or before it: its first-estimate pose relative
-    // to that keyframe is kept, the keyframe's correction (and covariance) applied.
+/// Marginal covariances of the sampled keyframes (the first is fixed: zero); all empty when
+/// Ceres cannot compute them.
+std::vector<std::optional<Eigen::Matrix3d>> keyframeCovariances(
+    const KeyframeSet& set, const PoseGraphOptions& options, unsigned threads,
+    std::vector<double>& state, ceres::Problem& problem, PoseGraphReport& rep) {
+    std::vector<std::optional<Eigen::Matrix3d>> keyframe_cov(set.keyframes.size());
+    mrpt::system::CTicTac cov_timer;
+    ceres::Covariance::Options cov_options;
+    cov_options.algorithm_type = ceres::SPARSE_QR;
+    // Columns of the inverse are independent solves, so threads do not reorder sums; the
+    // factorisation (SuiteSparseQR) can still differ in the last bits from run to run.
+    cov_options.num_threads = int(threads);
+    ceres::Covariance covariance(cov_options);
+    const std::vector<std::size_t> sampled = covarianceKeyframes(set, options.covariance_stride);
+    std::vector<std::pair<const double*, const double*>> blocks;
+    for (const std::size_t k : sampled) blocks.emplace_back(&state[3 * k], &state[3 * k]);
+    if (covariance.Compute(blocks, &problem)) {
+        rep.covariance_ok = true;
+        keyframe_cov[0] = Eigen::Matrix3d::Zero();
+        for (const std::size_t k : sampled) {
+            Eigen::Matrix<double, 3, 3, Eigen::RowMajor> c;
+            covariance.GetCovarianceBlock(&state[3 * k], &state[3 * k], c.data());
+            keyframe_cov[k] = c;
+        }
+    }
+    rep.covariance_time_s = cov_timer.Tac();
+    return keyframe_cov;
+}
+
+/// Between two computed keyframes (each traverse's first and last are among them) the
+/// covariance is interpolated by keyframe index.
+std::vector<Eigen::Matrix3d> interpolateCovariances(
+    const std::vector<std::optional<Eigen::Matrix3d>>& keyframe_cov) {
+    std::vector<Eigen::Matrix3d> interpolated(keyframe_cov.size());
+    std::size_t prev = 0;
+    for (std::size_t k = 0; k < keyframe_cov.size(); ++k) {
+        if (!keyframe_cov[k]) continue;
+        for (std::size_t m = prev; m <= k; ++m) {
+            const double w = k == prev ? 1.0 : double(m - prev) / double(k - prev);
+            interpolated[m] = (1 - w) * *keyframe_cov[prev] + w * *keyframe_cov[k];
+        }
+        prev = k;
+    }
+    return interpolated;
+}
+
+/// Every scan follows the keyframe at or before it: its first-estimate pose relative to that
+/// keyframe is kept, the keyframe's correction (and covariance, when computed) applied.
+std::vector<common::PoseTrack> followKeyframes(
+    const std::vector<GraphTraverse>& traverses, const KeyframeSet& set,
+    const std::vector<double>& state, const std::vector<Eigen::Matrix3d>& keyframe_cov,
+    std::vector<std::vector<mrpt::math::CMatrixDouble33>>* covariances) {
     std::vector<common::PoseTrack> out;
     for (std::size_t t = 0; t < traverses.size(); ++t) {
         common::PoseTrack track = traverses[t].initial;
         std::vector<mrpt::math::CMatrixDouble33> covs;
-        std::size_t k = ranges[t].first;
+        std::size_t k = set.ranges[t].first;
         for (std::size_t i = 0; i < track.size(); ++i) {
-            while (k + 1 < ranges[t].second && keyframes[k + 1].scan <= i) ++k;
+            while (k + 1 < set.ranges[t].second && set.keyframes[k + 1].scan <= i) ++k;
             const mrpt::poses::CPose2D optimised(state[3 * k], state[3 * k + 1], state[3 * k + 2]);
             const mrpt::poses::CPose2D relative =
-                mrpt::poses::CPose2D(traverses[t].initial[i].pose) - keyframes[k].initial;
+                mrpt::poses::CPose2D(traverses[t].initial[i].pose) - set.keyframes[k].initial;
             track[i].pose = mrpt::poses::CPose3D(optimised + relative);
-            if (!interpolated_cov.empty()) covs.emplace_back(interpolated_cov[k]);
+            if (!keyframe_cov.empty()) covs.emplace_back(keyframe_cov[k]);
         }
         out.push_back(std::move(track));
         if (covariances) covariances->push_back(std::move(covs));
     }
+    return out;
+}
+
+}  // namespace
+
+std::vector<common::PoseTrack> optimisePoseGraph(
+    const std::vector<GraphTraverse>& traverses, const PoseGraphOptions& options,
+    PoseGraphReport* report, const GraphProgressFn& progress,
+    std::vector<std::vector<mrpt::math::CMatrixDouble33>>* covariances) {
+    mrpt::system::CTicTac timer;
+    PoseGraphReport rep;
+    rep.traverses = traverses.size();
+    KeyframeSet set = selectKeyframes(traverses, options);
+    rep.keyframes = set.keyframes.size();
+    if (set.keyframes.empty()) {
+        std::vector<common::PoseTrack> same;
+        for (const auto& tr : traverses) same.push_back(tr.initial);
+        return same;
+    }
+    const unsigned threads = options.threads > 0
+                                 ? unsigned(options.threads)
+                                 : std::max(1u, std::thread::hardware_concurrency());
+    const std::vector<Pair> pairs = keyframePairs(set, options);
+    computeScanPoints(set, threads);
+    const std::vector<Registration> registrations =
+        registerPairs(set.keyframes, pairs, threads, progress);
+
+    // One least-squares problem over all keyframe poses, the first fixed (the frame).
+    std::vector<double> state = initialState(set.keyframes);
+    ceres::Problem problem;
+    addRegistrationEdges(set.keyframes, pairs, registrations, options, state, problem, rep);
+    addOdometryEdges(set, options, state, problem);
+    problem.SetParameterBlockConstant(&state[0]);
+    solveGraph(problem, traverses, options, rep);
+
+    std::vector<Eigen::Matrix3d> keyframe_cov;
+    if (covariances && options.covariance_stride > 0) {
+        const auto sampled = keyframeCovariances(set, options, threads, state, problem, rep);
+        if (rep.covariance_ok) keyframe_cov = interpolateCovariances(sampled);
+    }
+    std::vector<common::PoseTrack> out =
+        followKeyframes(traverses, set, state, keyframe_cov, covariances);
     if (progress) progress(1.0);
     rep.time_s = timer.Tac();
     if (report) *report = rep;

@@ -13,6 +13,7 @@
 #include <optional>
 #include <sstream>
 
+#include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
 #include "lookup/common/config.h"
@@ -138,21 +139,6 @@ class ProgressBar {
     std::string stage_;
 };
 
-std::string jsonEscape(const std::string& s) {
-    std::string o;
-    for (char c : s) {
-        if (c == '"' || c == '\\') {
-            o += '\\';
-            o += c;
-        } else if (static_cast<unsigned char>(c) < 0x20) {
-            o += ' ';
-        } else {
-            o += c;
-        }
-    }
-    return o;
-}
-
 // One warning line per kind of refused input of a traverse.
 void addWarnings(const TraverseReport& r, const std::string& rawlog,
                  std::vector<std::string>& out) {
@@ -169,15 +155,6 @@ void addWarnings(const TraverseReport& r, const std::string& rawlog,
                       std::to_string(r.rejected_forward) +
                       " forward images (first: " + r.first_image_problem + ")");
     }
-}
-
-std::string statsJson(const PoseErrorStats& s) {
-    char buf[200];
-    std::snprintf(buf, sizeof(buf),
-                  "{\"count\": %zu, \"mean_m\": %.4f, \"p95_m\": %.4f, \"max_m\": %.4f, "
-                  "\"mean_yaw_deg\": %.3f}",
-                  s.count, s.mean_m, s.p95_m, s.max_m, s.mean_yaw_deg);
-    return buf;
 }
 
 struct TraverseStart {
@@ -207,22 +184,568 @@ TraverseStart startInGrid(bool own_map, bool use_gt, const mrpt::poses::CPose2D&
     return {"scan match", fix.pose, fix.goodness};
 }
 
-std::string startJson(const TraverseReport& t) {
-    if (t.start_source.empty()) return "";
-    char buf[200];
-    std::snprintf(buf, sizeof(buf),
-                  ", \"start\": {\"source\": \"%s\", \"x\": %.3f, \"y\": %.3f, "
-                  "\"yaw_deg\": %.2f, \"goodness\": %.3f}",
-                  t.start_source.c_str(), t.start.x(), t.start.y(), mrpt::RAD2DEG(t.start.phi()),
-                  t.start_goodness);
-    return buf;
-}
-
 // The cameras' configured time offsets, applied to their stamps as read: every later step
 // (pose per image, forward image per reference, the ceiling height) sees the pose clock.
 void configuredOffsets(const SurveyOptions& o, TraverseData& d) {
     shiftStamps(d.ceiling, o.ceiling_time_offset_s);
     shiftStamps(d.forward, o.forward_time_offset_s);
+}
+
+nlohmann::ordered_json statsJson(const PoseErrorStats& s) {
+    return {{"count", s.count},
+            {"mean_m", s.mean_m},
+            {"p95_m", s.p95_m},
+            {"max_m", s.max_m},
+            {"mean_yaw_deg", s.mean_yaw_deg}};
+}
+
+nlohmann::ordered_json poseGraphJson(const PoseGraphReport& g) {
+    return {{"traverses", g.traverses},
+            {"keyframes", g.keyframes},
+            {"registrations", g.registrations},
+            {"cross_registrations", g.cross_registrations},
+            {"rejected_registrations", g.rejected_registrations},
+            {"initial_cost", g.initial_cost},
+            {"final_cost", g.final_cost},
+            {"time_s", g.time_s},
+            {"covariance", g.covariance_ok},
+            {"covariance_time_s", g.covariance_time_s}};
+}
+
+nlohmann::ordered_json traverseJson(const TraverseReport& t) {
+    using nlohmann::ordered_json;
+    ordered_json j = {{"name", t.name},
+                      {"ceiling_frames", t.ceiling_frames},
+                      {"frames_without_pose", t.frames_without_pose},
+                      {"references", t.references},
+                      {"rejected_blur", t.rejected_blur},
+                      {"rejected_exposure", t.rejected_exposure},
+                      {"rejected_image", t.rejected_image},
+                      {"rejected_forward", t.rejected_forward},
+                      {"without_forward", t.without_forward}};
+    j["skipped"] = {{"lidar_ranges", t.skipped.lidar_ranges},
+                    {"scans", t.skipped.scans},
+                    {"odometry", t.skipped.odometry},
+                    {"ceiling_intrinsics", t.skipped.ceiling_intrinsics},
+                    {"forward_intrinsics", t.skipped.forward_intrinsics},
+                    {"first", t.skipped.first},
+                    {"first_image", t.first_image_problem}};
+    j["localisation_time_s"] = t.localisation_time_s;
+    if (!t.start_source.empty()) {
+        j["start"] = {{"source", t.start_source},
+                      {"x", t.start.x()},
+                      {"y", t.start.y()},
+                      {"yaw_deg", mrpt::RAD2DEG(t.start.phi())},
+                      {"goodness", t.start_goodness}};
+    }
+    j["has_ground_truth"] = t.has_ground_truth;
+    if (t.has_ground_truth) {
+        j["error"] = statsJson(t.error);
+        j["segments"] = ordered_json::array();
+        for (const auto& s : t.segments) {
+            j["segments"].push_back(ordered_json{{"from_m", s.from_m},
+                                                 {"to_m", s.to_m},
+                                                 {"x", s.x},
+                                                 {"y", s.y},
+                                                 {"error", statsJson(s.error)}});
+        }
+    }
+    return j;
+}
+
+/// Every traverse as read (stamps shifted by the configured offsets), with its ground truth.
+struct SurveyData {
+    std::vector<TraverseData> data;
+    std::vector<std::optional<mrpt::poses::CPose3DInterpolator>> gt;
+};
+
+SurveyData readTraverses(const SurveyInputs& in, const SurveyOptions& o, bool laser) {
+    SurveyData s;
+    for (const auto& spec : in.traverses) {
+        s.data.push_back(readTraverse(spec.rawlog, o, laser && spec.reference));
+        configuredOffsets(o, s.data.back());
+        if (!spec.ground_truth.empty()) {
+            s.gt.emplace_back(common::makeInterpolator(common::readPoseFile(spec.ground_truth),
+                                                       o.max_pose_gap_s));
+        } else {
+            s.gt.emplace_back(std::nullopt);
+        }
+    }
+    return s;
+}
+
+/// Vehicle poses of every traverse in the map frame, and what found them.
+struct VehiclePoses {
+    explicit VehiclePoses(std::size_t n) : tracks(n), starts(n), localisation_time_s(n, 0.0) {}
+    std::vector<LaserTrack> tracks;
+    std::vector<TraverseStart> starts;
+    std::vector<double> localisation_time_s;
+    std::optional<mrpt::maps::COccupancyGridMap2D> grid;
+};
+
+/// Surveyed poses from files (one for all, or each traverse's ground truth), with the
+/// configured spread as their covariance; the grid only when a map file is given.
+VehiclePoses posesFromFiles(const SurveyInputs& in, const SurveyOptions& o, std::size_t n,
+                            SurveyResult& result) {
+    VehiclePoses poses(n);
+    mrpt::math::CMatrixDouble33 cov;
+    cov.setZero();
+    cov(0, 0) = cov(1, 1) = std::pow(o.pose_file_std_xy_m, 2);
+    cov(2, 2) = std::pow(mrpt::DEG2RAD(o.pose_file_std_yaw_deg), 2);
+    const auto trackFrom = [&](const std::string& file) {
+        LaserTrack track;
+        track.poses = common::readPoseFile(file);
+        track.covs.assign(track.poses.size(), cov);
+        return track;
+    };
+    if (in.poses_file == kPosesFromGroundTruth) {
+        // Each traverse's own surveyed track (e.g. <traverse>.rawlog.GT.txt).
+        result.pose_source = "ground-truth files";
+        for (std::size_t i = 0; i < n; ++i) {
+            if (in.traverses[i].ground_truth.empty()) {
+                throw common::ConfigError(in.traverses[i].rawlog +
+                                          ": --poses ground-truth, but this traverse "
+                                          "has no ground-truth file");
+            }
+            poses.tracks[i] = trackFrom(in.traverses[i].ground_truth);
+        }
+    } else {
+        result.pose_source = "file:" + fs::absolute(in.poses_file).string();
+        const LaserTrack file_track = trackFrom(in.poses_file);
+        for (auto& t : poses.tracks) t = file_track;
+    }
+    if (!in.map_file.empty()) poses.grid = loadGridMap(in.map_file);
+    return poses;
+}
+
+/// The ground truth's pose at the traverse's first laser record when start_at_ground_truth
+/// asks for it and it has one, else `fallback`.
+mrpt::poses::CPose2D groundTruthStart(const SurveyOptions& o, const TraverseData& d,
+                                      const std::optional<mrpt::poses::CPose3DInterpolator>& gt,
+                                      const mrpt::poses::CPose2D& fallback) {
+    if (!o.start_at_ground_truth || !gt) return fallback;
+    const double t0 = mrpt::Clock::toDouble(d.laser_sequence.front()->timestamp);
+    if (auto p = poseAt(*gt, t0)) return mrpt::poses::CPose2D(*p);
+    return fallback;
+}
+
+/// The first traverse marked `mapping`, or in.traverses.size() when none is.
+std::size_t mappingIndex(const SurveyInputs& in) {
+    for (std::size_t i = 0; i < in.traverses.size(); ++i) {
+        if (in.traverses[i].mapping) return i;
+    }
+    return in.traverses.size();
+}
+
+/// The laser stage's grid map in its own frame (the grid frame), and the mapping traverse on it.
+struct GridMap {
+    mrpt::maps::COccupancyGridMap2D grid;
+    mrpt::poses::CPose2D origin;                   ///< the grid frame's pose in the map frame
+    common::PoseTrack mapping_track;               ///< where the other traverses' starts are sought
+    std::optional<common::PoseTrack> graph_track;  ///< the mapping traverse's pose-graph track
+    std::vector<mrpt::math::CMatrixDouble33> graph_covs;  ///< its covariances, when final
+};
+
+/// The mapping traverse's own pose graph over its ICP-SLAM track, and the grid rebuilt from it.
+void mappingGraph(const SurveyInputs& in, std::size_t mapping, const TraverseData& d,
+                  const LaserMap& icp, const PoseGraphOptions& g,
+                  const mrpt::config::CConfigFileBase& config, GridMap& map, SurveyResult& result) {
+    ProgressBar graph_bar(in.show_progress, "pose graph " + in.traverses[mapping].name);
+    const std::vector<GraphTraverse> alone{{&d, icp.icp_track.poses}};
+    // Its covariances are only kept when no joint graph follows.
+    const bool others = std::any_of(in.traverses.begin(), in.traverses.end(), [&](const auto& t) {
+        return t.reference && &t != &in.traverses[mapping];
+    });
+    const bool final_poses = g.all_traverses && !others;
+    std::vector<std::vector<mrpt::math::CMatrixDouble33>> covs;
+    map.graph_track = optimisePoseGraph(alone, g, &result.pose_graph, graph_bar,
+                                        final_poses ? &covs : nullptr)[0];
+    if (final_poses) map.graph_covs = covs[0];
+    map.grid = gridFromTracks(alone, {*map.graph_track}, config);
+}
+
+/// ICP-SLAM over the mapping traverse, refined by its own pose graph when enabled.
+GridMap buildMap(const SurveyInputs& in, std::size_t mapping, SurveyData& survey,
+                 const SurveyOptions& o, const PoseGraphOptions& g,
+                 const mrpt::config::CConfigFileBase& config, SurveyResult& result) {
+    if (mapping == survey.data.size()) throw std::runtime_error("no mapping traverse");
+    TraverseData& d = survey.data[mapping];
+    // The mapping traverse needs lidar + odometry even if it is not a reference.
+    if (d.scan_count == 0 || d.odometry_count == 0) {
+        d = readTraverse(in.traverses[mapping].rawlog, o, true);
+        configuredOffsets(o, d);
+    }
+    result.pose_source = "laser";
+    GridMap map;
+    // ICP-SLAM runs in its own frame (its start = identity: MRPT 2.5.8's pose extrapolator
+    // stalls when initialize() is given a start pose); poses are moved into the ground-truth
+    // frame by the origin afterwards.
+    map.origin = groundTruthStart(o, d, survey.gt[mapping], operatorStart(o, in));
+    mrpt::system::CTicTac timer;
+    ProgressBar bar(in.show_progress, "ICP-SLAM " + in.traverses[mapping].name);
+    LaserMap icp = buildMapIcpSlam(d, config, mrpt::poses::CPose2D(), bar, o.icp_max_range_m);
+    if (g.enabled) {
+        mappingGraph(in, mapping, d, icp, g, config, map, result);
+    } else {
+        map.grid = std::move(icp.grid);
+    }
+    map.mapping_track = map.graph_track ? *map.graph_track : icp.icp_track.poses;
+    result.mapping_time_s = timer.Tac();
+    return map;
+}
+
+/// MCL of every reference traverse on the grid (the mapping one too, on its own map, unless
+/// the joint graph places it); poses and starts in the grid frame.
+void localizeOnGrid(const SurveyInputs& in, const SurveyData& survey, const GridMap& map,
+                    std::size_t mapping, bool joint, const SurveyOptions& o,
+                    const mrpt::config::CConfigFileBase& config, VehiclePoses& poses,
+                    SurveyResult& result) {
+    for (std::size_t i = 0; i < survey.data.size(); ++i) {
+        if (!in.traverses[i].reference || (joint && i == mapping)) continue;
+        mrpt::system::CTicTac timer;
+        ProgressBar bar(in.show_progress, "MCL " + in.traverses[i].name);
+        const bool own_map = i == mapping && in.map_file.empty();
+        const bool use_gt = o.start_at_ground_truth && survey.gt[i].has_value();
+        const mrpt::poses::CPose2D gt_start =
+            groundTruthStart(o, survey.data[i], survey.gt[i], map.origin) - map.origin;
+        poses.starts[i] =
+            startInGrid(own_map, use_gt, gt_start,
+                        in.map_file.empty() ? mrpt::poses::CPose2D() : operatorStart(o, in),
+                        survey.data[i], map.grid, map.mapping_track, o);
+        poses.tracks[i] =
+            localizeMcl(survey.data[i], map.grid, config, o, poses.starts[i].pose, bar);
+        poses.localisation_time_s[i] = timer.Tac();
+        result.localisation_time_s += poses.localisation_time_s[i];
+    }
+}
+
+/// Every reference traverse joins the mapping one in one pose graph, MCL's poses on the first
+/// map as its first estimate; the map is rebuilt from all of them. The graph's poses replace
+/// MCL's; their covariance is the graph's marginal one (how far the map may have drifted there,
+/// relative to its start) on top of the map's local error.
+void jointGraph(const SurveyInputs& in, const SurveyData& survey, std::size_t mapping,
+                const SurveyOptions& o, const PoseGraphOptions& g,
+                const mrpt::config::CConfigFileBase& config, GridMap& map, VehiclePoses& poses,
+                SurveyResult& result) {
+    std::vector<GraphTraverse> graph{{&survey.data[mapping], *map.graph_track}};
+    std::vector<std::size_t> members{mapping};
+    for (std::size_t i = 0; i < survey.data.size(); ++i) {
+        if (!in.traverses[i].reference || i == mapping) continue;
+        graph.push_back({&survey.data[i], poses.tracks[i].poses});
+        members.push_back(i);
+    }
+    std::vector<common::PoseTrack> member_tracks{*map.graph_track};
+    std::vector<std::vector<mrpt::math::CMatrixDouble33>> member_covs{map.graph_covs};
+    if (graph.size() > 1) {
+        mrpt::system::CTicTac timer;
+        ProgressBar graph_bar(in.show_progress, "pose graph, all traverses");
+        std::vector<std::vector<mrpt::math::CMatrixDouble33>> covs;
+        member_tracks = optimisePoseGraph(graph, g, &result.pose_graph, graph_bar, &covs);
+        covs.resize(members.size());  // none when the graph had no keyframes
+        member_covs = std::move(covs);
+        map.grid = gridFromTracks(graph, member_tracks, config);
+        result.mapping_time_s += timer.Tac();
+    }
+    const mrpt::math::CMatrixDouble33 floor = mapErrorCovariance(o);
+    for (std::size_t k = 0; k < members.size(); ++k) {
+        if (!in.traverses[members[k]].reference) continue;
+        LaserTrack& track = poses.tracks[members[k]];
+        track.poses = member_tracks[k];
+        track.covs.assign(track.poses.size(), floor);
+        if (member_covs[k].size() == track.poses.size()) {
+            for (std::size_t n = 0; n < track.covs.size(); ++n) track.covs[n] += member_covs[k][n];
+        }
+    }
+}
+
+/// From the grid frame into the map frame: poses and starts composed with the grid's origin,
+/// (x, y) covariances rotated.
+void toMapFrame(const mrpt::poses::CPose2D& origin, VehiclePoses& poses) {
+    for (auto& start : poses.starts) start.pose = origin + start.pose;
+    const mrpt::poses::CPose3D origin3(origin);
+    mrpt::math::CMatrixDouble33 rotation;
+    rotation.setIdentity();
+    rotation(0, 0) = rotation(1, 1) = std::cos(origin.phi());
+    rotation(1, 0) = std::sin(origin.phi());
+    rotation(0, 1) = -rotation(1, 0);
+    for (auto& track : poses.tracks) {
+        for (auto& p : track.poses) p.pose = origin3 + p.pose;
+        for (auto& c : track.covs) {
+            c = mrpt::math::CMatrixDouble33(rotation.asEigen() * c.asEigen() *
+                                            rotation.asEigen().transpose());
+        }
+    }
+}
+
+/// The laser stage: a grid map (given, or ICP-SLAM of the mapping traverse with its pose
+/// graph), MCL of the reference traverses on it, the joint pose graph when configured.
+VehiclePoses posesFromLaser(const SurveyInputs& in, SurveyData& survey, const SurveyOptions& o,
+                            const PoseGraphOptions& g, const mrpt::config::CConfigFileBase& config,
+                            SurveyResult& result) {
+    VehiclePoses poses(survey.data.size());
+    const std::size_t mapping = mappingIndex(in);
+    GridMap map;
+    if (!in.map_file.empty()) {
+        result.pose_source = "laser+map:" + fs::absolute(in.map_file).string();
+        map.grid = loadGridMap(in.map_file);
+    } else {
+        map = buildMap(in, mapping, survey, o, g, config, result);
+    }
+    const bool joint = map.graph_track.has_value() && g.all_traverses;
+    localizeOnGrid(in, survey, map, mapping, joint, o, config, poses, result);
+    if (joint) {
+        jointGraph(in, survey, mapping, o, g, config, map, poses, result);
+        poses.starts[mapping] = {"map origin", mrpt::poses::CPose2D(), 0};
+    }
+    toMapFrame(map.origin, poses);
+    poses.grid = std::move(map.grid);
+    return poses;
+}
+
+/// The database's cameras, each fixed by its first usable image.
+struct Cameras {
+    std::optional<mrpt::img::TCamera> ceiling, forward;
+};
+
+/// A traverse's vehicle poses, looked up by time.
+struct TrackLookup {
+    TrackLookup(const LaserTrack& t, double max_gap_s)
+        : track(t), interp(common::makeInterpolator(t.poses, max_gap_s)) {
+        for (const auto& p : t.poses) times.push_back(p.time_s);
+    }
+    const LaserTrack& track;
+    mrpt::poses::CPose3DInterpolator interp;
+    std::vector<double> times;
+};
+
+/// The keyframe candidates: the ceiling frames with a pose on the track.
+struct PosedFrames {
+    std::vector<KeyframeCandidate> candidates;
+    std::vector<std::size_t> frame_of;         ///< candidate -> ceiling frame
+    std::size_t without_pose = 0;              ///< frames outside the track
+    std::optional<std::size_t> first_outside;  ///< the first of them
+};
+
+PosedFrames posedFrames(const TraverseData& d, const TrackLookup& poses) {
+    PosedFrames out;
+    for (std::size_t f = 0; f < d.ceiling.size(); ++f) {
+        const double t = mrpt::Clock::toDouble(d.ceiling[f]->timestamp);
+        if (auto p = poseAt(poses.interp, t)) {
+            out.candidates.push_back({t, *p});
+            out.frame_of.push_back(f);
+        } else {
+            ++out.without_pose;
+            if (!out.first_outside) out.first_outside = f;
+        }
+    }
+    return out;
+}
+
+/// Throws when more than max_outside_fraction of the ceiling frames have no pose on the track
+/// (`track_name`): the camera's and the track's clocks do not match.
+void checkPoseCoverage(const TraverseData& d, const PosedFrames& frames, const TrackLookup& poses,
+                       const SurveyOptions& o, const std::string& track_name) {
+    if (frames.without_pose <= o.max_outside_fraction * d.ceiling.size()) return;
+    const std::size_t f = *frames.first_outside;
+    throw common::RawlogError(d.rawlog, d.ceiling_records[f],
+                              "mismatched time stamps: " + std::to_string(frames.without_pose) +
+                                  " of " + std::to_string(d.ceiling.size()) + " " +
+                                  o.ceiling_camera_label + " images (first at t=" +
+                                  std::to_string(mrpt::Clock::toDouble(d.ceiling[f]->timestamp)) +
+                                  " s) have no pose in [" + std::to_string(poses.times.front()) +
+                                  ", " + std::to_string(poses.times.back()) + "] s of " +
+                                  track_name);
+}
+
+/// Keyframes among the candidates, judged by image quality; the first usable image fixes the
+/// database's ceiling camera.
+KeyframeSelection selectReferences(const TraverseData& d, const PosedFrames& frames,
+                                   const SurveyOptions& o, Cameras& cameras, TraverseReport& rep) {
+    return selectKeyframes(frames.candidates, o, [&](std::size_t c) {
+        const auto& image = *d.ceiling[frames.frame_of[c]];
+        std::string problem;
+        const auto q =
+            ceilingQuality(image, cameras.ceiling ? &*cameras.ceiling : nullptr, problem);
+        if (!problem.empty() && rep.first_image_problem.empty()) rep.first_image_problem = problem;
+        if (q.usable && !cameras.ceiling) cameras.ceiling = image.cameraParams;
+        return q;
+    });
+}
+
+/// The forward frames of a traverse, each checked once when first wanted.
+class ForwardImages {
+  public:
+    explicit ForwardImages(const TraverseData& d) : d_(d), state_(d.forward.size(), 0) {
+        for (const auto& fw : d.forward) times_.push_back(mrpt::Clock::toDouble(fw->timestamp));
+    }
+
+    /// The frame nearest in time to `t_s` when within `max_dt_s` and usable (refused ones are
+    /// counted in `rep`); the first used fixes the database's forward camera.
+    std::optional<std::size_t> nearest(double t_s, double max_dt_s, Cameras& cameras,
+                                       TraverseReport& rep) {
+        if (times_.empty()) return std::nullopt;
+        const std::size_t fi = nearestIndex(times_, t_s);
+        if (std::abs(times_[fi] - t_s) > max_dt_s || !usable(fi, cameras, rep)) return std::nullopt;
+        if (!cameras.forward) cameras.forward = d_.forward[fi]->cameraParams;
+        return fi;
+    }
+    double time(std::size_t fi) const { return times_[fi]; }
+
+  private:
+    bool usable(std::size_t fi, const Cameras& cameras, TraverseReport& rep) {
+        if (state_[fi] == 0) {
+            const auto& fw = *d_.forward[fi];
+            cv::Mat m;
+            try {
+                m = loadPixels(fw, cv::IMREAD_UNCHANGED);
+            } catch (const std::exception&) {
+                m = cv::Mat();
+            }
+            const std::string problem =
+                pixelProblem(fw, m, cameras.forward ? &*cameras.forward : nullptr);
+            state_[fi] = problem.empty() ? 1 : -1;
+            if (!problem.empty()) {
+                ++rep.rejected_forward;
+                if (rep.first_image_problem.empty()) rep.first_image_problem = problem;
+            }
+        }
+        return state_[fi] > 0;
+    }
+    const TraverseData& d_;
+    std::vector<double> times_;
+    std::vector<int> state_;  ///< 0 not checked, 1 usable, -1 refused
+};
+
+/// The references' errors against the ground truth, in travel order.
+struct ReferenceErrors {
+    std::vector<double> err_m, err_yaw_deg, travelled_m;
+    std::vector<mrpt::poses::CPose3D> poses;
+
+    void add(const mrpt::poses::CPose3D& truth, const database::ReferenceInput& ref) {
+        const double dx = truth.x() - ref.vehicle_pose.x();
+        const double dy = truth.y() - ref.vehicle_pose.y();
+        err_m.push_back(std::hypot(dx, dy));
+        err_yaw_deg.push_back(
+            std::abs(mrpt::RAD2DEG(mrpt::math::wrapToPi(truth.yaw() - ref.vehicle_pose.yaw()))));
+        travelled_m.push_back(ref.travelled_m);
+        poses.push_back(ref.vehicle_pose);
+    }
+};
+
+/// Writes the selected references of one traverse (pose, covariance, quality, forward image);
+/// returns their errors against `gt`.
+ReferenceErrors writeReferences(const TraverseSpec& spec, const TraverseData& d,
+                                const TrackLookup& poses, const PosedFrames& frames,
+                                const KeyframeSelection& selection,
+                                const std::optional<mrpt::poses::CPose3DInterpolator>& gt,
+                                const SurveyOptions& o, Cameras& cameras,
+                                database::DatabaseWriter& writer, TraverseReport& rep) {
+    ForwardImages forward(d);
+    ReferenceErrors errors;
+    for (std::size_t k = 0; k < selection.kept.size(); ++k) {
+        const KeyframeCandidate& candidate = frames.candidates[selection.kept[k]];
+        database::ReferenceInput ref;
+        ref.traverse = spec.name;
+        ref.ceiling = d.ceiling[frames.frame_of[selection.kept[k]]];
+        ref.vehicle_pose = candidate.vehicle_pose;
+        ref.vehicle_cov = poses.track.covs[nearestIndex(poses.times, candidate.time_s)];
+        ref.sharpness = selection.kept_quality[k].sharpness;
+        ref.mean_intensity = selection.kept_quality[k].mean_intensity;
+        ref.travelled_m = selection.kept_travelled_m[k];
+        if (auto fi = forward.nearest(candidate.time_s, o.forward_max_dt_s, cameras, rep)) {
+            ref.forward = d.forward[*fi];
+            ref.forward_vehicle_pose =
+                poseAt(poses.interp, forward.time(*fi)).value_or(ref.vehicle_pose);
+        }
+        if (!ref.forward) ++rep.without_forward;
+        writer.add(ref);
+        if (gt) {
+            if (auto truth = poseAt(*gt, candidate.time_s)) errors.add(*truth, ref);
+        }
+    }
+    return errors;
+}
+
+/// The error per 10 m of travel, to show where the laser poses degrade.
+std::vector<SegmentError> errorSegments(const ReferenceErrors& e) {
+    constexpr double kSegment_m = 10.0;
+    std::vector<SegmentError> out;
+    std::size_t b = 0;
+    while (b < e.err_m.size()) {
+        const double from = std::floor(e.travelled_m[b] / kSegment_m) * kSegment_m;
+        std::size_t end = b;
+        while (end < e.err_m.size() && e.travelled_m[end] < from + kSegment_m) ++end;
+        SegmentError seg;
+        seg.from_m = from;
+        seg.to_m = from + kSegment_m;
+        const auto& mid = e.poses[(b + end) / 2];
+        seg.x = mid.x();
+        seg.y = mid.y();
+        seg.error = statsOf({e.err_m.begin() + b, e.err_m.begin() + end},
+                            {e.err_yaw_deg.begin() + b, e.err_yaw_deg.begin() + end});
+        out.push_back(seg);
+        b = end;
+    }
+    return out;
+}
+
+/// One reference traverse into the database: a pose per ceiling frame, keyframes, forward
+/// images, the records; its report.
+TraverseReport addTraverse(const TraverseSpec& spec, const TraverseData& d, const LaserTrack& track,
+                           const std::optional<mrpt::poses::CPose3DInterpolator>& gt,
+                           const TraverseStart& start, double localisation_time_s,
+                           const SurveyOptions& o, const std::string& track_name, Cameras& cameras,
+                           database::DatabaseWriter& writer) {
+    TraverseReport rep;
+    rep.name = spec.name;
+    rep.ceiling_frames = d.ceiling.size();
+    rep.has_ground_truth = gt.has_value();
+    rep.localisation_time_s = localisation_time_s;
+    rep.start_source = start.source;
+    rep.start = start.pose;
+    rep.start_goodness = start.goodness;
+    if (track.poses.empty()) {
+        throw common::RawlogError(d.rawlog, "no vehicle poses (no lidar scans localised)");
+    }
+    const TrackLookup poses(track, o.max_pose_gap_s);
+    const PosedFrames frames = posedFrames(d, poses);
+    rep.frames_without_pose = frames.without_pose;
+    checkPoseCoverage(d, frames, poses, o, track_name);
+    const KeyframeSelection selection = selectReferences(d, frames, o, cameras, rep);
+    rep.rejected_image = selection.rejected_unusable;
+    rep.skipped = d.skipped;
+    rep.rejected_blur = selection.rejected_blur;
+    rep.rejected_exposure = selection.rejected_exposure;
+    const ReferenceErrors errors =
+        writeReferences(spec, d, poses, frames, selection, gt, o, cameras, writer, rep);
+    rep.references = selection.kept.size();
+    if (gt) {
+        rep.error = statsOf(errors.err_m, errors.err_yaw_deg);
+        rep.segments = errorSegments(errors);
+    }
+    return rep;
+}
+
+/// db.ini's description of the database to be: its name, cameras' labels, source rawlogs and
+/// the [survey] options used.
+database::DatabaseInfo databaseInfo(const SurveyInputs& in, const SurveyOptions& o) {
+    database::DatabaseInfo info;
+    info.name = in.name;
+    info.ceiling_camera_label = o.ceiling_camera_label;
+    info.forward_camera_label = o.forward_camera_label;
+    for (const auto& spec : in.traverses) {
+        info.source_rawlogs.push_back(fs::absolute(spec.rawlog).string());
+    }
+    mrpt::config::CConfigFileMemory used;
+    o.saveToConfigFile(used, "survey");
+    info.options_ini = used.getContent();
+    return info;
+}
+
+std::vector<bool> referenceFlags(const SurveyInputs& in) {
+    std::vector<bool> reference;
+    for (const auto& t : in.traverses) reference.push_back(t.reference);
+    return reference;
 }
 
 }  // namespace
@@ -258,73 +781,28 @@ std::string SurveyResult::summaryLine() const {
 }
 
 std::string SurveyResult::toJson() const {
-    std::ostringstream o;
-    o << "{\n  \"status\": \"" << (ok() ? "ok" : "failed") << "\",\n";
-    o << "  \"reason\": \"" << jsonEscape(reason) << "\",\n";
-    o << "  \"database\": \"" << jsonEscape(out_dir) << "\",\n";
-    o << "  \"pose_source\": \"" << jsonEscape(pose_source) << "\",\n";
-    o << "  \"references\": " << references << ",\n";
-    o << "  \"size_bytes\": " << size_bytes << ",\n";
-    o << "  \"time_s\": {\"total\": " << total_time_s << ", \"mapping\": " << mapping_time_s
-      << ", \"localisation\": " << localisation_time_s << ", \"writing\": " << writing_time_s
-      << "},\n";
-    if (pose_graph.keyframes > 0) {
-        const auto& g = pose_graph;
-        o << "  \"pose_graph\": {\"traverses\": " << g.traverses
-          << ", \"keyframes\": " << g.keyframes << ", \"registrations\": " << g.registrations
-          << ", \"cross_registrations\": " << g.cross_registrations
-          << ", \"rejected_registrations\": " << g.rejected_registrations
-          << ", \"initial_cost\": " << g.initial_cost << ", \"final_cost\": " << g.final_cost
-          << ", \"time_s\": " << g.time_s
-          << ", \"covariance\": " << (g.covariance_ok ? "true" : "false")
-          << ", \"covariance_time_s\": " << g.covariance_time_s << "},\n";
-    }
-    if (!ceiling_source.empty()) {
-        o << "  \"ceiling\": " << ceilingJson(ceiling, ceiling_source) << ",\n";
-    }
+    using nlohmann::ordered_json;
+    ordered_json j;
+    j["status"] = ok() ? "ok" : "failed";
+    j["reason"] = reason;
+    j["database"] = out_dir;
+    j["pose_source"] = pose_source;
+    j["references"] = references;
+    j["size_bytes"] = size_bytes;
+    j["time_s"] = {{"total", total_time_s},
+                   {"mapping", mapping_time_s},
+                   {"localisation", localisation_time_s},
+                   {"writing", writing_time_s}};
+    if (pose_graph.keyframes > 0) j["pose_graph"] = poseGraphJson(pose_graph);
+    if (!ceiling_source.empty()) j["ceiling"] = ceilingJson(ceiling, ceiling_source);
     if (!time_offsets.empty()) {
-        o << "  \"time_offsets\": [";
-        for (std::size_t i = 0; i < time_offsets.size(); ++i) {
-            o << (i ? ",\n    " : "\n    ") << timeOffsetJson(time_offsets[i]);
-        }
-        o << "\n  ],\n";
+        j["time_offsets"] = ordered_json::array();
+        for (const auto& t : time_offsets) j["time_offsets"].push_back(timeOffsetJson(t));
     }
-    o << "  \"traverses\": [";
-    for (std::size_t i = 0; i < traverses.size(); ++i) {
-        const auto& t = traverses[i];
-        o << (i ? "," : "") << "\n    {\"name\": \"" << jsonEscape(t.name)
-          << "\", \"ceiling_frames\": " << t.ceiling_frames
-          << ", \"frames_without_pose\": " << t.frames_without_pose
-          << ", \"references\": " << t.references << ", \"rejected_blur\": " << t.rejected_blur
-          << ", \"rejected_exposure\": " << t.rejected_exposure
-          << ", \"rejected_image\": " << t.rejected_image
-          << ", \"rejected_forward\": " << t.rejected_forward
-          << ", \"without_forward\": " << t.without_forward
-          << ",\n     \"skipped\": {\"lidar_ranges\": " << t.skipped.lidar_ranges
-          << ", \"scans\": " << t.skipped.scans << ", \"odometry\": " << t.skipped.odometry
-          << ", \"ceiling_intrinsics\": " << t.skipped.ceiling_intrinsics
-          << ", \"forward_intrinsics\": " << t.skipped.forward_intrinsics << ", \"first\": \""
-          << jsonEscape(t.skipped.first) << "\", \"first_image\": \""
-          << jsonEscape(t.first_image_problem) << "\"}"
-          << ", \"localisation_time_s\": " << t.localisation_time_s << startJson(t)
-          << ", \"has_ground_truth\": " << (t.has_ground_truth ? "true" : "false");
-        if (t.has_ground_truth) {
-            o << ",\n     \"error\": " << statsJson(t.error) << ",\n     \"segments\": [";
-            for (std::size_t k = 0; k < t.segments.size(); ++k) {
-                const auto& s = t.segments[k];
-                char buf[160];
-                std::snprintf(buf, sizeof(buf),
-                              "{\"from_m\": %.1f, \"to_m\": %.1f, \"x\": %.2f, \"y\": %.2f, ",
-                              s.from_m, s.to_m, s.x, s.y);
-                o << (k ? ",\n       " : "\n       ") << buf << "\"error\": " << statsJson(s.error)
-                  << "}";
-            }
-            o << "]";
-        }
-        o << "}";
-    }
-    o << "\n  ]\n}\n";
-    return o.str();
+    j["traverses"] = ordered_json::array();
+    for (const auto& t : traverses) j["traverses"].push_back(traverseJson(t));
+    // Paths and reasons are bytes from the file system: invalid UTF-8 is replaced, not fatal.
+    return j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n";
 }
 
 Survey::Survey(SurveyOptions options, const mrpt::config::CConfigFileBase& config)
@@ -415,370 +893,35 @@ SurveyResult Survey::run(const SurveyInputs& in) const {
         for (auto& line : database::recoverInterrupted(in.out_dir)) {
             result.warnings.push_back(std::move(line));
         }
-        const bool laser = in.poses_file.empty();
-
         // 1. Read every traverse (image headers, odometry, scans) and its ground truth.
-        std::vector<TraverseData> data;
-        std::vector<std::optional<mrpt::poses::CPose3DInterpolator>> gt;
-        for (const auto& spec : in.traverses) {
-            data.push_back(readTraverse(spec.rawlog, options_, laser && spec.reference));
-            configuredOffsets(options_, data.back());
-            if (!spec.ground_truth.empty()) {
-                gt.emplace_back(common::makeInterpolator(common::readPoseFile(spec.ground_truth),
-                                                         options_.max_pose_gap_s));
-            } else {
-                gt.emplace_back(std::nullopt);
-            }
-        }
+        const bool laser = in.poses_file.empty();
+        SurveyData survey = readTraverses(in, options_, laser);
 
         // 2. Vehicle poses per traverse.
-        std::vector<LaserTrack> tracks(data.size());
-        std::vector<TraverseStart> result_starts(data.size());
-        std::vector<double> localisation_time(data.size(), 0.0);
-        std::optional<mrpt::maps::COccupancyGridMap2D> grid;
-        mrpt::system::CTicTac timer;
-        if (!laser) {
-            mrpt::math::CMatrixDouble33 cov;
-            cov.setZero();
-            cov(0, 0) = cov(1, 1) = std::pow(options_.pose_file_std_xy_m, 2);
-            cov(2, 2) = std::pow(mrpt::DEG2RAD(options_.pose_file_std_yaw_deg), 2);
-            const auto trackFrom = [&](const std::string& file) {
-                LaserTrack track;
-                track.poses = common::readPoseFile(file);
-                track.covs.assign(track.poses.size(), cov);
-                return track;
-            };
-            if (in.poses_file == kPosesFromGroundTruth) {
-                // Each traverse's own surveyed track (e.g. <traverse>.rawlog.GT.txt).
-                result.pose_source = "ground-truth files";
-                for (std::size_t i = 0; i < tracks.size(); ++i) {
-                    if (in.traverses[i].ground_truth.empty()) {
-                        throw common::ConfigError(in.traverses[i].rawlog +
-                                                  ": --poses ground-truth, but this traverse "
-                                                  "has no ground-truth file");
-                    }
-                    tracks[i] = trackFrom(in.traverses[i].ground_truth);
-                }
-            } else {
-                result.pose_source = "file:" + fs::absolute(in.poses_file).string();
-                const LaserTrack file_track = trackFrom(in.poses_file);
-                for (auto& t : tracks) t = file_track;
-            }
-            if (!in.map_file.empty()) grid = loadGridMap(in.map_file);
-        } else {
-            const auto startOf = [&](std::size_t i,
-                                     const mrpt::poses::CPose2D& fallback) -> mrpt::poses::CPose2D {
-                if (!options_.start_at_ground_truth || !gt[i]) return fallback;
-                const auto& seq = data[i].laser_sequence;
-                const double t0 = mrpt::Clock::toDouble(seq.front()->timestamp);
-                if (auto p = poseAt(*gt[i], t0)) return mrpt::poses::CPose2D(*p);
-                return fallback;
-            };
-            std::size_t mapping = data.size();
-            for (std::size_t i = 0; i < data.size(); ++i) {
-                if (in.traverses[i].mapping) {
-                    mapping = i;
-                    break;
-                }
-            }
-            mrpt::poses::CPose2D map_origin;
-            common::PoseTrack mapping_track;  // grid frame: where other traverses are sought
-            std::vector<TraverseStart> starts(data.size());
-            // Pose-graph tracks per traverse (grid frame), where the graph optimised them.
-            std::vector<std::optional<common::PoseTrack>> graph_tracks(data.size());
-            std::vector<std::vector<mrpt::math::CMatrixDouble33>> graph_covs(data.size());
-            if (!in.map_file.empty()) {
-                result.pose_source = "laser+map:" + fs::absolute(in.map_file).string();
-                grid = loadGridMap(in.map_file);
-            } else {
-                if (mapping == data.size()) throw std::runtime_error("no mapping traverse");
-                // The mapping traverse needs lidar + odometry even if it is not a reference.
-                if (data[mapping].scan_count == 0 || data[mapping].odometry_count == 0) {
-                    data[mapping] = readTraverse(in.traverses[mapping].rawlog, options_, true);
-                    configuredOffsets(options_, data[mapping]);
-                }
-                result.pose_source = "laser";
-                // ICP-SLAM runs in its own frame (its start = identity: MRPT 2.5.8's pose
-                // extrapolator stalls when initialize() is given a start pose); poses are moved
-                // into the ground-truth frame by map_origin afterwards.
-                map_origin = startOf(mapping, operatorStart(options_, in));
-                timer.Tic();
-                ProgressBar bar(in.show_progress, "ICP-SLAM " + in.traverses[mapping].name);
-                LaserMap icp = buildMapIcpSlam(data[mapping], config_, mrpt::poses::CPose2D(), bar,
-                                               options_.icp_max_range_m);
-                if (graph_options_.enabled) {
-                    ProgressBar graph_bar(in.show_progress,
-                                          "pose graph " + in.traverses[mapping].name);
-                    const std::vector<GraphTraverse> alone{{&data[mapping], icp.icp_track.poses}};
-                    // Its covariances are only kept when no joint graph follows.
-                    const bool others = std::any_of(
-                        in.traverses.begin(), in.traverses.end(),
-                        [&](const auto& t) { return t.reference && &t != &in.traverses[mapping]; });
-                    const bool final_poses = graph_options_.all_traverses && !others;
-                    std::vector<std::vector<mrpt::math::CMatrixDouble33>> covs;
-                    graph_tracks[mapping] =
-                        optimisePoseGraph(alone, graph_options_, &result.pose_graph, graph_bar,
-                                          final_poses ? &covs : nullptr)[0];
-                    if (final_poses) graph_covs[mapping] = covs[0];
-                    grid = gridFromTracks(alone, {*graph_tracks[mapping]}, config_);
-                } else {
-                    grid = std::move(icp.grid);
-                }
-                mapping_track =
-                    graph_tracks[mapping] ? *graph_tracks[mapping] : icp.icp_track.poses;
-                result.mapping_time_s = timer.Tac();
-            }
-            // Poses in the grid's frame first; moved into the map frame at the end.
-            const bool joint = graph_tracks[mapping].has_value() && graph_options_.all_traverses;
-            for (std::size_t i = 0; i < data.size(); ++i) {
-                if (!in.traverses[i].reference || (joint && i == mapping)) continue;
-                timer.Tic();
-                ProgressBar bar(in.show_progress, "MCL " + in.traverses[i].name);
-                const bool own_map = i == mapping && in.map_file.empty();
-                const bool use_gt = options_.start_at_ground_truth && gt[i].has_value();
-                starts[i] = startInGrid(
-                    own_map, use_gt, startOf(i, map_origin) - map_origin,
-                    in.map_file.empty() ? mrpt::poses::CPose2D() : operatorStart(options_, in),
-                    data[i], *grid, mapping_track, options_);
-                tracks[i] = localizeMcl(data[i], *grid, config_, options_, starts[i].pose, bar);
-                localisation_time[i] = timer.Tac();
-                result.localisation_time_s += localisation_time[i];
-            }
-            if (joint) {
-                // Every reference traverse joins the mapping one in the graph, MCL's poses on
-                // the first map as its first estimate; the map is rebuilt from all of them.
-                std::vector<GraphTraverse> graph{{&data[mapping], *graph_tracks[mapping]}};
-                std::vector<std::size_t> members{mapping};
-                for (std::size_t i = 0; i < data.size(); ++i) {
-                    if (!in.traverses[i].reference || i == mapping) continue;
-                    graph.push_back({&data[i], tracks[i].poses});
-                    members.push_back(i);
-                }
-                if (graph.size() > 1) {
-                    timer.Tic();
-                    ProgressBar graph_bar(in.show_progress, "pose graph, all traverses");
-                    std::vector<std::vector<mrpt::math::CMatrixDouble33>> covs;
-                    const auto optimised = optimisePoseGraph(graph, graph_options_,
-                                                             &result.pose_graph, graph_bar, &covs);
-                    for (std::size_t k = 0; k < members.size(); ++k) {
-                        graph_tracks[members[k]] = optimised[k];
-                        graph_covs[members[k]] = covs[k];
-                    }
-                    grid = gridFromTracks(graph, optimised, config_);
-                    result.mapping_time_s += timer.Tac();
-                }
-                // The graph's poses replace MCL's. Their covariance: the graph's marginal one
-                // (how far the map may have drifted there, relative to its start) on top of
-                // the map's local error.
-                const mrpt::math::CMatrixDouble33 floor = mapErrorCovariance(options_);
-                for (const std::size_t i : members) {
-                    if (!in.traverses[i].reference) continue;
-                    tracks[i].poses = *graph_tracks[i];
-                    tracks[i].covs.assign(tracks[i].poses.size(), floor);
-                    if (graph_covs[i].size() == tracks[i].poses.size()) {
-                        for (std::size_t k = 0; k < graph_covs[i].size(); ++k) {
-                            tracks[i].covs[k] += graph_covs[i][k];
-                        }
-                    }
-                }
-            }
-            if (joint) starts[mapping] = {"map origin", mrpt::poses::CPose2D(), 0};
-            for (std::size_t i = 0; i < data.size(); ++i)
-                starts[i].pose = map_origin + starts[i].pose;
-            result_starts = std::move(starts);
-            // Into the map frame: poses composed with its origin, (x, y) covariances rotated.
-            const mrpt::poses::CPose3D origin3(map_origin);
-            mrpt::math::CMatrixDouble33 rotation;
-            rotation.setIdentity();
-            rotation(0, 0) = rotation(1, 1) = std::cos(map_origin.phi());
-            rotation(1, 0) = std::sin(map_origin.phi());
-            rotation(0, 1) = -rotation(1, 0);
-            for (std::size_t i = 0; i < data.size(); ++i) {
-                for (auto& p : tracks[i].poses) p.pose = origin3 + p.pose;
-                for (auto& c : tracks[i].covs) {
-                    c = mrpt::math::CMatrixDouble33(rotation.asEigen() * c.asEigen() *
-                                                    rotation.asEigen().transpose());
-                }
-            }
-        }
+        VehiclePoses poses =
+            laser ? posesFromLaser(in, survey, options_, graph_options_, config_, result)
+                  : posesFromFiles(in, options_, survey.data.size(), result);
 
         // 3. References: pose per ceiling image, keyframes, forward image, database records.
-        timer.Tic();
+        mrpt::system::CTicTac timer;
         database::DatabaseWriter writer(in.out_dir);
-        if (grid) writer.setMap(*grid);
-        database::DatabaseInfo info;
-        info.name = in.name;
-        info.ceiling_camera_label = options_.ceiling_camera_label;
-        info.forward_camera_label = options_.forward_camera_label;
-        info.ceiling_height_m = ceilingHeight(in, data, tracks, result);
-        {
-            std::vector<bool> reference;
-            for (const auto& t : in.traverses) reference.push_back(t.reference);
-            timeOffsets(data, tracks, reference, info.ceiling_height_m, result);
-        }
+        if (poses.grid) writer.setMap(*poses.grid);
+        database::DatabaseInfo info = databaseInfo(in, options_);
+        info.ceiling_height_m = ceilingHeight(in, survey.data, poses.tracks, result);
+        timeOffsets(survey.data, poses.tracks, referenceFlags(in), info.ceiling_height_m, result);
         info.pose_source = result.pose_source;
-        {
-            mrpt::config::CConfigFileMemory used;
-            options_.saveToConfigFile(used, "survey");
-            info.options_ini = used.getContent();
+        const std::string track_name = laser ? std::string("the laser track") : in.poses_file;
+        Cameras cameras;
+        for (std::size_t i = 0; i < survey.data.size(); ++i) {
+            if (!in.traverses[i].reference) continue;
+            TraverseReport rep = addTraverse(
+                in.traverses[i], survey.data[i], poses.tracks[i], survey.gt[i], poses.starts[i],
+                poses.localisation_time_s[i], options_, track_name, cameras, writer);
+            addWarnings(rep, survey.data[i].rawlog, result.warnings);
+            result.traverses.push_back(std::move(rep));
         }
-        bool have_intrinsics = false, have_forward_intrinsics = false;
-        for (std::size_t i = 0; i < data.size(); ++i) {
-            const auto& spec = in.traverses[i];
-            info.source_rawlogs.push_back(fs::absolute(spec.rawlog).string());
-            if (!spec.reference) continue;
-            const auto& d = data[i];
-            TraverseReport rep;
-            rep.name = spec.name;
-            rep.ceiling_frames = d.ceiling.size();
-            rep.has_ground_truth = gt[i].has_value();
-            rep.localisation_time_s = localisation_time[i];
-            rep.start_source = result_starts[i].source;
-            rep.start = result_starts[i].pose;
-            rep.start_goodness = result_starts[i].goodness;
-            const auto& track = tracks[i];
-            if (track.poses.empty()) {
-                throw common::RawlogError(d.rawlog, "no vehicle poses (no lidar scans localised)");
-            }
-            const auto interp = common::makeInterpolator(track.poses, options_.max_pose_gap_s);
-            std::vector<double> track_times;
-            for (const auto& p : track.poses) track_times.push_back(p.time_s);
-
-            std::vector<KeyframeCandidate> candidates;
-            std::vector<std::size_t> frame_of;  // candidate -> ceiling frame
-            std::optional<std::size_t> first_outside;
-            for (std::size_t f = 0; f < d.ceiling.size(); ++f) {
-                const double t = mrpt::Clock::toDouble(d.ceiling[f]->timestamp);
-                if (auto p = poseAt(interp, t)) {
-                    candidates.push_back({t, *p});
-                    frame_of.push_back(f);
-                } else {
-                    ++rep.frames_without_pose;
-                    if (!first_outside) first_outside = f;
-                }
-            }
-            if (rep.frames_without_pose > options_.max_outside_fraction * d.ceiling.size()) {
-                const std::size_t f = *first_outside;
-                throw common::RawlogError(
-                    d.rawlog, d.ceiling_records[f],
-                    "mismatched time stamps: " + std::to_string(rep.frames_without_pose) + " of " +
-                        std::to_string(d.ceiling.size()) + " " + options_.ceiling_camera_label +
-                        " images (first at t=" +
-                        std::to_string(mrpt::Clock::toDouble(d.ceiling[f]->timestamp)) +
-                        " s) have no pose in [" + std::to_string(track_times.front()) + ", " +
-                        std::to_string(track_times.back()) + "] s of " +
-                        (laser ? std::string("the laser track") : in.poses_file));
-            }
-            const auto selection = selectKeyframes(candidates, options_, [&](std::size_t c) {
-                std::string problem;
-                const auto q =
-                    ceilingQuality(*d.ceiling[frame_of[c]],
-                                   have_intrinsics ? &info.ceiling_camera : nullptr, problem);
-                if (!problem.empty() && rep.first_image_problem.empty()) {
-                    rep.first_image_problem = problem;
-                }
-                // The first usable image fixes the database's camera.
-                if (q.usable && !have_intrinsics) {
-                    info.ceiling_camera = d.ceiling[frame_of[c]]->cameraParams;
-                    have_intrinsics = true;
-                }
-                return q;
-            });
-            rep.rejected_image = selection.rejected_unusable;
-            rep.skipped = d.skipped;
-            rep.rejected_blur = selection.rejected_blur;
-            rep.rejected_exposure = selection.rejected_exposure;
-
-            std::vector<double> forward_times;
-            for (const auto& fw : d.forward)
-                forward_times.push_back(mrpt::Clock::toDouble(fw->timestamp));
-            std::vector<int> forward_state(d.forward.size(), 0);  // 0 unknown, 1 ok, -1 refused
-            const auto forwardUsable = [&](std::size_t fi) {
-                if (forward_state[fi] == 0) {
-                    const auto& fw = *d.forward[fi];
-                    cv::Mat m;
-                    try {
-                        m = loadPixels(fw, cv::IMREAD_UNCHANGED);
-                    } catch (const std::exception&) {
-                        m = cv::Mat();
-                    }
-                    const std::string problem = pixelProblem(
-                        fw, m, have_forward_intrinsics ? &info.forward_camera : nullptr);
-                    forward_state[fi] = problem.empty() ? 1 : -1;
-                    if (!problem.empty()) {
-                        ++rep.rejected_forward;
-                        if (rep.first_image_problem.empty()) rep.first_image_problem = problem;
-                    }
-                }
-                return forward_state[fi] > 0;
-            };
-
-            std::vector<double> err_m, err_yaw, travelled;
-            std::vector<mrpt::poses::CPose3D> ref_poses;
-            for (std::size_t k = 0; k < selection.kept.size(); ++k) {
-                const std::size_t c = selection.kept[k];
-                const auto& ceiling = d.ceiling[frame_of[c]];
-                database::ReferenceInput ref;
-                ref.traverse = spec.name;
-                ref.ceiling = ceiling;
-                ref.vehicle_pose = candidates[c].vehicle_pose;
-                ref.vehicle_cov = track.covs[nearestIndex(track_times, candidates[c].time_s)];
-                ref.sharpness = selection.kept_quality[k].sharpness;
-                ref.mean_intensity = selection.kept_quality[k].mean_intensity;
-                ref.travelled_m = selection.kept_travelled_m[k];
-                if (!forward_times.empty()) {
-                    const std::size_t fi = nearestIndex(forward_times, candidates[c].time_s);
-                    if (std::abs(forward_times[fi] - candidates[c].time_s) <=
-                            options_.forward_max_dt_s &&
-                        forwardUsable(fi)) {
-                        ref.forward = d.forward[fi];
-                        ref.forward_vehicle_pose =
-                            poseAt(interp, forward_times[fi]).value_or(ref.vehicle_pose);
-                        if (!have_forward_intrinsics) {
-                            info.forward_camera = ref.forward->cameraParams;
-                            have_forward_intrinsics = true;
-                        }
-                    }
-                }
-                if (!ref.forward) ++rep.without_forward;
-                writer.add(ref);
-                if (gt[i]) {
-                    if (auto truth = poseAt(*gt[i], candidates[c].time_s)) {
-                        const double dx = truth->x() - ref.vehicle_pose.x();
-                        const double dy = truth->y() - ref.vehicle_pose.y();
-                        err_m.push_back(std::hypot(dx, dy));
-                        err_yaw.push_back(std::abs(mrpt::RAD2DEG(
-                            mrpt::math::wrapToPi(truth->yaw() - ref.vehicle_pose.yaw()))));
-                        travelled.push_back(ref.travelled_m);
-                        ref_poses.push_back(ref.vehicle_pose);
-                    }
-                }
-            }
-            rep.references = selection.kept.size();
-            if (gt[i]) {
-                rep.error = statsOf(err_m, err_yaw);
-                // Per 10 m of travel, to show where the laser poses degrade.
-                constexpr double kSegment_m = 10.0;
-                std::size_t b = 0;
-                while (b < err_m.size()) {
-                    const double from = std::floor(travelled[b] / kSegment_m) * kSegment_m;
-                    std::size_t e = b;
-                    while (e < err_m.size() && travelled[e] < from + kSegment_m) ++e;
-                    SegmentError seg;
-                    seg.from_m = from;
-                    seg.to_m = from + kSegment_m;
-                    const auto& mid = ref_poses[(b + e) / 2];
-                    seg.x = mid.x();
-                    seg.y = mid.y();
-                    seg.error = statsOf({err_m.begin() + b, err_m.begin() + e},
-                                        {err_yaw.begin() + b, err_yaw.begin() + e});
-                    rep.segments.push_back(seg);
-                    b = e;
-                }
-            }
-            addWarnings(rep, d.rawlog, result.warnings);
-            result.traverses.push_back(rep);
-        }
+        if (cameras.ceiling) info.ceiling_camera = *cameras.ceiling;
+        if (cameras.forward) info.forward_camera = *cameras.forward;
         result.references = writer.size();
         if (result.references == 0) {
             throw std::runtime_error("no references kept (all frames rejected or without pose)");

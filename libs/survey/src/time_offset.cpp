@@ -453,31 +453,26 @@ void shiftStamps(std::vector<mrpt::obs::CObservationImage::Ptr>& images, double 
     }
 }
 
-std::string timeOffsetJson(const TimeOffsetEstimate& e) {
-    char buf[800];
-    const auto num = [](bool has, double v) {
-        char b[40];
-        if (!has || !std::isfinite(v)) return std::string("null");
-        std::snprintf(b, sizeof(b), "%.5f", v);
-        return std::string(b);
-    };
+nlohmann::ordered_json timeOffsetJson(const TimeOffsetEstimate& e) {
+    // The fit's figures are null when nothing was fitted (or they are not finite).
     const bool fitted = e.pairs_used > 0;
-    std::snprintf(buf, sizeof(buf),
-                  "{\"label\": \"%s\", \"source\": \"%s\", \"offset_s\": %.5f, \"configured_s\": "
-                  "%.5f, \"estimated\": %s, \"fitted_s\": %s, \"sigma_s\": %s, \"scale\": %s, "
-                  "\"rms_m\": %s, \"pairs_tried\": %zu, \"pairs_measured\": %zu, \"pairs_used\": "
-                  "%zu, \"time_s\": %.2f, \"warning\": \"",
-                  e.label.c_str(), e.source.c_str(), e.offset_s, e.configured_s,
-                  e.source == "estimated" ? "true" : "false", num(fitted, e.fitted_s).c_str(),
-                  num(fitted, e.sigma_s).c_str(), num(fitted, e.scale).c_str(),
-                  num(fitted, e.rms_m).c_str(), e.pairs_tried, e.pairs_measured, e.pairs_used,
-                  e.time_s);
-    std::string out = buf;
-    for (char c : e.warning) {
-        if (c == '"' || c == '\\') out += '\\';
-        out += c;
-    }
-    return out + "\"}";
+    const auto fit = [&](double v) {
+        return fitted && std::isfinite(v) ? nlohmann::ordered_json(v) : nlohmann::ordered_json();
+    };
+    return {{"label", e.label},
+            {"source", e.source},
+            {"offset_s", e.offset_s},
+            {"configured_s", e.configured_s},
+            {"estimated", e.source == "estimated"},
+            {"fitted_s", fit(e.fitted_s)},
+            {"sigma_s", fit(e.sigma_s)},
+            {"scale", fit(e.scale)},
+            {"rms_m", fit(e.rms_m)},
+            {"pairs_tried", e.pairs_tried},
+            {"pairs_measured", e.pairs_measured},
+            {"pairs_used", e.pairs_used},
+            {"time_s", e.time_s},
+            {"warning", e.warning}};
 }
 
 }  // namespace lookup::survey

@@ -22,6 +22,7 @@
 
 #include <deque>
 #include <memory>
+#include <optional>
 
 #include "lookup/coarse/coarse_source.h"
 #include "lookup/coarse/descriptor_index.h"
@@ -67,6 +68,26 @@ class CoarseLocalizer : public CoarseSource {
   private:
     struct Column;
     struct Search;
+    struct FramePlan;
+    // The steps of processDescriptor.
+    /// Pending global matches carried `travelled_m` further, the stale ones dropped (all
+    /// without odometry).
+    void agePending(const std::optional<double>& travelled_m, std::size_t query_index);
+    /// An unsearched frame: the track coasts on odometry (within max_coast_m) or is dropped.
+    void skipSearch(const std::optional<double>& travelled_m, double step_m, CoarseResult& r);
+    /// The window around the predicted place into `s`; true when its match is confident. An
+    /// aliased window with odometry holds the track (`held`, `r` complete).
+    bool searchTrack(const FramePlan& plan, bool audit, CoarseResult& r, Search& s, bool& held);
+    void holdByOdometry(const FramePlan& plan, long predicted, const Search& s,
+                        std::optional<double> far_m, bool audit, CoarseResult& r);
+    /// The whole reference, or the index's windows (and the last track's place).
+    Search searchGlobally(const FramePlan& plan, int global_cols, CoarseResult& r);
+    /// The match `s` into `r`: too few frames, no competitor, not confident, unconfirmed, or
+    /// trusted (trust()).
+    void judgeMatch(const FramePlan& plan, const Search& s, bool global, int global_cols,
+                    bool audit, CoarseResult& r);
+    /// A trusted match: tracking from `best`, coasting reset, the audit counted.
+    void trust(std::size_t best, bool global, bool odometry, bool audit, CoarseResult& r);
     void ensureComputed(Column& column, long lo, long hi, std::size_t& evaluated) const;
     /// Scores paths through the newest `n_cols` buffered frames (every `stride`-th of them)
     /// ending at the candidates: every reference of the sorted, disjoint `windows`.

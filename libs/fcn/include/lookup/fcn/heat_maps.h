@@ -1,9 +1,9 @@
 #pragma once
 // Heat maps stored with the database (paper Sec. III-B: "all the reference images are processed
 // with it and corresponding sample quality heat maps are generated alongside the reference image
-// database"), in the localiser's format: DB/<dir>/heat_<index:06>.png, 16-bit grey scaled to
-// [0, 1] at the network's resolution (localize::heatMapFileName / loadHeatMap, which resizes to
-// the image), <dir> listed in db.ini [heatmaps] directory.
+// database"), in the format of lookup/database/heat_maps.h: DB/<dir>/heat_<index:06>.png,
+// 16-bit grey scaled to [0, 1] at the network's resolution (database::loadHeatMap resizes to the
+// image), <dir> listed in db.ini [heatmaps] directory.
 //
 // Atomic: the maps are written into `<dir>.tmp`, renamed to a new folder `<dir>`, and only then
 // is db.ini rewritten (temp file + rename) to point at it; the previous folder is removed last.
@@ -28,9 +28,6 @@ struct HeatMapsWritten {
 /// std::runtime_error naming the file on failure (the database is then unchanged).
 HeatMapsWritten writeHeatMaps(const database::ReferenceDatabase& db, const HeatMapModel& model,
                               const ProgressFn& progress = {});
-
-/// Encodes a [0, 1] CV_32FC1 heat map as the localiser's 16-bit PNG.
-cv::Mat encodeHeatMap(const cv::Mat& heat);
 
 /// Sets db.ini's [heatmaps] directory (adding the section if absent), keeping every other line,
 /// via `<db.ini>.tmp` + rename. Throws std::runtime_error naming the file on failure.

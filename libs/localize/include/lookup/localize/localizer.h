@@ -70,15 +70,6 @@ struct FrameResult {
     mrpt::poses::CPose3D camera_on_vehicle;  ///< query ceiling camera mount
 };
 
-/// Heat maps written by lookup-train live in DB/<db.ini heatmaps_dir>/heat_<index:06>.png
-/// (16-bit PNG scaled to [0, 1]; stored at the network's resolution, or at the image's).
-std::string heatMapFileName(std::size_t index);
-/// The heat map of reference `index` as CV_32F in [0, 1] of the ceiling image's size (resized
-/// bilinearly when stored smaller), or an empty Mat when the database has none. Throws
-/// std::runtime_error naming the file when db.ini lists heat maps but one is missing, unreadable
-/// or larger than the image.
-cv::Mat loadHeatMap(const database::ReferenceDatabase& db, std::size_t index);
-
 /// Builds the built-in coarse stage: SeqSLAM over the forward images of the database, one
 /// sequence per survey traverse (or only `traverse`, LocalizerOptions::coarse_traverse); the
 /// most confident usable match wins per frame. Throws std::runtime_error when the database has

@@ -12,6 +12,8 @@
 #include <mrpt/obs/CObservationImage.h>
 #include <mrpt/poses/CPose3DInterpolator.h>
 
+#include <nlohmann/json.hpp>
+
 #include <string>
 #include <vector>
 
@@ -46,6 +48,6 @@ CeilingDistanceEstimate estimateCeilingDistance(const std::vector<CeilingTravers
                                                 const SurveyOptions& options);
 
 /// survey_report.json's "ceiling" object.
-std::string ceilingJson(const CeilingDistanceEstimate& e, const std::string& source);
+nlohmann::ordered_json ceilingJson(const CeilingDistanceEstimate& e, const std::string& source);
 
 }  // namespace lookup::survey

@@ -14,6 +14,8 @@
 
 #include <mrpt/obs/CObservationImage.h>
 
+#include <nlohmann/json.hpp>
+
 #include <string>
 #include <vector>
 
@@ -51,6 +53,6 @@ TimeOffsetEstimate estimateTimeOffset(const std::vector<CeilingTraverse>& traver
 void shiftStamps(std::vector<mrpt::obs::CObservationImage::Ptr>& images, double offset_s);
 
 /// survey_report.json's object for one camera.
-std::string timeOffsetJson(const TimeOffsetEstimate& e);
+nlohmann::ordered_json timeOffsetJson(const TimeOffsetEstimate& e);
 
 }  // namespace lookup::survey
