@@ -1,24 +1,21 @@
 #pragma once
 // One table of (key, field) per .ini section drives loading, saving and the unknown-key check,
-// so the three cannot disagree and each key is written once. Usage, in an options .cpp:
+// so the three cannot disagree and each key is written once. An options struct derives from
+// TableOptions and lists its keys once:
 //
-//   common::OptionsTable keys(MatcherOptions& o) {
-//       common::OptionsTable t;
-//       t.add("search_range_px", o.search_range_px, 2, 512);
-//       t.add("subpixel", o.subpixel, kSubpixelNames);
-//       return t;
-//   }
-//   void MatcherOptions::loadFromConfigFile(const CConfigFileBase& src, const std::string& s) {
-//       keys(*this).load(src, s);
-//   }
-//   void MatcherOptions::saveToConfigFile(CConfigFileBase& dst, const std::string& s) const {
-//       common::saveOptions(*this, keys, dst, s);
-//   }
+//   struct MatcherOptions : common::TableOptions<MatcherOptions> {
+//       int search_range_px = 40;
+//       void declareKeys(common::OptionsTable& t) {
+//           t.add("search_range_px", search_range_px, 2, 512);  // range checked at load
+//       }
+//       void check() const;  // cross-field validation, run by the consumer's constructor
+//   };
 //
-// Loading only reads and range-checks keys; cross-field validation is each struct's check(),
-// run by the consumer's constructor (and by apps through loadAndCheck, naming the file).
+// Loading only reads and range-checks keys; apps run check() through loadAndCheck so its errors
+// name the file too.
 
 #include <mrpt/config/CConfigFileBase.h>
+#include <mrpt/config/CLoadableOptions.h>
 
 #include <cstdint>
 #include <functional>
@@ -101,14 +98,25 @@ class OptionsTable {
     std::vector<Entry> entries_;
 };
 
-/// Saves `options` through the table `keys(T&)` builds (on a copy: the table binds mutable
-/// references).
-template <class T, class Keys>
-void saveOptions(const T& options, Keys keys, mrpt::config::CConfigFileBase& target,
-                 const std::string& section) {
-    T copy = options;
-    keys(copy).save(target, section);
-}
+/// An MRPT CLoadableOptions whose load and save are its table: `Derived` has
+/// `void declareKeys(OptionsTable&)` adding every key (in the order files list them).
+template <class Derived>
+class TableOptions : public mrpt::config::CLoadableOptions {
+  public:
+    void loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
+                            const std::string& section) override {
+        OptionsTable t;
+        static_cast<Derived&>(*this).declareKeys(t);
+        t.load(source, section);
+    }
+    void saveToConfigFile(mrpt::config::CConfigFileBase& target,
+                          const std::string& section) const override {
+        Derived copy = static_cast<const Derived&>(*this);  // the table binds mutable fields
+        OptionsTable t;
+        copy.declareKeys(t);
+        t.save(target, section);
+    }
+};
 
 /// Loads `options` from `section` of `source` and runs its check(), so a bad key and a bad
 /// combination of values both come back as "FILE [SECTION] ...". For options spread over
