@@ -22,6 +22,7 @@
 #include "lookup/common/cli.h"
 #include "lookup/common/config.h"
 #include "lookup/common/errors.h"
+#include "lookup/common/options_table.h"
 #include "lookup/common/rawlog_io.h"
 
 namespace lookup::coarse {
@@ -176,6 +177,7 @@ int CoarseTool::runOrThrow(std::ostream& out, std::ostream& err) {
     CoarseOptions options;
     if (!ini_.empty()) {
         const auto file = common::loadIniFile(ini_);  // missing, binary or garbled: refused
+        common::rejectUnknownSections(*file, {section_});
         options.loadFromConfigFile(*file, section_);
     }
     if (!camera_.empty()) options.camera_label = camera_;

@@ -13,22 +13,10 @@
 
 namespace lookup::eval {
 
-void EvalOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
-                                     const std::string& section) {
-    const common::IniSection s(source, section);
-    s.rejectUnknownKeys({"coarse_exclusion_m", "max_gt_gap_s", "confident_wrong_min_error_m"});
-    coarse_exclusion_m = s.getDouble("coarse_exclusion_m", coarse_exclusion_m);
-    max_gt_gap_s = s.getDouble("max_gt_gap_s", max_gt_gap_s);
-    confident_wrong_min_error_m =
-        s.getDouble("confident_wrong_min_error_m", confident_wrong_min_error_m);
-    s.validate([&] { check(); });
-}
-
-void EvalOptions::saveToConfigFile(mrpt::config::CConfigFileBase& target,
-                                   const std::string& section) const {
-    target.write(section, "coarse_exclusion_m", coarse_exclusion_m);
-    target.write(section, "max_gt_gap_s", max_gt_gap_s);
-    target.write(section, "confident_wrong_min_error_m", confident_wrong_min_error_m);
+void EvalOptions::declareKeys(common::OptionsTable& t) {
+    t.add("coarse_exclusion_m", coarse_exclusion_m);
+    t.add("max_gt_gap_s", max_gt_gap_s);
+    t.add("confident_wrong_min_error_m", confident_wrong_min_error_m);
 }
 
 void EvalOptions::check() const {

@@ -156,6 +156,15 @@ void RefinerOptions::saveToConfigFile(mrpt::config::CConfigFileBase& target,
     correspondence.saveToConfigFile(target, prefix + ".correspondence");
 }
 
+std::vector<std::string> RefinerOptions::sectionNames(const std::string& prefix) {
+    std::vector<std::string> out;
+    for (const char* stage :
+         {"sampler", "matcher", "homography", "estimator", "acceptance", "correspondence"}) {
+        out.push_back(prefix + "." + stage);
+    }
+    return out;
+}
+
 void RefinerOptions::check() const {
     sampler.check();
     matcher.check();

@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <string>
+#include <vector>
 
 #include "lookup/common/options_table.h"
 
@@ -168,6 +169,8 @@ struct RefinerOptions : public mrpt::config::CLoadableOptions {
                           const std::string& section) const override;
     /// Checks every stage and the cross-stage constraints.
     void check() const;
+    /// The sections loadFromConfigFile reads for `prefix` (apps refuse any other).
+    static std::vector<std::string> sectionNames(const std::string& prefix);
 
     /// Table I, Mine B: L_SR 70, l_patch 60, l_n 20, border margin 30.
     static RefinerOptions mineB();
