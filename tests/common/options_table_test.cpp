@@ -20,6 +20,7 @@ struct Sample {
     bool on = false;
     std::string label = "cam";
     Shape shape = Shape::Round;
+    double gap_m = 1.0;
 };
 
 OptionsTable keys(Sample& s) {
@@ -30,6 +31,7 @@ OptionsTable keys(Sample& s) {
     t.add("on", s.on);
     t.add("label", s.label);
     t.add("shape", s.shape, kShapes);
+    t.add("gap_m", s.gap_m, lookup::common::kPositive);
     return t;
 }
 
@@ -83,6 +85,8 @@ TEST(OptionsTable, RangeErrorNamesTheRange) {
               "opts.ini [sample] count: 11 is out of range [1, 10]");
     EXPECT_EQ(loadError("[sample]\nratio = 1.5\n"),
               "opts.ini [sample] ratio: 1.5 is out of range [0, 1]");
+    EXPECT_EQ(loadError("[sample]\ngap_m = 0\n"),
+              "opts.ini [sample] gap_m: 0 is out of range (0, inf)");
     EXPECT_EQ(loadError("[sample]\nseed = -1\n"),
               "opts.ini [sample] seed: '-1' is not a non-negative integer");
 }
@@ -128,4 +132,20 @@ TEST(OptionsTable, LoadAndCheckNamesTheFileForAFailedCheck) {
     } catch (const ConfigError& e) {
         EXPECT_STREQ(e.what(), "c.ini [checked]: checked.n must be >= 0");
     }
+}
+
+TEST(OptionsTable, CheckRangesNamesTheKeyAndItsRange) {
+    Sample s;
+    s.count = 0;
+    s.ratio = 2.0;
+    s.gap_m = -1.0;
+    lookup::common::OptionsCheck c("sample");
+    keys(s).checkRanges(c);
+    EXPECT_EQ(c.message(),
+              "sample.ratio must be in [0, 1]\nsample.count must be in [1, 10]\nsample.gap_m must "
+              "be in (0, inf)");
+    Sample fine;
+    lookup::common::OptionsCheck ok("sample");
+    keys(fine).checkRanges(ok);
+    EXPECT_TRUE(ok.ok());
 }

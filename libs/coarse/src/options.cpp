@@ -9,13 +9,13 @@ void CoarseOptions::declareKeys(common::OptionsTable& t) {
     t.add("thumb_height_px", thumb_height_px, 4, 1024);
     t.add("patch_size_px", patch_size_px, 2, 1024);
     t.add("sequence_length", sequence_length, 2, 100000);
-    t.add("velocity_min", velocity_min);
+    t.add("velocity_min", velocity_min, 0.0);
     t.add("velocity_max", velocity_max);
     t.add("velocity_steps", velocity_steps, 1, 1000);
     t.add("contrast_window_refs", contrast_window_refs, 1, 100000);
     t.add("exclusion_half_window_refs", exclusion_half_window_refs, 0, 100000);
     t.add("tracking_half_window_refs", tracking_half_window_refs, 1, 100000);
-    t.add("min_confidence", min_confidence);
+    t.add("min_confidence", min_confidence, 0.0);
     t.add("global_index_min_references", global_index_min_references, 0, 100000000);
     t.add("global_index_neighbours", global_index_neighbours, 1, 100000);
     t.add("global_index_windows", global_index_windows, 1, 100000);
@@ -24,42 +24,27 @@ void CoarseOptions::declareKeys(common::OptionsTable& t) {
     t.add("odometry_scale_tolerance", odometry_scale_tolerance);
     t.add("odometry_scale_steps", odometry_scale_steps, 1, 1000);
     t.add("odometry_sequence_length", odometry_sequence_length, 2, 100000);
-    t.add("max_coast_m", max_coast_m);
+    t.add("max_coast_m", max_coast_m, 0.0);
     t.add("confirm_global", confirm_global);
-    t.add("odometry_tolerance_m", odometry_tolerance_m);
+    t.add("odometry_tolerance_m", odometry_tolerance_m, common::kPositive);
     t.add("odometry_tolerance_per_m", odometry_tolerance_per_m);
 }
 
 void CoarseOptions::check() const {
     common::OptionsCheck c("coarse");
+    checkRanges(c);
     c.require(!camera_label.empty(), "camera_label", "non-empty");
-    c.require(thumb_width_px >= 4 && thumb_width_px <= 1024, "thumb_width_px", "in [4, 1024]");
-    c.require(thumb_height_px >= 4 && thumb_height_px <= 1024, "thumb_height_px", "in [4, 1024]");
-    c.require(patch_size_px >= 2, "patch_size_px", ">= 2");
     if (patch_size_px >= 2) {
         c.require(thumb_width_px % patch_size_px == 0 && thumb_height_px % patch_size_px == 0,
                   "patch_size_px", "a divisor of thumb_width_px and thumb_height_px");
     }
-    c.require(sequence_length >= 2, "sequence_length", ">= 2");
-    c.require(velocity_min >= 0, "velocity_min", ">= 0");
     c.require(velocity_max >= velocity_min, "velocity_max", ">= velocity_min");
-    c.require(velocity_steps >= 1, "velocity_steps", ">= 1");
-    c.require(contrast_window_refs >= 1, "contrast_window_refs", ">= 1");
-    c.require(exclusion_half_window_refs >= 0, "exclusion_half_window_refs", ">= 0");
     c.require(tracking_half_window_refs > exclusion_half_window_refs, "tracking_half_window_refs",
               "> exclusion_half_window_refs");
-    c.require(min_confidence >= 0, "min_confidence", ">= 0");
-    c.require(global_index_min_references >= 0, "global_index_min_references", ">= 0");
-    c.require(global_index_neighbours >= 1, "global_index_neighbours", ">= 1");
-    c.require(global_index_windows >= 1, "global_index_windows", ">= 1");
-    c.require(global_index_full_search_every >= 0, "global_index_full_search_every", ">= 0");
     c.require(odometry_scale_tolerance >= 0 && odometry_scale_tolerance < 1,
               "odometry_scale_tolerance", "in [0, 1)");
-    c.require(odometry_scale_steps >= 1, "odometry_scale_steps", ">= 1");
     c.require(odometry_sequence_length >= sequence_length, "odometry_sequence_length",
               ">= sequence_length");
-    c.require(max_coast_m >= 0, "max_coast_m", ">= 0");
-    c.require(odometry_tolerance_m > 0, "odometry_tolerance_m", "> 0");
     c.require(odometry_tolerance_per_m >= 0 && odometry_tolerance_per_m < 1,
               "odometry_tolerance_per_m", "in [0, 1)");
     c.throwIfFailed();

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cstdlib>
+#include <limits>
 #include <sstream>
 
 namespace lookup::common {
@@ -19,6 +20,15 @@ std::string doubleText(double v) {
         if (std::strtod(text.c_str(), nullptr) == v) break;
     }
     return text;
+}
+
+// The check of a number against [min, max], or none when the range is the type's own.
+template <class T>
+std::function<void(OptionsCheck&)> rangeCheck(const std::string& key, const T& v, T min, T max) {
+    if (min == std::numeric_limits<T>::lowest() && max == std::numeric_limits<T>::max()) return {};
+    return [key, &v, min, max, expectation = "in " + rangeText(min, max)](OptionsCheck& c) {
+        c.require(v >= min && v <= max, key, expectation);
+    };
 }
 
 std::string joined(const std::vector<std::string>& names) {
@@ -51,21 +61,22 @@ std::uint64_t parseUnsigned(const IniSection& s, const std::string& key, const s
 }  // namespace
 
 OptionsTable& OptionsTable::addEntry(std::string key, std::function<void(const IniSection&)> load,
-                                     std::function<std::string()> text) {
-    entries_.push_back({std::move(key), std::move(load), std::move(text), {}});
+                                     std::function<std::string()> text,
+                                     std::function<void(OptionsCheck&)> check) {
+    entries_.push_back({std::move(key), std::move(load), std::move(text), {}, std::move(check)});
     return *this;
 }
 
 OptionsTable& OptionsTable::add(const std::string& key, double& v, double min, double max) {
     return addEntry(
         key, [&v, key, min, max](const IniSection& s) { v = s.getDouble(key, v, min, max); },
-        [&v] { return doubleText(v); });
+        [&v] { return doubleText(v); }, rangeCheck(key, v, min, max));
 }
 
 OptionsTable& OptionsTable::add(const std::string& key, int& v, int min, int max) {
     return addEntry(
         key, [&v, key, min, max](const IniSection& s) { v = s.getInt(key, v, min, max); },
-        [&v] { return std::to_string(v); });
+        [&v] { return std::to_string(v); }, rangeCheck(key, v, min, max));
 }
 
 OptionsTable& OptionsTable::add(const std::string& key, std::uint64_t& v, std::uint64_t min,
@@ -76,7 +87,7 @@ OptionsTable& OptionsTable::add(const std::string& key, std::uint64_t& v, std::u
             const std::string text = s.getString(key, "");
             if (!text.empty()) v = parseUnsigned(s, key, text, min, max);
         },
-        [&v] { return std::to_string(v); });
+        [&v] { return std::to_string(v); }, rangeCheck(key, v, min, max));
 }
 
 OptionsTable& OptionsTable::add(const std::string& key, bool& v) {
@@ -130,6 +141,12 @@ void OptionsTable::load(const mrpt::config::CConfigFileBase& source,
 void OptionsTable::save(mrpt::config::CConfigFileBase& target, const std::string& section) const {
     for (const auto& e : entries_) {
         if (!e.save_if || e.save_if()) target.write(section, e.key, e.text());
+    }
+}
+
+void OptionsTable::checkRanges(OptionsCheck& c) const {
+    for (const auto& e : entries_) {
+        if (e.check) e.check(c);
     }
 }
 

@@ -14,16 +14,14 @@
 namespace lookup::eval {
 
 void EvalOptions::declareKeys(common::OptionsTable& t) {
-    t.add("coarse_exclusion_m", coarse_exclusion_m);
-    t.add("max_gt_gap_s", max_gt_gap_s);
-    t.add("confident_wrong_min_error_m", confident_wrong_min_error_m);
+    t.add("coarse_exclusion_m", coarse_exclusion_m, common::kPositive);
+    t.add("max_gt_gap_s", max_gt_gap_s, common::kPositive);
+    t.add("confident_wrong_min_error_m", confident_wrong_min_error_m, common::kPositive);
 }
 
 void EvalOptions::check() const {
     common::OptionsCheck c("eval");
-    c.require(coarse_exclusion_m > 0, "coarse_exclusion_m", "> 0");
-    c.require(max_gt_gap_s > 0, "max_gt_gap_s", "> 0");
-    c.require(confident_wrong_min_error_m > 0, "confident_wrong_min_error_m", "> 0");
+    checkRanges(c);
     c.throwIfFailed();
 }
 

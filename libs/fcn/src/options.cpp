@@ -19,10 +19,9 @@ void NetworkOptions::declareKeys(common::OptionsTable& t) {
 
 void NetworkOptions::check() const {
     OptionsCheck c("fcn.network");
-    c.require(base_channels >= 1 && base_channels <= 256, "base_channels", "in [1, 256]");
+    checkRanges(c);
     c.require(max_channels >= base_channels && max_channels <= 512, "max_channels",
               "in [base_channels, 512]");
-    c.require(depth >= 1 && depth <= 6, "depth", "in [1, 6]");
     c.require(std::isfinite(input_scale) && input_scale > 0 && input_scale <= 1, "input_scale",
               "in (0, 1]");
     c.throwIfFailed();
@@ -44,13 +43,13 @@ std::string NetworkOptions::describe() const {
 void LabelOptions::declareKeys(common::OptionsTable& t) {
     t.add("grid_step_px", grid_step_px, 2, 4096);
     t.add("references_per_query", references_per_query, 1, 1000);
-    t.add("max_reference_distance_m", max_reference_distance_m);
-    t.add("min_time_gap_s", min_time_gap_s);
+    t.add("max_reference_distance_m", max_reference_distance_m, common::kPositive);
+    t.add("min_time_gap_s", min_time_gap_s, 0.0);
     t.add("query_stride", query_stride, 1, 1000000);
     t.add("held_out_share", held_out_share);
     t.add("min_pair_inliers", min_pair_inliers, 4, 100000);
     t.add("use_pose_prior", use_pose_prior);
-    t.add("precise_inlier_px", precise_inlier_px);
+    t.add("precise_inlier_px", precise_inlier_px, 0.0);
     t.add("min_references", min_references, 1, 100000000);
     t.add("min_training_pairs", min_training_pairs, 1, 100000000);
     t.add("min_held_out_pairs", min_held_out_pairs, 1, 100000000);
@@ -71,19 +70,9 @@ void LabelOptions::saveToConfigFile(mrpt::config::CConfigFileBase& t, const std:
 
 void LabelOptions::check() const {
     OptionsCheck c("fcn.labels");
-    c.require(grid_step_px >= 2, "grid_step_px", ">= 2");
-    c.require(references_per_query >= 1, "references_per_query", ">= 1");
-    c.require(std::isfinite(max_reference_distance_m) && max_reference_distance_m > 0,
-              "max_reference_distance_m", "> 0");
-    c.require(std::isfinite(min_time_gap_s) && min_time_gap_s >= 0, "min_time_gap_s", ">= 0");
-    c.require(query_stride >= 1, "query_stride", ">= 1");
+    checkRanges(c);
     c.require(held_out_share > 0 && held_out_share < 1, "held_out_share", "in (0, 1)");
-    c.require(std::isfinite(precise_inlier_px) && precise_inlier_px >= 0, "precise_inlier_px",
-              ">= 0");
     c.require(min_pair_inliers >= 4, "min_pair_inliers", ">= 4 (a homography needs 4)");
-    c.require(min_references >= 1, "min_references", ">= 1");
-    c.require(min_training_pairs >= 1, "min_training_pairs", ">= 1");
-    c.require(min_held_out_pairs >= 1, "min_held_out_pairs", ">= 1");
     c.throwIfFailed();
     matcher.check();
     homography.check();
@@ -94,7 +83,7 @@ void TrainingOptions::declareKeys(common::OptionsTable& t) {
     t.add("epochs", epochs, 1, 100000);
     t.add("batch_size", batch_size, 1, 100000);
     t.add("learning_rate", learning_rate);
-    t.add("weight_decay", weight_decay);
+    t.add("weight_decay", weight_decay, 0.0);
     t.add("augment", augment);
     t.add("seed", seed, 0, 2147483647);
     t.add("threads", threads, 1, 1024);
@@ -102,13 +91,9 @@ void TrainingOptions::declareKeys(common::OptionsTable& t) {
 
 void TrainingOptions::check() const {
     OptionsCheck c("fcn.training");
-    c.require(epochs >= 1, "epochs", ">= 1");
-    c.require(batch_size >= 1, "batch_size", ">= 1");
+    checkRanges(c);
     c.require(std::isfinite(learning_rate) && learning_rate > 0 && learning_rate < 1,
               "learning_rate", "in (0, 1)");
-    c.require(std::isfinite(weight_decay) && weight_decay >= 0, "weight_decay", ">= 0");
-    c.require(seed >= 0, "seed", ">= 0");
-    c.require(threads >= 1, "threads", ">= 1");
     c.throwIfFailed();
 }
 

@@ -10,11 +10,11 @@ void LocalizerOptions::declareKeys(common::OptionsTable& t) {
     t.add("odometry_label", odometry_label);
     t.add("references_per_query", references_per_query, 1, 1000);
     t.add("use_tracking", use_tracking);
-    t.add("max_tracking_gap_s", max_tracking_gap_s);
-    t.add("acquisition_radius_m", acquisition_radius_m);
-    t.add("acquisition_step_m", acquisition_step_m);
+    t.add("max_tracking_gap_s", max_tracking_gap_s, common::kPositive);
+    t.add("acquisition_radius_m", acquisition_radius_m, 0.0);
+    t.add("acquisition_step_m", acquisition_step_m, common::kPositive);
     t.add("acquisition_ambiguity_margin", acquisition_ambiguity_margin);
-    t.add("acquisition_ambiguity_distance_m", acquisition_ambiguity_distance_m);
+    t.add("acquisition_ambiguity_distance_m", acquisition_ambiguity_distance_m, common::kPositive);
     t.add("acquisition_probe_points", acquisition_probe_points, 0, 100000);
     t.add("acquisition_probe_min_matched", acquisition_probe_min_matched, 0, 100000);
     t.add("startup_acquisition_frames", startup_acquisition_frames, 0, 100000000);
@@ -25,42 +25,28 @@ void LocalizerOptions::declareKeys(common::OptionsTable& t) {
     t.add("coarse_traverse", coarse_traverse);
     t.add("coarse_while_tracking", coarse_while_tracking);
     t.add("realtime", realtime);
-    t.add("max_latency_s", max_latency_s);
+    t.add("max_latency_s", max_latency_s, common::kPositive);
     t.add("write_debug_images", write_debug_images);
     t.add("debug_image_every", debug_image_every, 1, 100000000);
     t.add("image_cache_capacity", image_cache_capacity, 1, 100000000);
-    t.add("health_interval_s", health_interval_s);
-    t.add("camera_timeout_s", camera_timeout_s);
+    t.add("health_interval_s", health_interval_s, 0.0);
+    t.add("camera_timeout_s", camera_timeout_s, 0.0);
     t.add("persist_fix_file", persist_fix_file);
-    t.add("persist_interval_s", persist_interval_s);
+    t.add("persist_interval_s", persist_interval_s, common::kPositive);
 }
 
 void LocalizerOptions::check() const {
     common::OptionsCheck c("localizer");
+    checkRanges(c);
     c.require(!ceiling_camera_label.empty(), "ceiling_camera_label", "non-empty");
-    c.require(references_per_query >= 1, "references_per_query", ">= 1");
     c.require(coarse == "sequence" || coarse == "ceiling" || coarse == "none", "coarse",
               "one of sequence, ceiling, none");
-    c.require(place_candidates >= 1, "place_candidates", ">= 1");
-    c.require(place_check_every >= 0, "place_check_every", ">= 0");
-    c.require(max_tracking_gap_s > 0, "max_tracking_gap_s", "> 0");
-    c.require(acquisition_radius_m >= 0, "acquisition_radius_m", ">= 0");
-    c.require(acquisition_step_m > 0, "acquisition_step_m", "> 0");
     c.require(acquisition_ambiguity_margin >= 0 && acquisition_ambiguity_margin < 1,
               "acquisition_ambiguity_margin", "in [0, 1)");
-    c.require(acquisition_ambiguity_distance_m > 0, "acquisition_ambiguity_distance_m", "> 0");
-    c.require(acquisition_probe_points >= 0, "acquisition_probe_points", ">= 0");
-    c.require(acquisition_probe_min_matched >= 0 &&
-                  acquisition_probe_min_matched <= acquisition_probe_points,
+    c.require(acquisition_probe_min_matched <= acquisition_probe_points,
               "acquisition_probe_min_matched", "in [0, acquisition_probe_points]");
-    c.require(startup_acquisition_frames >= 0, "startup_acquisition_frames", ">= 0");
-    c.require(max_latency_s > 0, "max_latency_s", "> 0");
-    c.require(debug_image_every >= 1, "debug_image_every", ">= 1");
     c.require(image_cache_capacity >= static_cast<std::size_t>(references_per_query),
               "image_cache_capacity", ">= references_per_query");
-    c.require(health_interval_s >= 0, "health_interval_s", ">= 0");
-    c.require(camera_timeout_s >= 0, "camera_timeout_s", ">= 0");
-    c.require(persist_interval_s > 0, "persist_interval_s", "> 0");
     c.throwIfFailed();
 }
 

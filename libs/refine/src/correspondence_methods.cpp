@@ -12,8 +12,8 @@ namespace lookup::refine {
 
 namespace {
 const common::EnumNames<CorrespondenceMethod> kMethods = {{"sad", CorrespondenceMethod::Sad},
-                                                         {"orb", CorrespondenceMethod::Orb},
-                                                         {"ecc", CorrespondenceMethod::Ecc}};
+                                                          {"orb", CorrespondenceMethod::Orb},
+                                                          {"ecc", CorrespondenceMethod::Ecc}};
 }  // namespace
 
 const char* toString(CorrespondenceMethod m) {
@@ -38,27 +38,20 @@ void CorrespondenceOptions::declareKeys(common::OptionsTable& t) {
     t.add("method", method, kMethods);
     t.add("orb_features", orb_features, 8, 100000);
     t.add("orb_ratio", orb_ratio);
-    t.add("orb_min_matches", orb_min_matches, 4, 100000);
+    t.add("orb_min_matches", orb_min_matches, 4, 100000);  // a homography needs 4 points
     t.add("ecc_pyramid_levels", ecc_pyramid_levels, 0, 4);
     t.add("ecc_max_iterations", ecc_max_iterations, 1, 100000);
     t.add("ecc_epsilon", ecc_epsilon);
-    t.add("ecc_min_correlation", ecc_min_correlation);
+    t.add("ecc_min_correlation", ecc_min_correlation, -1.0, 1.0);
     t.add("ecc_gauss_filter_px", ecc_gauss_filter_px, 1, 99);
 }
 
 void CorrespondenceOptions::check() const {
     common::OptionsCheck c("refine.correspondence");
-    c.require(orb_features >= 8, "orb_features", ">= 8");
+    checkRanges(c);
     c.require(orb_ratio > 0.0 && orb_ratio <= 1.0, "orb_ratio", "in (0, 1]");
-    c.require(orb_min_matches >= 4, "orb_min_matches", ">= 4 (a homography needs 4 points)");
-    c.require(ecc_pyramid_levels >= 0 && ecc_pyramid_levels <= 4, "ecc_pyramid_levels",
-              "in [0, 4]");
-    c.require(ecc_max_iterations >= 1, "ecc_max_iterations", ">= 1");
     c.require(ecc_epsilon > 0.0, "ecc_epsilon", "> 0");
-    c.require(ecc_min_correlation >= -1.0 && ecc_min_correlation <= 1.0, "ecc_min_correlation",
-              "in [-1, 1]");
-    c.require(ecc_gauss_filter_px >= 1 && ecc_gauss_filter_px % 2 == 1, "ecc_gauss_filter_px",
-              "odd and >= 1");
+    c.require(ecc_gauss_filter_px % 2 == 1, "ecc_gauss_filter_px", "odd");
     c.throwIfFailed();
 }
 

@@ -23,91 +23,58 @@ void SurveyOptions::declareKeys(common::OptionsTable& t) {
     t.add("forward_camera_label", forward_camera_label);
     t.add("lidar_label", lidar_label);
     t.add("odometry_label", odometry_label);
-    t.add("keyframe_spacing_m", keyframe_spacing_m);
-    t.add("min_sharpness", min_sharpness);
+    t.add("keyframe_spacing_m", keyframe_spacing_m, common::kPositive);
+    t.add("min_sharpness", min_sharpness, 0.0);
     t.add("min_mean_intensity", min_mean_intensity);
     t.add("max_mean_intensity", max_mean_intensity);
-    t.add("max_clipped_fraction", max_clipped_fraction);
-    t.add("forward_max_dt_s", forward_max_dt_s);
-    t.add("max_pose_gap_s", max_pose_gap_s);
-    t.add("max_outside_fraction", max_outside_fraction);
-    t.add("ceiling_height_m", ceiling_height_m);
+    t.add("max_clipped_fraction", max_clipped_fraction, 0.0, 1.0);
+    t.add("forward_max_dt_s", forward_max_dt_s, common::kPositive);
+    t.add("max_pose_gap_s", max_pose_gap_s, common::kPositive);
+    t.add("max_outside_fraction", max_outside_fraction, 0.0, 1.0);
+    t.add("ceiling_height_m", ceiling_height_m, common::kPositive);
     t.add("ceiling_estimate", ceiling_estimate);
-    t.add("ceiling_sample_spacing_m", ceiling_sample_spacing_m);
-    t.add("ceiling_baseline_m", ceiling_baseline_m);
-    t.add("ceiling_prior_sigma_m", ceiling_prior_sigma_m);
+    t.add("ceiling_sample_spacing_m", ceiling_sample_spacing_m, common::kPositive);
+    t.add("ceiling_baseline_m", ceiling_baseline_m, common::kPositive, 5.0);
+    t.add("ceiling_prior_sigma_m", ceiling_prior_sigma_m, common::kPositive);
     t.add("ceiling_min_pairs", ceiling_min_pairs, 1, 1000000);
     t.add("use_dataset_ceiling_height", use_dataset_ceiling_height);
-    t.add("ceiling_time_offset_s", ceiling_time_offset_s);
-    t.add("forward_time_offset_s", forward_time_offset_s);
+    t.add("ceiling_time_offset_s", ceiling_time_offset_s, -1.0, 1.0);
+    t.add("forward_time_offset_s", forward_time_offset_s, -1.0, 1.0);
     t.add("time_offset_estimate", time_offset_estimate);
-    t.add("time_offset_max_s", time_offset_max_s);
-    t.add("time_offset_baseline_m", time_offset_baseline_m);
+    t.add("time_offset_max_s", time_offset_max_s, common::kPositive, 1.0);
+    t.add("time_offset_baseline_m", time_offset_baseline_m, common::kPositive, 5.0);
     t.add("time_offset_max_pairs", time_offset_max_pairs, 1, 1000000);
     t.add("time_offset_min_pairs", time_offset_min_pairs, 1, 1000000);
-    t.add("time_offset_max_sigma_s", time_offset_max_sigma_s);
+    t.add("time_offset_max_sigma_s", time_offset_max_sigma_s, common::kPositive);
     t.add("start_pose", start_pose);
-    t.add("start_search_spacing_m", start_search_spacing_m);
-    t.add("start_match_travel_m", start_match_travel_m);
-    t.add("start_min_goodness", start_min_goodness);
+    t.add("start_search_spacing_m", start_search_spacing_m, common::kPositive);
+    t.add("start_match_travel_m", start_match_travel_m, 0.0);
+    t.add("start_min_goodness", start_min_goodness, 0.0, 1.0);
     t.add("mcl_particles", mcl_particles, 10, 10000000);
-    t.add("mcl_init_std_xy_m", mcl_init_std_xy_m);
-    t.add("mcl_init_std_yaw_deg", mcl_init_std_yaw_deg);
-    t.add("odometry_min_std_xy_m", odometry_min_std_xy_m);
-    t.add("odometry_min_std_yaw_deg", odometry_min_std_yaw_deg);
+    t.add("mcl_init_std_xy_m", mcl_init_std_xy_m, 0.0);
+    t.add("mcl_init_std_yaw_deg", mcl_init_std_yaw_deg, 0.0);
+    t.add("odometry_min_std_xy_m", odometry_min_std_xy_m, common::kPositive);
+    t.add("odometry_min_std_yaw_deg", odometry_min_std_yaw_deg, common::kPositive);
     t.add("start_at_ground_truth", start_at_ground_truth);
     t.add("icp_max_range_m", icp_max_range_m);
-    t.add("map_std_xy_m", map_std_xy_m);
-    t.add("map_std_yaw_deg", map_std_yaw_deg);
-    t.add("pose_file_std_xy_m", pose_file_std_xy_m);
-    t.add("pose_file_std_yaw_deg", pose_file_std_yaw_deg);
+    t.add("map_std_xy_m", map_std_xy_m, 0.0);
+    t.add("map_std_yaw_deg", map_std_yaw_deg, 0.0);
+    t.add("pose_file_std_xy_m", pose_file_std_xy_m, 0.0);
+    t.add("pose_file_std_yaw_deg", pose_file_std_yaw_deg, 0.0);
 }
 
 void SurveyOptions::check() const {
     common::OptionsCheck c("survey");
+    checkRanges(c);
     c.require(!ceiling_camera_label.empty(), "ceiling_camera_label", "not empty");
-    c.require(keyframe_spacing_m > 0, "keyframe_spacing_m", "> 0");
-    c.require(min_sharpness >= 0, "min_sharpness", ">= 0");
     c.require(min_mean_intensity >= 0 && min_mean_intensity < max_mean_intensity,
               "min_mean_intensity", ">= 0 and < max_mean_intensity");
     c.require(max_mean_intensity <= 255, "max_mean_intensity", "<= 255");
-    c.require(max_clipped_fraction >= 0 && max_clipped_fraction <= 1, "max_clipped_fraction",
-              "in [0, 1]");
-    c.require(forward_max_dt_s > 0, "forward_max_dt_s", "> 0");
-    c.require(max_pose_gap_s > 0, "max_pose_gap_s", "> 0");
-    c.require(max_outside_fraction >= 0 && max_outside_fraction <= 1, "max_outside_fraction",
-              "in [0, 1]");
-    c.require(ceiling_height_m > 0, "ceiling_height_m", "> 0");
-    c.require(ceiling_sample_spacing_m > 0, "ceiling_sample_spacing_m", "> 0");
-    c.require(ceiling_baseline_m > 0 && ceiling_baseline_m <= 5, "ceiling_baseline_m", "in (0, 5]");
-    c.require(ceiling_prior_sigma_m > 0, "ceiling_prior_sigma_m", "> 0");
-    c.require(ceiling_min_pairs >= 1, "ceiling_min_pairs", ">= 1");
-    c.require(std::isfinite(ceiling_time_offset_s) && std::abs(ceiling_time_offset_s) <= 1,
-              "ceiling_time_offset_s", "in [-1, 1]");
-    c.require(std::isfinite(forward_time_offset_s) && std::abs(forward_time_offset_s) <= 1,
-              "forward_time_offset_s", "in [-1, 1]");
-    c.require(time_offset_max_s > 0 && time_offset_max_s <= 1, "time_offset_max_s", "in (0, 1]");
-    c.require(time_offset_baseline_m > 0 && time_offset_baseline_m <= 5, "time_offset_baseline_m",
-              "in (0, 5]");
     c.require(time_offset_max_pairs >= time_offset_min_pairs, "time_offset_max_pairs",
               ">= time_offset_min_pairs");
-    c.require(time_offset_max_sigma_s > 0, "time_offset_max_sigma_s", "> 0");
     c.require(start_pose.empty() || parseStartPose(start_pose).has_value(), "start_pose",
               "three numbers: x y yaw_deg");
-    c.require(start_search_spacing_m > 0, "start_search_spacing_m", "> 0");
-    c.require(start_match_travel_m >= 0, "start_match_travel_m", ">= 0");
-    c.require(start_min_goodness >= 0 && start_min_goodness <= 1, "start_min_goodness",
-              "in [0, 1]");
-    c.require(mcl_particles >= 10, "mcl_particles", ">= 10");
-    c.require(mcl_init_std_xy_m >= 0, "mcl_init_std_xy_m", ">= 0");
-    c.require(mcl_init_std_yaw_deg >= 0, "mcl_init_std_yaw_deg", ">= 0");
-    c.require(odometry_min_std_xy_m > 0, "odometry_min_std_xy_m", "> 0");
-    c.require(odometry_min_std_yaw_deg > 0, "odometry_min_std_yaw_deg", "> 0");
     c.require(icp_max_range_m >= 0, "icp_max_range_m", ">= 0 (0 = no limit)");
-    c.require(map_std_xy_m >= 0, "map_std_xy_m", ">= 0");
-    c.require(map_std_yaw_deg >= 0, "map_std_yaw_deg", ">= 0");
-    c.require(pose_file_std_xy_m >= 0, "pose_file_std_xy_m", ">= 0");
-    c.require(pose_file_std_yaw_deg >= 0, "pose_file_std_yaw_deg", ">= 0");
     c.throwIfFailed();
 }
 

@@ -43,7 +43,8 @@ std::string enumName(const EnumNames<E>& names, E value) {
 
 class OptionsTable {
   public:
-    /// Numbers: a value outside [min, max] is refused at load, naming the range.
+    /// Numbers: a value outside [min, max] is refused at load, naming the range, and by
+    /// checkRanges (values set in code).
     OptionsTable& add(const std::string& key, double& v,
                       double min = std::numeric_limits<double>::lowest(),
                       double max = std::numeric_limits<double>::max());
@@ -81,6 +82,9 @@ class OptionsTable {
     void load(const mrpt::config::CConfigFileBase& source, const std::string& section) const;
     /// Writes every key, in table order, in a form load() reads back to the same value.
     void save(mrpt::config::CConfigFileBase& target, const std::string& section) const;
+    /// Adds to `c` every number outside the range its entry was given ("KEY must be in
+    /// [min, max]"), so a struct's check() need not repeat the ranges.
+    void checkRanges(OptionsCheck& c) const;
 
     std::vector<std::string> keys() const;
 
@@ -92,9 +96,11 @@ class OptionsTable {
         std::function<void(const IniSection&)> load;
         std::function<std::string()> text;
         std::function<bool()> save_if;
+        std::function<void(OptionsCheck&)> check;
     };
     OptionsTable& addEntry(std::string key, std::function<void(const IniSection&)> load,
-                           std::function<std::string()> text);
+                           std::function<std::string()> text,
+                           std::function<void(OptionsCheck&)> check = {});
     std::vector<Entry> entries_;
 };
 
@@ -115,6 +121,15 @@ class TableOptions : public mrpt::config::CLoadableOptions {
         OptionsTable t;
         copy.declareKeys(t);
         t.save(target, section);
+    }
+
+  protected:
+    /// The table's ranges, for check(): see OptionsTable::checkRanges.
+    void checkRanges(OptionsCheck& c) const {
+        Derived copy = static_cast<const Derived&>(*this);
+        OptionsTable t;
+        copy.declareKeys(t);
+        t.checkRanges(c);
     }
 };
 
