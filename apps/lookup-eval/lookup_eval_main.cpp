@@ -12,6 +12,7 @@
 #include "lookup/common/cli.h"
 #include "lookup/common/config.h"
 #include "lookup/common/errors.h"
+#include "lookup/common/options_table.h"
 #include "lookup/eval/evaluator.h"
 
 namespace {
@@ -43,7 +44,8 @@ int run(int argc, char** argv) {
     lookup::eval::EvalOptions options;
     if (!ini_arg.getValue().empty()) {
         const auto cfg = lookup::common::loadIniFile(ini_arg.getValue());
-        options.loadFromConfigFile(*cfg, "eval");
+        lookup::common::rejectUnknownSections(*cfg, {"eval"});
+        lookup::common::loadAndCheck(options, *cfg, "eval");
     }
     std::vector<std::string> gt_files, run_dirs;
     mrpt::system::tokenize(gt_arg.getValue(), ",", gt_files);

@@ -16,6 +16,7 @@
 #include "lookup/common/cli.h"
 #include "lookup/common/config.h"
 #include "lookup/common/errors.h"
+#include "lookup/common/options_table.h"
 #include "lookup/common/share_dirs.h"
 #include "lookup/database/heat_maps.h"
 #include "lookup/database/reference_database.h"
@@ -118,8 +119,9 @@ int main(int argc, char** argv) {
                 throw lookup::common::ConfigError(ini_file + ": no such file");
             }
             const auto cfg = lookup::common::loadIniFile(ini_file);
-            options.loadFromConfigFile(*cfg, "fcn");
-            lookup::common::IniSection(*cfg, "fcn").validate([&] { options.check(); });
+            lookup::common::rejectUnknownSections(*cfg,
+                                                  lookup::fcn::TrainOptions::sectionNames("fcn"));
+            lookup::common::loadAndCheck(options, *cfg, "fcn");
         }
         options.check();
 

@@ -5,6 +5,7 @@
 #include <mrpt/config/CConfigFileMemory.h>
 
 #include "lookup/common/config.h"
+#include "lookup/common/options_table.h"
 
 namespace lookup::coarse {
 namespace {
@@ -47,7 +48,8 @@ TEST(CoarseOptions, BadValuesNameTheField) {
     }
     mrpt::config::CConfigFileMemory bad(std::string("[coarse]\npatch_size_px = 7\n"));
     try {
-        CoarseOptions().loadFromConfigFile(bad, "coarse");
+        CoarseOptions o;
+        common::loadAndCheck(o, bad, "coarse");  // check(): the apps' way, naming the file
         ADD_FAILURE() << "patch 7 accepted for 64x48";
     } catch (const common::ConfigError& e) {
         EXPECT_NE(std::string(e.what()).find("coarse.patch_size_px"), std::string::npos);

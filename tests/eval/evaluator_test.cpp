@@ -9,6 +9,7 @@
 #include <fstream>
 #include <limits>
 
+#include "../common/round_trip.h"
 #include "lookup/common/config.h"
 #include "lookup/eval/evaluator.h"
 #include "lookup/eval/report_json.h"
@@ -340,4 +341,11 @@ TEST(Pictures, TrajectoryAndErrorAlongTheRouteForASmallRun) {
         EXPECT_NE(along.find(colour), std::string::npos) << m << "\n" << along;
         EXPECT_NE(errors.find(colour), std::string::npos) << m << "\n" << errors;
     }
+}
+
+TEST(EvalOptions, SaveThenLoadGivesTheSameOptions) {
+    lookup::eval::EvalOptions o;
+    o.max_gt_gap_s = 0.125;
+    o.confident_wrong_min_error_m = 1.0 / 3.0;
+    lookup::options_testing::expectRoundTrip(o, "eval");
 }

@@ -260,7 +260,8 @@ void localizeOptionCases(const Data& d, const Refuse& refuse) {
         {"wrap", "[localizer]\nreferences_per_query = 4294967320\n"},
         {"word", "[localizer]\nacquisition_radius_m = far\n"},
         {"negative", "[localizer]\nacquisition_radius_m = -4\n"},
-        {"unknown_key", "[localizer]\nreferences_per_querry = 3\n"}};
+        {"unknown_key", "[localizer]\nreferences_per_querry = 3\n"},
+        {"unknown_section", "[refine.matchr]\npatch_px = 40\n"}};
     for (const auto& [name, text] : inis) {
         const auto ini = iniFile(d.dir, "localize_" + name, text);
         refuse("bad --ini", with(args, "--ini", ini), ini);
@@ -425,7 +426,8 @@ void evalCases(const Data& d, Tally& t) {
         {"binary", kBinary},
         {"negative", "[eval]\nmax_gt_gap_s = -1\n"},
         {"nan", "[eval]\ncoarse_exclusion_m = nan\n"},
-        {"word", "[eval]\nconfident_wrong_min_error_m = abc\n"}};
+        {"word", "[eval]\nconfident_wrong_min_error_m = abc\n"},
+        {"unknown_section", "[evl]\nmax_gt_gap_s = 1\n"}};
     for (const auto& [name, text] : inis) {
         const auto ini = iniFile(d.dir, "eval_" + name, text);
         refuse("bad --ini", with(args, "--ini", ini), ini);
@@ -476,6 +478,8 @@ void coarseCases(const Data& d, Tally& t) {
     refuse("bad --ini", with(args, "--ini", bad_ini), bad_ini);
     const auto bin_ini = iniFile(d.dir, "c_bin", kBinary);
     refuse("bad --ini", with(args, "--ini", bin_ini), bin_ini);
+    const auto section_ini = iniFile(d.dir, "c_section", "[coarse]\n[coarse_typo]\nx = 1\n");
+    refuse("bad --ini", with(args, "--ini", section_ini), section_ini);
     refuse("bad command line", with(args, "--camera", "NO_SUCH_CAM"), "NO_SUCH_CAM");
     const auto bad_poses = badPoseFiles(d.req.coarse_poses, d.dir, true);
     for (std::size_t k = 0; k < 3; ++k) {
@@ -543,6 +547,10 @@ void surveyCases(const fs::path& dir, Tally& t) {
     }
     const auto bin = iniFile(dir, "survey_binary", kBinary);
     refuse("bad --ini", with(args, "--ini", bin), bin);
+    const auto section = iniFile(dir, "survey_section",
+                                 slurp(std::string(LOOKUP_SOURCE_SHARE_DIR) + "/survey.ini") +
+                                     "\n[pose_graf]\nenabled = true\n");
+    refuse("bad --ini", with(args, "--ini", section), section);
     for (const auto& [section, key, value] :
          std::vector<std::array<std::string, 3>>{{"pose_graph", "point_std_m", "nan"},
                                                  {"survey", "keyframe_spacing_m", "-1"},
@@ -585,11 +593,13 @@ void surveyCases(const fs::path& dir, Tally& t) {
 void trainCases(const Data& d, Tally& t) {
     if (!fs::exists(fs::path(LOOKUP_BINARY_DIR) / "bin" / "lookup-train")) return;
     const auto bin = iniFile(d.dir, "train_binary", kBinary);
+    const auto section = iniFile(d.dir, "train_section", "[fcn.trainin]\nepochs = 1\n");
     const auto model = damaged(d.req.rawlog, d.dir, "not_a_model", cutAt(0.5));
     const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
         {{"--db", "/nonexistent/db", "--train", d.req.rawlog}, "/nonexistent/db"},
         {{"--db", d.req.db_dir, "--heatmaps-only", model}, model},
         {{"--db", d.req.db_dir, "--train", d.req.rawlog, "--ini", bin}, bin},
+        {{"--db", d.req.db_dir, "--train", d.req.rawlog, "--ini", section}, section},
         {{"--db", d.req.db_dir, "--train", "/nonexistent/t.rawlog"}, "/nonexistent/t.rawlog"}};
     const std::string manifest = slurp(fs::path(d.req.db_dir) / "manifest.crc32");
     for (const auto& [args, names] : cases) {

@@ -5,6 +5,8 @@
 #include <cstdlib>
 #include <filesystem>
 
+#include "../common/round_trip.h"
+#include "lookup/coarse/options.h"
 #include "lookup/common/config.h"
 #include "lookup/localize/localizer_options.h"
 #include "lookup/refine/options.h"
@@ -68,4 +70,29 @@ TEST(AppCommandLines, UnknownFlagFailsAndHelpSucceeds) {
         EXPECT_NE(std::system((exe + " --no-such-flag >/dev/null 2>&1").c_str()), 0) << app;
         EXPECT_EQ(std::system((exe + " --help >/dev/null 2>&1").c_str()), 0) << app;
     }
+}
+
+// Save then load gives the same options, for every struct lookup-localize reads.
+TEST(LocalizeIni, EveryOptionsStructRoundTrips) {
+    localize::LocalizerOptions lo;
+    lo.coarse = "ceiling";
+    lo.use_tracking = false;
+    lo.max_latency_s = 1.0 / 3.0;
+    lo.image_cache_capacity = 77;
+    options_testing::expectRoundTrip(lo, "localizer");
+    refine::RefinerOptions ro = refine::RefinerOptions::mineB();
+    ro.sampler.mode = refine::SamplingMode::HeatMap;
+    ro.matcher.subpixel = refine::SubpixelMethod::Parabola;
+    ro.matcher.use_simd = false;
+    ro.homography.ransac_confidence = 0.9;
+    ro.estimator.pixel_sigma_px = 0.1;
+    ro.acceptance.max_offset_m = 2.5;
+    ro.correspondence.method = refine::CorrespondenceMethod::Ecc;
+    ro.correspondence.ecc_epsilon = 3e-7;
+    options_testing::expectRoundTrip(ro, "refine");
+    coarse::CoarseOptions co;
+    co.camera_label = "FRONT";
+    co.use_odometry = false;
+    co.velocity_max = 2.75;
+    options_testing::expectRoundTrip(co, "coarse");
 }

@@ -8,6 +8,7 @@
 
 #include "../sim/test_worlds.h"
 #include "lookup/common/config.h"
+#include "lookup/common/options_table.h"
 #include "lookup/sim/simulator.h"
 #include "lookup/sim/world.h"
 #include "lookup/survey/pose_graph.h"
@@ -234,7 +235,7 @@ TEST(PoseGraphOptions, LoadsSavesAndRefusesBadValues) {
     EXPECT_EQ(back.edges_per_keyframe, 7);
     EXPECT_FALSE(back.all_traverses);
     ini.write("pose_graph", "point_std_m", -1.0);
-    EXPECT_THROW(back.loadFromConfigFile(ini, "pose_graph"), lookup::common::ConfigError);
+    EXPECT_THROW(lookup::common::loadAndCheck(back, ini, "pose_graph"), lookup::common::ConfigError);
     mrpt::config::CConfigFileMemory unknown;
     unknown.write("pose_graph", "edges_per_keyframes", 3);
     EXPECT_THROW(back.loadFromConfigFile(unknown, "pose_graph"), lookup::common::ConfigError);

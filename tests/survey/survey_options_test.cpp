@@ -2,7 +2,10 @@
 #include <mrpt/config/CConfigFile.h>
 #include <mrpt/config/CConfigFileMemory.h>
 
+#include "../common/round_trip.h"
 #include "lookup/common/config.h"
+#include "lookup/common/options_table.h"
+#include "lookup/survey/pose_graph.h"
 #include "lookup/survey/survey_options.h"
 
 using lookup::survey::SurveyOptions;
@@ -40,7 +43,7 @@ void expectRefusedByName(const char* key, double value) {
     mem.write("survey", key, value);
     SurveyOptions o;
     try {
-        o.loadFromConfigFile(mem, "survey");
+        lookup::common::loadAndCheck(o, mem, "survey");
         FAIL() << key << " = " << value << " accepted";
     } catch (const lookup::common::ConfigError& e) {
         EXPECT_NE(std::string(e.what()).find(key), std::string::npos) << e.what();
@@ -58,4 +61,18 @@ TEST(SurveyOptions, RejectsBadFieldAndUnknownKey) {
     mrpt::config::CConfigFileMemory typo;
     typo.write("survey", "keyframe_spacin_m", 0.3);
     EXPECT_THROW(o.loadFromConfigFile(typo, "survey"), lookup::common::ConfigError);
+}
+
+TEST(SurveyOptions, SurveyAndPoseGraphRoundTrip) {
+    SurveyOptions s;
+    s.lidar_label = "SCAN";
+    s.start_pose = "1 2 90";
+    s.ceiling_estimate = false;
+    s.min_sharpness = 1.0 / 7.0;
+    lookup::options_testing::expectRoundTrip(s, "survey");
+    lookup::survey::PoseGraphOptions g;
+    g.all_traverses = false;
+    g.huber_sigmas = 2.25;
+    g.covariance_stride = 3;
+    lookup::options_testing::expectRoundTrip(g, "pose_graph");
 }

@@ -22,6 +22,7 @@
 #include "lookup/common/cli.h"
 #include "lookup/common/config.h"
 #include "lookup/common/errors.h"
+#include "lookup/common/options_table.h"
 #include "lookup/common/rawlog_io.h"
 
 namespace lookup::coarse {
@@ -80,6 +81,7 @@ CoarseOptions loadOptions(const std::string& ini, const std::string& section,
     CoarseOptions options;
     if (!ini.empty()) {
         const auto file = common::loadIniFile(ini);  // missing, binary or garbled: refused
+        common::rejectUnknownSections(*file, {section});
         options.loadFromConfigFile(*file, section);
     }
     if (!camera.empty()) options.camera_label = camera;
@@ -349,6 +351,7 @@ int CoarseTool::run(std::ostream& out, std::ostream& err) {
 
 int CoarseTool::runOrThrow(std::ostream& out, std::ostream& err) {
     const CoarseOptions options = loadOptions(ini_, section_, camera_);
+
     std::optional<common::PoseTrack> ref_track, query_track;
     if (!ref_poses_.empty()) ref_track = common::readPoseFile(ref_poses_);
     if (!query_poses_.empty()) query_track = common::readPoseFile(query_poses_);

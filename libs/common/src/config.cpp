@@ -4,11 +4,13 @@
 
 #include <map>
 #include <optional>
+#include <type_traits>
 
 #include <algorithm>
 #include <cctype>
 #include <cerrno>
 #include <cmath>
+#include <cstdint>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -44,15 +46,33 @@ std::string iniLineProblem(const std::string& line, bool& in_section) {
     return "";
 }
 
+}  // namespace
+
 template <class T>
 std::string rangeText(T min, T max) {
     std::ostringstream o;
     o.precision(12);
-    o << "[" << min << ", " << max << "]";
+    const bool low = min == std::numeric_limits<T>::lowest();
+    const bool high = max == std::numeric_limits<T>::max();
+    if (low && !high) {
+        o << "(-inf, ";
+    } else if (std::is_floating_point_v<T> && min == T(kPositive)) {
+        o << "(0, ";
+    } else {
+        o << "[" << min << ", ";
+    }
+    if (high && !low) {
+        o << "inf)";
+    } else {
+        o << max << "]";
+    }
     return o.str();
 }
+template std::string rangeText(double, double);
+template std::string rangeText(int, int);
+template std::string rangeText(std::uint64_t, std::uint64_t);
 
-}  // namespace
+namespace {}  // namespace
 
 std::unique_ptr<NamedConfigFile> loadIniFile(const std::string& path) {
     if (!std::filesystem::is_regular_file(path)) throw ConfigError(path + ": no such .ini file");

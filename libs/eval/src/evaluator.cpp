@@ -13,29 +13,15 @@
 
 namespace lookup::eval {
 
-void EvalOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
-                                     const std::string& section) {
-    const common::IniSection s(source, section);
-    s.rejectUnknownKeys({"coarse_exclusion_m", "max_gt_gap_s", "confident_wrong_min_error_m"});
-    coarse_exclusion_m = s.getDouble("coarse_exclusion_m", coarse_exclusion_m);
-    max_gt_gap_s = s.getDouble("max_gt_gap_s", max_gt_gap_s);
-    confident_wrong_min_error_m =
-        s.getDouble("confident_wrong_min_error_m", confident_wrong_min_error_m);
-    s.validate([&] { check(); });
-}
-
-void EvalOptions::saveToConfigFile(mrpt::config::CConfigFileBase& target,
-                                   const std::string& section) const {
-    target.write(section, "coarse_exclusion_m", coarse_exclusion_m);
-    target.write(section, "max_gt_gap_s", max_gt_gap_s);
-    target.write(section, "confident_wrong_min_error_m", confident_wrong_min_error_m);
+void EvalOptions::declareKeys(common::OptionsTable& t) {
+    t.add("coarse_exclusion_m", coarse_exclusion_m, common::kPositive);
+    t.add("max_gt_gap_s", max_gt_gap_s, common::kPositive);
+    t.add("confident_wrong_min_error_m", confident_wrong_min_error_m, common::kPositive);
 }
 
 void EvalOptions::check() const {
     common::OptionsCheck c("eval");
-    c.require(coarse_exclusion_m > 0, "coarse_exclusion_m", "> 0");
-    c.require(max_gt_gap_s > 0, "max_gt_gap_s", "> 0");
-    c.require(confident_wrong_min_error_m > 0, "confident_wrong_min_error_m", "> 0");
+    checkRanges(c);
     c.throwIfFailed();
 }
 

@@ -23,6 +23,7 @@
 #include "lookup/common/camera_params.h"
 #include "lookup/common/config.h"
 #include "lookup/common/errors.h"
+#include "lookup/common/options_table.h"
 #include "lookup/common/rawlog_io.h"
 #include "lookup/localize/sensor_clock.h"
 #include "lookup/localize/vehicle_link.h"
@@ -219,12 +220,13 @@ class Session {
         if (!req.ini_file.empty()) {
             const auto file = common::loadIniFile(req.ini_file);  // binary or garbled: refused
             const auto& ini = *file;
-            if (ini.sectionExists("localizer")) options_.loadFromConfigFile(ini, "localizer");
-            refiner_options_.loadFromConfigFile(ini, "refine");
-            if (ini.sectionExists("coarse")) coarse_options_.loadFromConfigFile(ini, "coarse");
-            if (ini.sectionExists("place_index")) {
-                place_options_.loadFromConfigFile(ini, "place_index");
-            }
+            std::vector<std::string> known = refine::RefinerOptions::sectionNames("refine");
+            known.insert(known.end(), {"localizer", "coarse", "place_index", "time_offsets"});
+            common::rejectUnknownSections(ini, known);
+            common::loadAndCheck(options_, ini, "localizer");
+            common::loadAndCheck(refiner_options_, ini, "refine");
+            common::loadAndCheck(coarse_options_, ini, "coarse");
+            common::loadAndCheck(place_options_, ini, "place_index");
             clock_ = SensorClock::fromConfig(ini, req.ini_file);
         }
         if (req.realtime >= 0) options_.realtime = req.realtime == 1;

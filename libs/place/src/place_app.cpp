@@ -19,6 +19,7 @@
 #include "lookup/common/cli.h"
 #include "lookup/common/config.h"
 #include "lookup/common/errors.h"
+#include "lookup/common/options_table.h"
 #include "lookup/common/pose_files.h"
 #include "lookup/common/rawlog_io.h"
 #include "lookup/database/reference_database.h"
@@ -87,9 +88,8 @@ bool PlaceApp::initialize(int argc, const char* const* argv) {
         }
         if (!ini_file_.empty()) {
             const auto file = common::loadIniFile(ini_file_);
-            if (file->sectionExists("place_index")) {
-                options_.loadFromConfigFile(*file, "place_index");
-            }
+            common::rejectUnknownSections(*file, {"place_index"});
+            common::loadAndCheck(options_, *file, "place_index");
         }
     } catch (const std::exception& e) {
         std::cerr << "lookup-place: " << common::errorText(e, false) << "\n";

@@ -137,6 +137,7 @@ PlaceIndex PlaceIndex::load(const std::string& path, const database::ReferenceDa
         r.fail("format version " + std::to_string(version) + ", this program reads " +
                std::to_string(kFormatVersion));
     }
+    query.check();
     PlaceIndex index;
     detail::Impl& impl = *index.impl_;
     impl.fingerprint = r.get<std::uint64_t>();
@@ -149,7 +150,7 @@ PlaceIndex PlaceIndex::load(const std::string& path, const database::ReferenceDa
     // Build options from the file, query options from the caller.
     const common::NamedConfigFile stored(r.getString(), path);
     PlaceIndexOptions built;
-    built.loadFromConfigFile(stored, "place_index");
+    common::loadAndCheck(built, stored, "place_index");
     impl.options = query;
     impl.options.features = built.features;
     impl.options.features_per_reference = built.features_per_reference;

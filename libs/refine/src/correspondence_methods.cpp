@@ -1,7 +1,5 @@
 #include "lookup/refine/correspondence_methods.h"
 
-#include <mrpt/config/CConfigFile.h>
-
 #include <cmath>
 #include <opencv2/features2d.hpp>
 #include <opencv2/imgproc.hpp>
@@ -12,22 +10,23 @@
 
 namespace lookup::refine {
 
+namespace {
+const common::EnumNames<CorrespondenceMethod> kMethods = {{"sad", CorrespondenceMethod::Sad},
+                                                          {"orb", CorrespondenceMethod::Orb},
+                                                          {"ecc", CorrespondenceMethod::Ecc}};
+}  // namespace
+
 const char* toString(CorrespondenceMethod m) {
-    switch (m) {
-        case CorrespondenceMethod::Orb:
-            return "orb";
-        case CorrespondenceMethod::Ecc:
-            return "ecc";
-        default:
-            return "sad";
+    for (const auto& [name, value] : kMethods) {
+        if (value == m) return name.c_str();
     }
+    return "sad";
 }
 
 bool parseCorrespondenceMethod(const std::string& name, CorrespondenceMethod& out) {
-    for (const auto m :
-         {CorrespondenceMethod::Sad, CorrespondenceMethod::Orb, CorrespondenceMethod::Ecc}) {
-        if (name == toString(m)) {
-            out = m;
+    for (const auto& [n, value] : kMethods) {
+        if (n == name) {
+            out = value;
             return true;
         }
     }
@@ -35,53 +34,24 @@ bool parseCorrespondenceMethod(const std::string& name, CorrespondenceMethod& ou
 }
 
 // ---------------------------------------------------------------- options
-void CorrespondenceOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
-                                               const std::string& section) {
-    const auto* file = dynamic_cast<const mrpt::config::CConfigFile*>(&source);
-    const common::IniSection s(source, section, file ? file->getAssociatedFile() : "<memory>");
-    s.rejectUnknownKeys({"method", "orb_features", "orb_ratio", "orb_min_matches",
-                         "ecc_pyramid_levels", "ecc_max_iterations", "ecc_epsilon",
-                         "ecc_min_correlation", "ecc_gauss_filter_px"});
-    const std::string name = s.getString("method", toString(method));
-    if (!parseCorrespondenceMethod(name, method)) {
-        throw common::ConfigError(s.where("method") + "'" + name + "' is not one of sad, orb, ecc");
-    }
-    orb_features = s.getInt("orb_features", orb_features, 8, 100000);
-    orb_ratio = s.getDouble("orb_ratio", orb_ratio);
-    orb_min_matches = s.getInt("orb_min_matches", orb_min_matches, 4, 100000);
-    ecc_pyramid_levels = s.getInt("ecc_pyramid_levels", ecc_pyramid_levels, 0, 4);
-    ecc_max_iterations = s.getInt("ecc_max_iterations", ecc_max_iterations, 1, 100000);
-    ecc_epsilon = s.getDouble("ecc_epsilon", ecc_epsilon);
-    ecc_min_correlation = s.getDouble("ecc_min_correlation", ecc_min_correlation);
-    ecc_gauss_filter_px = s.getInt("ecc_gauss_filter_px", ecc_gauss_filter_px, 1, 99);
-}
-
-void CorrespondenceOptions::saveToConfigFile(mrpt::config::CConfigFileBase& t,
-                                             const std::string& s) const {
-    t.write(s, "method", std::string(toString(method)), 0, 0, "");
-    t.write(s, "orb_features", orb_features, 0, 0, "");
-    t.write(s, "orb_ratio", orb_ratio, 0, 0, "");
-    t.write(s, "orb_min_matches", orb_min_matches, 0, 0, "");
-    t.write(s, "ecc_pyramid_levels", ecc_pyramid_levels, 0, 0, "");
-    t.write(s, "ecc_max_iterations", ecc_max_iterations, 0, 0, "");
-    t.write(s, "ecc_epsilon", ecc_epsilon, 0, 0, "");
-    t.write(s, "ecc_min_correlation", ecc_min_correlation, 0, 0, "");
-    t.write(s, "ecc_gauss_filter_px", ecc_gauss_filter_px, 0, 0, "");
+void CorrespondenceOptions::declareKeys(common::OptionsTable& t) {
+    t.add("method", method, kMethods);
+    t.add("orb_features", orb_features, 8, 100000);
+    t.add("orb_ratio", orb_ratio);
+    t.add("orb_min_matches", orb_min_matches, 4, 100000);  // a homography needs 4 points
+    t.add("ecc_pyramid_levels", ecc_pyramid_levels, 0, 4);
+    t.add("ecc_max_iterations", ecc_max_iterations, 1, 100000);
+    t.add("ecc_epsilon", ecc_epsilon);
+    t.add("ecc_min_correlation", ecc_min_correlation, -1.0, 1.0);
+    t.add("ecc_gauss_filter_px", ecc_gauss_filter_px, 1, 99);
 }
 
 void CorrespondenceOptions::check() const {
     common::OptionsCheck c("refine.correspondence");
-    c.require(orb_features >= 8, "orb_features", ">= 8");
+    checkRanges(c);
     c.require(orb_ratio > 0.0 && orb_ratio <= 1.0, "orb_ratio", "in (0, 1]");
-    c.require(orb_min_matches >= 4, "orb_min_matches", ">= 4 (a homography needs 4 points)");
-    c.require(ecc_pyramid_levels >= 0 && ecc_pyramid_levels <= 4, "ecc_pyramid_levels",
-              "in [0, 4]");
-    c.require(ecc_max_iterations >= 1, "ecc_max_iterations", ">= 1");
     c.require(ecc_epsilon > 0.0, "ecc_epsilon", "> 0");
-    c.require(ecc_min_correlation >= -1.0 && ecc_min_correlation <= 1.0, "ecc_min_correlation",
-              "in [-1, 1]");
-    c.require(ecc_gauss_filter_px >= 1 && ecc_gauss_filter_px % 2 == 1, "ecc_gauss_filter_px",
-              "odd and >= 1");
+    c.require(ecc_gauss_filter_px % 2 == 1, "ecc_gauss_filter_px", "odd");
     c.throwIfFailed();
 }
 

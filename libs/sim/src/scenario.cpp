@@ -1,6 +1,7 @@
 #include "lookup/sim/scenario.h"
 
 #include <lookup/common/config.h>
+#include <lookup/common/options_table.h>
 #include <mrpt/config/CConfigFile.h>
 #include <mrpt/config/CConfigFileMemory.h>
 #include <mrpt/core/bits_math.h>
@@ -20,90 +21,25 @@ namespace {
 using common::ConfigError;
 using common::IniSection;
 
-/// One table of (key, field) per section drives loading, saving and the unknown-key check, so
-/// the three can never disagree.
-class KeyTable {
-  public:
-    void add(const std::string& key, double& v) {
-        entries_.push_back({key, [&v, key](const IniSection& s) { v = s.getDouble(key, v); },
-                            [&v]() { return fmt(v); }});
-    }
-    void add(const std::string& key, int& v) {
-        entries_.push_back({key, [&v, key](const IniSection& s) { v = s.getInt(key, v); },
-                            [&v]() { return std::to_string(v); }});
-    }
-    void add(const std::string& key, uint64_t& v) {
-        entries_.push_back({key,
-                            [&v, key](const IniSection& s) {
-                                const std::string text = s.getString(key, "");
-                                if (text.empty()) return;
-                                std::size_t used = 0;
-                                try {
-                                    v = std::stoull(text, &used);
-                                } catch (const std::exception&) {
-                                    used = 0;
-                                }
-                                if (used != text.size() || text[0] == '-') {
-                                    throw ConfigError(s.where(key) + "'" + text +
-                                                      "' is not a non-negative integer");
-                                }
-                            },
-                            [&v]() { return std::to_string(v); }});
-    }
-    void add(const std::string& key, std::string& v) {
-        entries_.push_back({key, [&v, key](const IniSection& s) { v = s.getString(key, v); },
-                            [&v]() { return v; }});
-    }
-    /// The last key added is written only while `save_if` holds (keys that a scenario without
-    /// the feature never had, so its resolved scenario.ini stays as it was).
-    void saveOnlyIf(std::function<bool()> save_if) { entries_.back().save_if = std::move(save_if); }
-    void add(const std::string& prefix, MountPose& m) {
-        add(prefix + "x_m", m.x_m);
-        add(prefix + "y_m", m.y_m);
-        add(prefix + "z_m", m.z_m);
-        add(prefix + "yaw_deg", m.yaw_deg);
-        add(prefix + "pitch_deg", m.pitch_deg);
-        add(prefix + "roll_deg", m.roll_deg);
-    }
-    void add(SensorTiming& timing) {
-        add("latency_ms", timing.latency_ms);
-        add("jitter_ms", timing.jitter_ms);
-        add("drop_rate", timing.drop_rate);
-    }
+using common::OptionsTable;
 
-    void load(const IniSection& s) const {
-        std::vector<std::string> known;
-        for (const auto& e : entries_) known.push_back(e.key);
-        s.rejectUnknownKeys(known);
-        for (const auto& e : entries_) e.load(s);
-    }
-    void save(mrpt::config::CConfigFileBase& target, const std::string& section) const {
-        for (const auto& e : entries_) {
-            if (!e.save_if || e.save_if()) target.write(section, e.key, e.text());
-        }
-    }
+void addMount(OptionsTable& t, const std::string& prefix, MountPose& m) {
+    t.add(prefix + "x_m", m.x_m);
+    t.add(prefix + "y_m", m.y_m);
+    t.add(prefix + "z_m", m.z_m);
+    t.add(prefix + "yaw_deg", m.yaw_deg);
+    t.add(prefix + "pitch_deg", m.pitch_deg);
+    t.add(prefix + "roll_deg", m.roll_deg);
+}
 
-  private:
-    static std::string fmt(double v) {
-        std::ostringstream os;
-        os.precision(12);
-        os << v;
-        return os.str();
-    }
-    struct Entry {
-        Entry(std::string k, std::function<void(const IniSection&)> l,
-              std::function<std::string()> t)
-            : key(std::move(k)), load(std::move(l)), text(std::move(t)) {}
-        std::string key;
-        std::function<void(const IniSection&)> load;
-        std::function<std::string()> text;
-        std::function<bool()> save_if;
-    };
-    std::vector<Entry> entries_;
-};
+void addTiming(OptionsTable& t, SensorTiming& timing) {
+    t.add("latency_ms", timing.latency_ms);
+    t.add("jitter_ms", timing.jitter_ms);
+    t.add("drop_rate", timing.drop_rate);
+}
 
 /// World keys that change how the mine looks, not its shape: what may differ per traverse.
-void addAppearanceKeys(KeyTable& t, WorldOptions& w) {
+void addAppearanceKeys(OptionsTable& t, WorldOptions& w) {
     t.add("rock_contrast", w.rock_contrast);
     t.add("bolt_spacing_m", w.bolt_spacing_m);
     t.add("bolt_plate_m", w.bolt_plate_m);
@@ -125,14 +61,14 @@ void addAppearanceKeys(KeyTable& t, WorldOptions& w) {
     t.add("sign_spacing_m", w.sign_spacing_m);
 }
 
-KeyTable worldAppearanceKeys(WorldOptions& w) {
-    KeyTable t;
+OptionsTable worldAppearanceKeys(WorldOptions& w) {
+    OptionsTable t;
     addAppearanceKeys(t, w);
     return t;
 }
 
-KeyTable worldKeys(WorldOptions& w) {
-    KeyTable t;
+OptionsTable worldKeys(WorldOptions& w) {
+    OptionsTable t;
     t.add("layout", w.layout);
     t.add("length_m", w.length_m);
     t.add("width_m", w.width_m);
@@ -163,23 +99,23 @@ KeyTable worldKeys(WorldOptions& w) {
     return t;
 }
 
-KeyTable vehicleKeys(VehicleOptions& v) {
-    KeyTable t;
+OptionsTable vehicleKeys(VehicleOptions& v) {
+    OptionsTable t;
     t.add("name", v.name);
     t.add("wheelbase_m", v.wheelbase_m);
     t.add("track_m", v.track_m);
     return t;
 }
 
-KeyTable cameraKeys(CameraOptions& c) {
-    KeyTable t;
+OptionsTable cameraKeys(CameraOptions& c) {
+    OptionsTable t;
     t.add("label", c.label);
     t.add("rate_hz", c.rate_hz);
     t.add("phase_s", c.phase_s);
     t.add("width_px", c.width_px);
     t.add("height_px", c.height_px);
     t.add("hfov_deg", c.hfov_deg);
-    t.add("pose_", c.mount);
+    addMount(t, "pose_", c.mount);
     t.add("exposure_ms", c.exposure_ms);
     t.add("exposure_variation", c.exposure_variation);
     t.add("noise_std_dn", c.noise_std_dn);
@@ -195,7 +131,7 @@ KeyTable cameraKeys(CameraOptions& c) {
     t.add("dist_k4", c.dist_k4);
     t.add("readout_ms", c.readout_ms);
     t.add("stamp_row", c.stamp_row);
-    t.add(c.timing);
+    addTiming(t, c.timing);
     t.add("response_gamma", c.response_gamma);
     t.add("response_knee_dn", c.response_knee_dn);
     t.add("response_knee_slope", c.response_knee_slope);
@@ -212,8 +148,8 @@ KeyTable cameraKeys(CameraOptions& c) {
     return t;
 }
 
-KeyTable lidarKeys(LidarOptions& l) {
-    KeyTable t;
+OptionsTable lidarKeys(LidarOptions& l) {
+    OptionsTable t;
     t.add("label", l.label);
     t.add("rate_hz", l.rate_hz);
     t.add("phase_s", l.phase_s);
@@ -221,16 +157,16 @@ KeyTable lidarKeys(LidarOptions& l) {
     t.add("resolution_deg", l.resolution_deg);
     t.add("max_range_m", l.max_range_m);
     t.add("noise_std_m", l.noise_std_m);
-    t.add("pose_", l.mount);
-    t.add(l.timing);
+    addMount(t, "pose_", l.mount);
+    addTiming(t, l.timing);
     t.add("sweep_ms", l.sweep_ms);
     t.add("dust_rate", l.dust_rate);
     t.add("dust_max_range_m", l.dust_max_range_m);
     return t;
 }
 
-KeyTable odometryKeys(OdometryOptions& o) {
-    KeyTable t;
+OptionsTable odometryKeys(OdometryOptions& o) {
+    OptionsTable t;
     t.add("label", o.label);
     t.add("rate_hz", o.rate_hz);
     t.add("phase_s", o.phase_s);
@@ -238,7 +174,7 @@ KeyTable odometryKeys(OdometryOptions& o) {
     t.add("yaw_bias_deg_per_m", o.yaw_bias_deg_per_m);
     t.add("noise_std_m", o.noise_std_m);
     t.add("noise_std_deg", o.noise_std_deg);
-    t.add(o.timing);
+    addTiming(t, o.timing);
     t.add("slip_fraction", o.slip_fraction);
     t.add("slip_episode_m", o.slip_episode_m);
     t.add("slip_factor", o.slip_factor);
@@ -247,8 +183,8 @@ KeyTable odometryKeys(OdometryOptions& o) {
     return t;
 }
 
-KeyTable traverseKeys(TraverseOptions& tr) {
-    KeyTable t;
+OptionsTable traverseKeys(TraverseOptions& tr) {
+    OptionsTable t;
     t.add("name", tr.name);
     t.add("roles", tr.roles);
     t.add("lateral_offset_m", tr.lateral_offset_m);
@@ -637,7 +573,7 @@ void ScenarioOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& so
     if (!sc.exists()) throw ConfigError(source_name + " [scenario]: required section is missing");
     int traverse_count = 0;
     {
-        KeyTable t;
+        OptionsTable t;
         t.add("name", name);
         t.add("seed", seed);
         t.add("threads", threads);
@@ -695,7 +631,7 @@ void ScenarioOptions::saveToConfigFile(mrpt::config::CConfigFileBase& target,
     ScenarioOptions copy = *this;  // the key tables bind mutable references
     int traverse_count = static_cast<int>(traverses.size());
     {
-        KeyTable t;
+        OptionsTable t;
         t.add("name", copy.name);
         t.add("seed", copy.seed);
         t.add("threads", copy.threads);

@@ -20,82 +20,31 @@
 
 namespace lookup::survey {
 
-void PoseGraphOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
-                                          const std::string& section) {
-    common::IniSection s(source, section);
-    s.rejectUnknownKeys({"enabled", "all_traverses", "keyframe_spacing_m", "keyframe_spacing_deg",
-                         "max_edge_distance_m", "edges_per_keyframe", "cross_edges_per_keyframe",
-                         "min_matched_share", "max_correction_m", "max_correction_deg",
-                         "point_std_m", "registration_min_std_xy_m", "registration_min_std_yaw_deg",
-                         "odometry_std_per_m", "odometry_std_yaw_deg_per_m", "huber_sigmas",
-                         "max_iterations", "threads", "covariance_stride"});
-    enabled = s.getBool("enabled", enabled);
-    all_traverses = s.getBool("all_traverses", all_traverses);
-    keyframe_spacing_m = s.getDouble("keyframe_spacing_m", keyframe_spacing_m);
-    keyframe_spacing_deg = s.getDouble("keyframe_spacing_deg", keyframe_spacing_deg);
-    max_edge_distance_m = s.getDouble("max_edge_distance_m", max_edge_distance_m);
-    edges_per_keyframe = s.getInt("edges_per_keyframe", edges_per_keyframe, 1, 1000);
-    cross_edges_per_keyframe =
-        s.getInt("cross_edges_per_keyframe", cross_edges_per_keyframe, 0, 1000);
-    min_matched_share = s.getDouble("min_matched_share", min_matched_share);
-    max_correction_m = s.getDouble("max_correction_m", max_correction_m);
-    max_correction_deg = s.getDouble("max_correction_deg", max_correction_deg);
-    point_std_m = s.getDouble("point_std_m", point_std_m);
-    registration_min_std_xy_m = s.getDouble("registration_min_std_xy_m", registration_min_std_xy_m);
-    registration_min_std_yaw_deg =
-        s.getDouble("registration_min_std_yaw_deg", registration_min_std_yaw_deg);
-    odometry_std_per_m = s.getDouble("odometry_std_per_m", odometry_std_per_m);
-    odometry_std_yaw_deg_per_m =
-        s.getDouble("odometry_std_yaw_deg_per_m", odometry_std_yaw_deg_per_m);
-    huber_sigmas = s.getDouble("huber_sigmas", huber_sigmas);
-    max_iterations = s.getInt("max_iterations", max_iterations, 1, 100000);
-    threads = s.getInt("threads", threads, 0, 1024);
-    covariance_stride = s.getInt("covariance_stride", covariance_stride, 0, 100000000);
-    s.validate([&] { check(); });
-}
-
-void PoseGraphOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
-                                        const std::string& section) const {
-    c.write(section, "enabled", enabled);
-    c.write(section, "all_traverses", all_traverses);
-    c.write(section, "keyframe_spacing_m", keyframe_spacing_m);
-    c.write(section, "keyframe_spacing_deg", keyframe_spacing_deg);
-    c.write(section, "max_edge_distance_m", max_edge_distance_m);
-    c.write(section, "edges_per_keyframe", edges_per_keyframe);
-    c.write(section, "cross_edges_per_keyframe", cross_edges_per_keyframe);
-    c.write(section, "min_matched_share", min_matched_share);
-    c.write(section, "max_correction_m", max_correction_m);
-    c.write(section, "max_correction_deg", max_correction_deg);
-    c.write(section, "point_std_m", point_std_m);
-    c.write(section, "registration_min_std_xy_m", registration_min_std_xy_m);
-    c.write(section, "registration_min_std_yaw_deg", registration_min_std_yaw_deg);
-    c.write(section, "odometry_std_per_m", odometry_std_per_m);
-    c.write(section, "odometry_std_yaw_deg_per_m", odometry_std_yaw_deg_per_m);
-    c.write(section, "huber_sigmas", huber_sigmas);
-    c.write(section, "max_iterations", max_iterations);
-    c.write(section, "threads", threads);
-    c.write(section, "covariance_stride", covariance_stride);
+void PoseGraphOptions::declareKeys(common::OptionsTable& t) {
+    t.add("enabled", enabled);
+    t.add("all_traverses", all_traverses);
+    t.add("keyframe_spacing_m", keyframe_spacing_m, common::kPositive);
+    t.add("keyframe_spacing_deg", keyframe_spacing_deg, common::kPositive);
+    t.add("max_edge_distance_m", max_edge_distance_m, common::kPositive);
+    t.add("edges_per_keyframe", edges_per_keyframe, 1, 1000);
+    t.add("cross_edges_per_keyframe", cross_edges_per_keyframe, 0, 1000);
+    t.add("min_matched_share", min_matched_share, 0.0, 1.0);
+    t.add("max_correction_m", max_correction_m, common::kPositive);
+    t.add("max_correction_deg", max_correction_deg, common::kPositive);
+    t.add("point_std_m", point_std_m, common::kPositive);
+    t.add("registration_min_std_xy_m", registration_min_std_xy_m, common::kPositive);
+    t.add("registration_min_std_yaw_deg", registration_min_std_yaw_deg, common::kPositive);
+    t.add("odometry_std_per_m", odometry_std_per_m, common::kPositive);
+    t.add("odometry_std_yaw_deg_per_m", odometry_std_yaw_deg_per_m, common::kPositive);
+    t.add("huber_sigmas", huber_sigmas, common::kPositive);
+    t.add("max_iterations", max_iterations, 1, 100000);
+    t.add("threads", threads, 0, 1024);
+    t.add("covariance_stride", covariance_stride, 0, 100000000);
 }
 
 void PoseGraphOptions::check() const {
     common::OptionsCheck c("pose_graph");
-    c.require(keyframe_spacing_m > 0, "keyframe_spacing_m", "> 0");
-    c.require(keyframe_spacing_deg > 0, "keyframe_spacing_deg", "> 0");
-    c.require(max_edge_distance_m > 0, "max_edge_distance_m", "> 0");
-    c.require(edges_per_keyframe >= 1, "edges_per_keyframe", ">= 1");
-    c.require(cross_edges_per_keyframe >= 0, "cross_edges_per_keyframe", ">= 0");
-    c.require(min_matched_share >= 0 && min_matched_share <= 1, "min_matched_share", "in [0, 1]");
-    c.require(max_correction_m > 0, "max_correction_m", "> 0");
-    c.require(max_correction_deg > 0, "max_correction_deg", "> 0");
-    c.require(point_std_m > 0, "point_std_m", "> 0");
-    c.require(registration_min_std_xy_m > 0, "registration_min_std_xy_m", "> 0");
-    c.require(registration_min_std_yaw_deg > 0, "registration_min_std_yaw_deg", "> 0");
-    c.require(odometry_std_per_m > 0, "odometry_std_per_m", "> 0");
-    c.require(odometry_std_yaw_deg_per_m > 0, "odometry_std_yaw_deg_per_m", "> 0");
-    c.require(huber_sigmas > 0, "huber_sigmas", "> 0");
-    c.require(max_iterations >= 1, "max_iterations", ">= 1");
-    c.require(threads >= 0, "threads", ">= 0");
-    c.require(covariance_stride >= 0, "covariance_stride", ">= 0");
+    checkRanges(c);
     c.throwIfFailed();
 }
 

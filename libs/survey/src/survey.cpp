@@ -18,6 +18,7 @@
 
 #include "lookup/common/config.h"
 #include "lookup/common/errors.h"
+#include "lookup/common/options_table.h"
 #include "lookup/common/rawlog_io.h"
 #include "lookup/database/database_writer.h"
 #include "lookup/survey/keyframes.h"
@@ -810,7 +811,7 @@ Survey::Survey(SurveyOptions options, const mrpt::config::CConfigFileBase& confi
     options_.check();
     config_.setFileName(common::configSourceName(config));
     checkMrptSections(config);
-    if (config.sectionExists("pose_graph")) graph_options_.loadFromConfigFile(config, "pose_graph");
+    common::loadAndCheck(graph_options_, config, "pose_graph");
     std::vector<std::string> sections;
     config.getAllSections(sections);
     for (const auto& s : sections) {

@@ -11,6 +11,7 @@
 #include "lookup/common/cli.h"
 #include "lookup/common/config.h"
 #include "lookup/common/errors.h"
+#include "lookup/common/options_table.h"
 #include "lookup/common/share_dirs.h"
 #include "lookup/place/place_app.h"
 
@@ -135,10 +136,12 @@ bool SurveyApp::initialize(int argc, const char* const* argv) {
             const auto file = common::loadIniFile(ini_path);
             config_.setContent(file->getContent());
             config_.setFileName(ini_path);
-            if (config_.sectionExists("survey")) options_.loadFromConfigFile(config_, "survey");
-            if (config_.sectionExists("place_index")) {
-                place_options_.loadFromConfigFile(config_, "place_index");
-            }
+            // The sections the Survey itself reads: [pose_graph] and MRPT's ICP-SLAM / MCL.
+            common::rejectUnknownSections(
+                config_, {"survey", "place_index", "pose_graph", "ICP", "PF_options", "KLD_options",
+                          "LikelihoodOptions", "MappingApplication", "MappingApplication_*"});
+            common::loadAndCheck(options_, config_, "survey");
+            common::loadAndCheck(place_options_, config_, "place_index");
         }
         if (dataset.isSet()) {
             readDataset(dataset.getValue(), inputs_, options_);

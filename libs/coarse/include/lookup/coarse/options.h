@@ -7,12 +7,14 @@
 
 #include <string>
 
+#include "lookup/common/options_table.h"
+
 namespace lookup::coarse {
 
 /// Every parameter of descriptor extraction and sequence search. The paper's Table I has no
 /// coarse-stage entries, so defaults follow SeqSLAM and were tuned on the lookup-sim presets.
 /// Loaded strictly from an .ini section (default "coarse"); unknown keys are refused.
-struct CoarseOptions : public mrpt::config::CLoadableOptions {
+struct CoarseOptions : public common::TableOptions<CoarseOptions> {
     // --- Input -----------------------------------------------------------------------------
     std::string camera_label = "FORWARD_CAM";  ///< sensorLabel of the forward camera images
 
@@ -79,10 +81,8 @@ struct CoarseOptions : public mrpt::config::CLoadableOptions {
     double odometry_tolerance_per_m = 0.05;  ///< ... plus this share of the distance travelled
                                              ///< since the match odometry starts from
 
-    void loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
-                            const std::string& section) override;
-    void saveToConfigFile(mrpt::config::CConfigFileBase& target,
-                          const std::string& section) const override;
+    /// Adds every key of its .ini section to `t` (load, save and the unknown-key check).
+    void declareKeys(common::OptionsTable& t);
 
     /// Throws common::ConfigError naming every field out of range ("coarse.<field> must be").
     void check() const;

@@ -14,6 +14,9 @@
 
 namespace lookup::common {
 
+/// As the minimum of a range: the value must be > 0 (messages say "(0, ...").
+constexpr double kPositive = std::numeric_limits<double>::min();
+
 /// A configuration value that is missing, malformed or out of range.
 class ConfigError : public std::runtime_error {
   public:
@@ -32,6 +35,11 @@ class NamedConfigFile : public mrpt::config::CConfigFileMemory {
   private:
     std::string file_name_;
 };
+
+/// "[min, max]" as messages write a range: "[0, inf)" when unbounded above, "(0, max]" from
+/// kPositive (instantiated for double, int, uint64_t).
+template <class T>
+std::string rangeText(T min, T max);
 
 /// Reads an .ini file strictly: ConfigError naming the file (and line) when it is missing,
 /// unreadable, binary (NUL bytes), has no [section], or holds a line that is neither a comment

@@ -9,22 +9,21 @@
 #include <utility>
 #include <vector>
 
+#include "lookup/common/options_table.h"
 #include "lookup/common/pose_files.h"
 #include "lookup/eval/run_io.h"
 
 namespace lookup::eval {
 
-struct EvalOptions : public mrpt::config::CLoadableOptions {
+struct EvalOptions : public common::TableOptions<EvalOptions> {
     double coarse_exclusion_m = 10.0;  ///< frames whose coarse error exceeds this are excluded
     double max_gt_gap_s = 0.5;         ///< no ground truth is interpolated across longer gaps
     /// A pose counts as a confident wrong fix when its error exceeds this AND it lies outside
     /// its reported 99.7 % ellipse.
     double confident_wrong_min_error_m = 0.5;
 
-    void loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
-                            const std::string& section) override;
-    void saveToConfigFile(mrpt::config::CConfigFileBase& target,
-                          const std::string& section) const override;
+    /// Adds every key of its .ini section to `t` (load, save and the unknown-key check).
+    void declareKeys(common::OptionsTable& t);
     void check() const;
 };
 

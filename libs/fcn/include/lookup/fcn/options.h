@@ -9,23 +9,23 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
+#include "lookup/common/options_table.h"
 #include "lookup/refine/options.h"
 
 namespace lookup::fcn {
 
 /// Encoder-decoder with skip connections (the paper's FCN: VGG16 encoder, 1x1 conv, three
 /// up-sampling layers with skips to layer3 / layer4; here small and from scratch).
-struct NetworkOptions : public mrpt::config::CLoadableOptions {
+struct NetworkOptions : public common::TableOptions<NetworkOptions> {
     int base_channels = 16;    ///< channels of the first encoder stage (doubled per stage)
     int max_channels = 64;     ///< cap on channels of any stage
     int depth = 4;             ///< encoder stages (each halves the resolution but the last)
     double input_scale = 0.5;  ///< image scale fed to the network, in (0, 1]
 
-    void loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
-                            const std::string& section) override;
-    void saveToConfigFile(mrpt::config::CConfigFileBase& target,
-                          const std::string& section) const override;
+    /// Adds every key of its .ini section to `t` (load, save and the unknown-key check).
+    void declareKeys(common::OptionsTable& t);
     void check() const;
     bool operator==(const NetworkOptions& o) const;
     bool operator!=(const NetworkOptions& o) const { return !(*this == o); }
@@ -34,7 +34,7 @@ struct NetworkOptions : public mrpt::config::CLoadableOptions {
 };
 
 /// Self-supervised labels (paper Sec. III-B: dense grid -> matcher -> RANSAC inliers).
-struct LabelOptions : public mrpt::config::CLoadableOptions {
+struct LabelOptions : public common::TableOptions<LabelOptions> {
     int grid_step_px = 10;                  ///< spacing of the dense label grid [px]
     int references_per_query = 2;           ///< nearest references labelled per query frame
     double max_reference_distance_m = 1.5;  ///< references farther from the query are skipped [m]
@@ -60,6 +60,8 @@ struct LabelOptions : public mrpt::config::CLoadableOptions {
     refine::MatcherOptions matcher;
     refine::HomographyOptions homography;
 
+    /// The keys of `<section>` itself.
+    void declareKeys(common::OptionsTable& t);
     /// Sections `<section>`, `<section>.matcher`, `<section>.homography`.
     void loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
                             const std::string& section) override;
@@ -69,7 +71,7 @@ struct LabelOptions : public mrpt::config::CLoadableOptions {
 };
 
 /// Adam on the class-balanced binary cross-entropy over the labelled points.
-struct TrainingOptions : public mrpt::config::CLoadableOptions {
+struct TrainingOptions : public common::TableOptions<TrainingOptions> {
     int epochs = 15;              ///< passes over the training references
     int batch_size = 8;           ///< reference images per Adam step
     double learning_rate = 2e-3;  ///< Adam step size
@@ -78,10 +80,8 @@ struct TrainingOptions : public mrpt::config::CLoadableOptions {
     int seed = 1;                 ///< torch::manual_seed and shuffling (deterministic runs)
     int threads = 2;              ///< torch::set_num_threads
 
-    void loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
-                            const std::string& section) override;
-    void saveToConfigFile(mrpt::config::CConfigFileBase& target,
-                          const std::string& section) const override;
+    /// Adds every key of its .ini section to `t` (load, save and the unknown-key check).
+    void declareKeys(common::OptionsTable& t);
     void check() const;
 };
 
@@ -97,6 +97,8 @@ struct TrainOptions : public mrpt::config::CLoadableOptions {
     void saveToConfigFile(mrpt::config::CConfigFileBase& target,
                           const std::string& prefix) const override;
     void check() const;
+    /// The sections loadFromConfigFile reads for `prefix` (lookup-train refuses any other).
+    static std::vector<std::string> sectionNames(const std::string& prefix);
 };
 
 }  // namespace lookup::fcn

@@ -5,9 +5,11 @@
 
 #include <string>
 
+#include "lookup/common/options_table.h"
+
 namespace lookup::localize {
 
-struct LocalizerOptions : public mrpt::config::CLoadableOptions {
+struct LocalizerOptions : public common::TableOptions<LocalizerOptions> {
     std::string ceiling_camera_label = "CEILING_CAM";  ///< query ceiling images
     std::string forward_camera_label = "FORWARD_CAM";  ///< query forward images (coarse stage)
     std::string odometry_label = "ODOMETRY";           ///< optional wheel odometry
@@ -87,10 +89,8 @@ struct LocalizerOptions : public mrpt::config::CLoadableOptions {
     std::string persist_fix_file;
     double persist_interval_s = 1.0;  ///< how often the fix file is rewritten while it changes
 
-    void loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
-                            const std::string& section) override;
-    void saveToConfigFile(mrpt::config::CConfigFileBase& target,
-                          const std::string& section) const override;
+    /// Adds every key of its .ini section to `t` (load, save and the unknown-key check).
+    void declareKeys(common::OptionsTable& t);
     void check() const;
 };
 

@@ -19,6 +19,8 @@
 
 #include <opencv2/core.hpp>
 
+#include "lookup/common/options_table.h"
+
 namespace lookup::database {
 class ReferenceDatabase;
 }
@@ -42,7 +44,7 @@ const char* toString(FeatureType t);  ///< "orb", "akaze", "sift"
 
 /// Options of the index ([place_index] section of survey.ini and of lookup-localize's --ini).
 /// The build options are stored in the index file; the query options apply per run.
-struct PlaceIndexOptions : public mrpt::config::CLoadableOptions {
+struct PlaceIndexOptions : public common::TableOptions<PlaceIndexOptions> {
     // --- build -------------------------------------------------------------------------
     FeatureType features = FeatureType::Orb;
     int features_per_reference = 150;  ///< strongest features kept per reference image
@@ -62,10 +64,8 @@ struct PlaceIndexOptions : public mrpt::config::CLoadableOptions {
     int lsh_probe_level = 0;
     int search_checks = 64;  ///< FLANN search checks
 
-    void loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
-                            const std::string& section) override;
-    void saveToConfigFile(mrpt::config::CConfigFileBase& target,
-                          const std::string& section) const override;
+    /// Adds every key of its .ini section to `t` (load, save and the unknown-key check).
+    void declareKeys(common::OptionsTable& t);
     void check() const;
 };
 

@@ -8,6 +8,9 @@
 
 #include <algorithm>
 #include <string>
+#include <vector>
+
+#include "lookup/common/options_table.h"
 
 namespace lookup::refine {
 
@@ -19,7 +22,7 @@ enum class SamplingMode {
 };
 
 /// Sample Point Selector (paper Sec. III-B).
-struct SamplerOptions : public mrpt::config::CLoadableOptions {
+struct SamplerOptions : public common::TableOptions<SamplerOptions> {
     SamplingMode mode = SamplingMode::Auto;
     int grid_points = 24;        ///< points on the regular grid (paper: 24)
     int heat_map_points = 12;    ///< points taken from a heat map (paper: 12, FCN)
@@ -35,10 +38,8 @@ struct SamplerOptions : public mrpt::config::CLoadableOptions {
     /// The border margin heat-map points keep.
     int heatMapMargin() const { return std::max(border_margin_px, heat_map_margin_px); }
 
-    void loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
-                            const std::string& section) override;
-    void saveToConfigFile(mrpt::config::CConfigFileBase& target,
-                          const std::string& section) const override;
+    /// Adds every key of its .ini section to `t` (load, save and the unknown-key check).
+    void declareKeys(common::OptionsTable& t);
     /// Throws common::ConfigError naming every invalid field.
     void check() const;
 };
@@ -51,7 +52,7 @@ enum class SubpixelMethod {
 };
 
 /// Pixel Correspondence Matcher (paper Sec. III-A).
-struct MatcherOptions : public mrpt::config::CLoadableOptions {
+struct MatcherOptions : public common::TableOptions<MatcherOptions> {
     int search_range_px = 40;  ///< L_SR: side of the square query search window [px]
                                ///< (offsets -L_SR/2 .. +L_SR/2 inclusive); Mine B: 70
     int patch_px = 40;         ///< l_patch: side of the square reference patch [px]; Mine B: 60
@@ -78,10 +79,8 @@ struct MatcherOptions : public mrpt::config::CLoadableOptions {
     /// plain search centred on the predicted offset.
     bool compensate_motion = true;
 
-    void loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
-                            const std::string& section) override;
-    void saveToConfigFile(mrpt::config::CConfigFileBase& target,
-                          const std::string& section) const override;
+    /// Adds every key of its .ini section to `t` (load, save and the unknown-key check).
+    void declareKeys(common::OptionsTable& t);
     void check() const;
 };
 
@@ -94,7 +93,7 @@ enum class CorrespondenceMethod {
 
 /// Correspondence method and the baselines' parameters, section `<prefix>.correspondence`
 /// (load, save and check in correspondence_methods.cpp).
-struct CorrespondenceOptions : public mrpt::config::CLoadableOptions {
+struct CorrespondenceOptions : public common::TableOptions<CorrespondenceOptions> {
     CorrespondenceMethod method = CorrespondenceMethod::Sad;  ///< sad | orb | ecc (paper: sad)
     int orb_features = 500;                                   ///< cv::ORB nfeatures per image
     double orb_ratio = 0.8;       ///< Lowe ratio: best / second-best Hamming distance below it
@@ -106,29 +105,25 @@ struct CorrespondenceOptions : public mrpt::config::CLoadableOptions {
     double ecc_min_correlation = 0.6;  ///< accepted warp: correlation coefficient >= this
     int ecc_gauss_filter_px = 5;       ///< ECC Gaussian pre-filter side [px] (odd; 1 = none)
 
-    void loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
-                            const std::string& section) override;
-    void saveToConfigFile(mrpt::config::CConfigFileBase& target,
-                          const std::string& section) const override;
+    /// Adds every key of its .ini section to `t` (load, save and the unknown-key check).
+    void declareKeys(common::OptionsTable& t);
     void check() const;
 };
 
 /// Homography Estimator (paper Sec. III-C).
-struct HomographyOptions : public mrpt::config::CLoadableOptions {
+struct HomographyOptions : public common::TableOptions<HomographyOptions> {
     int ransac_min_points = 10;        ///< RANSAC only when more points than this (paper: 10)
     double ransac_threshold_px = 2.0;  ///< inlier reprojection threshold [px]
     int ransac_max_iterations = 2000;
     double ransac_confidence = 0.995;
 
-    void loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
-                            const std::string& section) override;
-    void saveToConfigFile(mrpt::config::CConfigFileBase& target,
-                          const std::string& section) const override;
+    /// Adds every key of its .ini section to `t` (load, save and the unknown-key check).
+    void declareKeys(common::OptionsTable& t);
     void check() const;
 };
 
 /// Joint pose-and-scale estimate (paper Sec. III-D, done jointly with Ceres here).
-struct EstimatorOptions : public mrpt::config::CLoadableOptions {
+struct EstimatorOptions : public common::TableOptions<EstimatorOptions> {
     double ceiling_height_m = 5.0;        ///< h prior: ceiling plane height above the map z = 0 [m]
                                           ///< (datasets: dataset.ini ceiling_height_m)
     double ceiling_height_sigma_m = 0.5;  ///< h prior standard deviation [m]
@@ -139,15 +134,13 @@ struct EstimatorOptions : public mrpt::config::CLoadableOptions {
     int max_iterations = 50;              ///< Ceres iterations
     int min_inliers = 6;                  ///< fewer inliers over all references: no estimate
 
-    void loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
-                            const std::string& section) override;
-    void saveToConfigFile(mrpt::config::CConfigFileBase& target,
-                          const std::string& section) const override;
+    /// Adds every key of its .ini section to `t` (load, save and the unknown-key check).
+    void declareKeys(common::OptionsTable& t);
     void check() const;
 };
 
 /// Acceptance filters (paper Sec. III-E).
-struct AcceptanceOptions : public mrpt::config::CLoadableOptions {
+struct AcceptanceOptions : public common::TableOptions<AcceptanceOptions> {
     double min_inlier_share = 0.6;     ///< N_th: inliers / testable sample points (window in
                                        ///< the query image), over all references
     double max_offset_m = 2.0;         ///< d_th: max |refined - coarse (or reference)| in x, y [m]
@@ -160,10 +153,8 @@ struct AcceptanceOptions : public mrpt::config::CLoadableOptions {
     double dead_reckoning_sigma_yaw_deg = 1.0;        ///< ... in heading [deg]
     double dead_reckoning_sigma_yaw_deg_per_m = 2.0;  ///< [deg per m]
 
-    void loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
-                            const std::string& section) override;
-    void saveToConfigFile(mrpt::config::CConfigFileBase& target,
-                          const std::string& section) const override;
+    /// Adds every key of its .ini section to `t` (load, save and the unknown-key check).
+    void declareKeys(common::OptionsTable& t);
     void check() const;
 };
 
@@ -184,6 +175,8 @@ struct RefinerOptions : public mrpt::config::CLoadableOptions {
                           const std::string& section) const override;
     /// Checks every stage and the cross-stage constraints.
     void check() const;
+    /// The sections loadFromConfigFile reads for `prefix` (apps refuse any other).
+    static std::vector<std::string> sectionNames(const std::string& prefix);
 
     /// Table I, Mine B: L_SR 70, l_patch 60, l_n 20, border margin 30.
     static RefinerOptions mineB();

@@ -21,12 +21,13 @@
 #include <string>
 #include <vector>
 
+#include "lookup/common/options_table.h"
 #include "lookup/common/pose_files.h"
 #include "lookup/survey/traverse.h"
 
 namespace lookup::survey {
 
-struct PoseGraphOptions : public mrpt::config::CLoadableOptions {
+struct PoseGraphOptions : public common::TableOptions<PoseGraphOptions> {
     /// Optimise the laser poses as a pose graph (false: ICP-SLAM's grid and MCL on it alone, as
     /// MRPT's icp-slam and pf-localization apps make them).
     bool enabled = true;
@@ -59,10 +60,8 @@ struct PoseGraphOptions : public mrpt::config::CLoadableOptions {
     /// (0: none computed).
     int covariance_stride = 10;
 
-    void loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
-                            const std::string& section) override;
-    void saveToConfigFile(mrpt::config::CConfigFileBase& target,
-                          const std::string& section) const override;
+    /// Adds every key of its .ini section to `t` (load, save and the unknown-key check).
+    void declareKeys(common::OptionsTable& t);
     /// Throws common::ConfigError naming every invalid field.
     void check() const;
 };

@@ -12,9 +12,11 @@
 
 #include <string>
 
+#include "lookup/common/options_table.h"
+
 namespace lookup::survey {
 
-struct SurveyOptions : public mrpt::config::CLoadableOptions {
+struct SurveyOptions : public common::TableOptions<SurveyOptions> {
     // --- sensor labels -----------------------------------------------------------------
     std::string ceiling_camera_label = "CEILING_CAM";  ///< CObservationImage, looking up
     std::string forward_camera_label = "FORWARD_CAM";  ///< CObservationImage ("" = none)
@@ -98,10 +100,8 @@ struct SurveyOptions : public mrpt::config::CLoadableOptions {
     double pose_file_std_xy_m = 0.02;    ///< stated std of surveyed positions [m]
     double pose_file_std_yaw_deg = 0.5;  ///< stated std of surveyed headings [deg]
 
-    void loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
-                            const std::string& section) override;
-    void saveToConfigFile(mrpt::config::CConfigFileBase& target,
-                          const std::string& section) const override;
+    /// Adds every key of its .ini section to `t` (load, save and the unknown-key check).
+    void declareKeys(common::OptionsTable& t);
     /// Throws common::ConfigError naming every invalid field.
     void check() const;
 };
