@@ -16,7 +16,8 @@ void CoarseOptions::declareKeys(common::OptionsTable& t) {
     t.add("exclusion_half_window_refs", exclusion_half_window_refs, 0, 100000);
     t.add("tracking_half_window_refs", tracking_half_window_refs, 1, 100000);
     t.add("min_confidence", min_confidence, 0.0);
-    t.add("global_index_min_references", global_index_min_references, 0, 100000000);
+    t.add("global_index_min_references", global_index_min_references, 0,
+          std::numeric_limits<int>::max());
     t.add("global_index_neighbours", global_index_neighbours, 1, 100000);
     t.add("global_index_windows", global_index_windows, 1, 100000);
     t.add("global_index_full_search_every", global_index_full_search_every, 0, 100000000);
