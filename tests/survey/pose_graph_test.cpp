@@ -235,7 +235,8 @@ TEST(PoseGraphOptions, LoadsSavesAndRefusesBadValues) {
     EXPECT_EQ(back.edges_per_keyframe, 7);
     EXPECT_FALSE(back.all_traverses);
     ini.write("pose_graph", "point_std_m", -1.0);
-    EXPECT_THROW(lookup::common::loadAndCheck(back, ini, "pose_graph"), lookup::common::ConfigError);
+    EXPECT_THROW(lookup::common::loadAndCheck(back, ini, "pose_graph"),
+                 lookup::common::ConfigError);
     mrpt::config::CConfigFileMemory unknown;
     unknown.write("pose_graph", "edges_per_keyframes", 3);
     EXPECT_THROW(back.loadFromConfigFile(unknown, "pose_graph"), lookup::common::ConfigError);

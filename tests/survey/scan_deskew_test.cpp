@@ -11,9 +11,9 @@
 
 namespace {
 
+using lookup::survey::deskewScan;
 using mrpt::obs::CObservation2DRangeScan;
 using mrpt::poses::CPose2D;
-using lookup::survey::deskewScan;
 
 // A closed room 30 m x 8 m around the origin: the distance along a ray to its walls.
 double rangeToWalls(double x, double y, double angle) {

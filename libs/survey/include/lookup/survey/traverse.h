@@ -42,8 +42,8 @@ struct TraverseData {
     std::size_t scan_count = 0;
     std::size_t odometry_count = 0;
     std::size_t scans_deskewed = 0;  ///< scans redrawn for the motion over the sweep
-    std::set<std::string> labels;  ///< every sensor label seen
-    SkippedRecords skipped;        ///< refused sensor data
+    std::set<std::string> labels;    ///< every sensor label seen
+    SkippedRecords skipped;          ///< refused sensor data
 };
 
 /// Reads `rawlog`. Throws common::RawlogError naming the file, record and reason when the
