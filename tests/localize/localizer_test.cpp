@@ -208,6 +208,43 @@ TEST(Localize, RefinesCoarsePosesToCentimetresOnASyntheticCeiling) {
     }
 }
 
+TEST(Localize, AnOdometryDropoutIsBridgedAtTheLastVelocityWithAGrowingEllipse) {
+    const auto dir = freshDir("odometry_dropout");
+    // Frames 8-15 (0.8 s at 3 m/s): no odometry (its readings are not finite, so skipped) and
+    // a ceiling too flat to match, so only dead reckoning places the vehicle.
+    const int frames = 24;
+    auto req = planarRun(
+        dir,
+        [](int i, mrpt::obs::CObservationImage& img, mrpt::obs::CObservationOdometry& odo) {
+            if (i < 8 || i > 15) return;
+            odo.odometry.x(std::numeric_limits<double>::quiet_NaN());
+            img.image = mrpt::img::CImage(cv::Mat(240, 320, CV_8UC1, cv::Scalar(128)),
+                                          mrpt::img::DEEP_COPY);
+        },
+        frames);
+    common::PoseTrack truth;
+    for (int i = 0; i < frames; ++i) {
+        truth.push_back({kT0 + 0.1 * i, mrpt::poses::CPose3D(-5 + 0.3 * i, 0.4, 0, 0.05, 0, 0)});
+    }
+    common::writeMrptPoseFile((dir / "query.rawlog.GT.txt").string(), truth);
+    localize::runLocalization(req);
+
+    const auto run = eval::loadRun(req.out_dir);
+    ASSERT_EQ(run.frames.size(), std::size_t(frames));
+    for (int i = 8; i <= 15; ++i) {
+        const auto& f = run.frames[i];
+        ASSERT_EQ(f.status, "fallback") << i << ": " << f.reason;
+        ASSERT_TRUE(f.has_pose) << i;
+        EXPECT_LT(std::hypot(f.x - truth[i].pose.x(), f.y - truth[i].pose.y()), 0.1) << i;
+    }
+    EXPECT_GT(run.frames[15].cov_xx, run.frames[8].cov_xx);
+    const auto report = eval::evaluate(
+        {eval::loadGroundTruth((dir / "query.rawlog.GT.txt").string())}, {run}, {});
+    ASSERT_EQ(report.rows.size(), 2u);
+    EXPECT_EQ(report.rows[1].confident_wrong, 0u);
+    EXPECT_EQ(run.frames[16].status, "refined") << run.frames[16].reason;
+}
+
 TEST(Localize, RunsAreNamedAfterTheirSamplerAndMatcher) {
     refine::RefinerOptions o;
     o.sampler.mode = refine::SamplingMode::Auto;

@@ -42,14 +42,37 @@ TEST(AcceptancePolicy, DeadReckoningGrowsWithTheDistance) {
     o.dead_reckoning_sigma_yaw_deg = 1.0;
     o.dead_reckoning_sigma_yaw_deg_per_m = 0.5;
     const AcceptancePolicy policy(o);
-    const auto at_fix = policy.deadReckoned(mrpt::poses::CPose2D(1, 2, 0.3), 0.0);
-    const auto later = policy.deadReckoned(mrpt::poses::CPose2D(1, 2, 0.3), 10.0);
+    const auto at_fix = policy.deadReckoned(mrpt::poses::CPose2D(1, 2, 0.3), {0.0});
+    const auto later = policy.deadReckoned(mrpt::poses::CPose2D(1, 2, 0.3), {10.0});
     EXPECT_NEAR(std::sqrt(at_fix.cov(0, 0)), 0.1, 1e-12);
     EXPECT_NEAR(std::sqrt(later.cov(1, 1)), 0.3, 1e-12);
     EXPECT_NEAR(std::sqrt(later.cov(2, 2)), mrpt::DEG2RAD(6.0), 1e-12);
     EXPECT_DOUBLE_EQ(later.mean.x(), 1.0);
     const auto fallback = policy.fallback(mrpt::poses::CPose2D(0, 0, 0));
     EXPECT_NEAR(std::sqrt(fallback.cov(0, 0)), o.fallback_sigma_xy_m, 1e-12);
+}
+
+TEST(AcceptancePolicy, TimeWithoutOdometryGrowsTheUncertainty) {
+    AcceptanceOptions o = options();
+    o.dead_reckoning_sigma_xy_m = 0.1;
+    o.dead_reckoning_sigma_xy_per_m = 0.0;
+    o.dead_reckoning_sigma_yaw_deg = 1.0;
+    o.dead_reckoning_sigma_yaw_deg_per_m = 0.0;
+    o.extrapolation_accel_mps2 = 2.0;
+    o.extrapolation_yaw_accel_deg_s2 = 20.0;
+    o.unknown_motion_speed_mps = 8.0;
+    o.unknown_motion_yaw_rate_deg_s = 10.0;
+    const AcceptancePolicy policy(o);
+    const mrpt::poses::CPose2D p(1, 2, 0.3);
+    // Extrapolated at a known velocity for 0.5 s: half the acceleration times t^2.
+    const auto extrapolated = policy.deadReckoned(p, {0.0, 0.5, true});
+    EXPECT_NEAR(std::sqrt(extrapolated.cov(0, 0)), 0.1 + 0.25, 1e-12);
+    EXPECT_NEAR(std::sqrt(extrapolated.cov(2, 2)), mrpt::DEG2RAD(1.0 + 2.5), 1e-12);
+    EXPECT_NEAR(policy.extrapolationSigmaXy({0.0, 0.5, true}), 0.25, 1e-12);
+    // No velocity at all: the vehicle may have driven at the assumed speed the whole time.
+    const auto unknown = policy.deadReckoned(p, {0.0, 0.5, false});
+    EXPECT_NEAR(std::sqrt(unknown.cov(1, 1)), 0.1 + 4.0, 1e-12);
+    EXPECT_NEAR(std::sqrt(unknown.cov(2, 2)), mrpt::DEG2RAD(1.0 + 5.0), 1e-12);
 }
 
 TEST(AcceptancePolicy, ReadFromItsSectionAndRefusedWhenInvalid) {

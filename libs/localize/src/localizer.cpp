@@ -321,30 +321,57 @@ void Localizer::processOdometry(const mrpt::obs::CObservation& obs) {
     while (odometry_.size() > 2 && odometry_[1].first < keep_from) odometry_.pop_front();
 }
 
-std::optional<mrpt::poses::CPose2D> Localizer::odometryAt(double t) const {
-    if (odometry_.empty() || t < odometry_.front().first || t > odometry_.back().first + 0.2) {
-        return std::nullopt;
-    }
-    auto it = std::lower_bound(odometry_.begin(), odometry_.end(), t,
-                               [](const auto& e, double v) { return e.first < v; });
-    if (it == odometry_.end()) return odometry_.back().second;  // short extrapolation gap
-    if (it == odometry_.begin()) return it->second;
-    const auto& [t1, p1] = *it;
-    const auto& [t0, p0] = *std::prev(it);
-    const double a = (t - t0) / (t1 - t0);
+namespace {
+/// `p0 + a · (p1 - p0)` in p0's frame: a fraction (or, past p1, a multiple) of one motion.
+mrpt::poses::CPose2D along(const mrpt::poses::CPose2D& p0, const mrpt::poses::CPose2D& p1,
+                           double a) {
     const mrpt::poses::CPose2D d = p1 - p0;
     return p0 + mrpt::poses::CPose2D(a * d.x(), a * d.y(), a * d.phi());
+}
+}  // namespace
+
+std::optional<Localizer::OdometryPose> Localizer::odometryAt(double t) const {
+    if (odometry_.empty() || t < odometry_.front().first ||
+        t > odometry_.back().first + options_.max_tracking_gap_s) {
+        return std::nullopt;
+    }
+    if (t > odometry_.back().first) return extrapolatedOdometry(t);
+    auto it = std::lower_bound(odometry_.begin(), odometry_.end(), t,
+                               [](const auto& e, double v) { return e.first < v; });
+    if (it == odometry_.begin()) return OdometryPose{it->second};
+    const auto& [t1, p1] = *it;
+    const auto& [t0, p0] = *std::prev(it);
+    return OdometryPose{along(p0, p1, (t - t0) / (t1 - t0))};
+}
+
+Localizer::OdometryPose Localizer::extrapolatedOdometry(double t) const {
+    // Past the last reading (one late against the image, or a dropout) the vehicle keeps the
+    // velocity of its last readings, taken over a tenth of a second at least: a single step's
+    // time-stamp jitter would dominate it. Holding the last pose instead would leave the
+    // prediction behind by all the vehicle drove since.
+    constexpr double kVelocitySpanS = 0.1;
+    const auto& [t1, p1] = odometry_.back();
+    auto first = odometry_.rbegin();
+    while (std::next(first) != odometry_.rend() && t1 - first->first < kVelocitySpanS) ++first;
+    if (first->first >= t1) return OdometryPose{p1, t - t1};
+    return OdometryPose{along(first->second, p1, (t - first->first) / (t1 - first->first)),
+                        t - t1};
 }
 
 std::optional<Localizer::Prediction> Localizer::predict(double t) const {
     if (!last_fix_ || t - last_fix_->time_s > options_.max_tracking_gap_s) return std::nullopt;
     const auto odo_now = odometryAt(t), odo_fix = odometryAt(last_fix_->time_s);
     if (!odo_now || !odo_fix) {
-        // Without odometry the previous fix is the prediction (the vehicle moved < gap·speed).
-        return Prediction{last_fix_->pose, 0.0};
+        // Without odometry the previous fix is the prediction, the vehicle's motion since then
+        // unknown.
+        return Prediction{last_fix_->pose, {0.0, t - last_fix_->time_s, false}};
     }
-    const mrpt::poses::CPose2D delta = *odo_now - *odo_fix;
-    return Prediction{last_fix_->pose + delta, delta.translation().norm()};
+    const mrpt::poses::CPose2D delta = odo_now->pose - odo_fix->pose;
+    // Both ends extrapolated lie in the same gap in the readings: the later one's error bounds
+    // the motion's.
+    const double extrapolated_s = std::max(odo_now->extrapolated_s, odo_fix->extrapolated_s);
+    return Prediction{last_fix_->pose + delta,
+                      {delta.translation().norm(), extrapolated_s, true}};
 }
 
 void Localizer::processForward(const mrpt::obs::CObservationImage& image) {
@@ -358,7 +385,11 @@ void Localizer::processForward(const mrpt::obs::CObservationImage& image) {
     // (processCeiling), so the coarse stage's own audit is not needed (on mine-b it was most
     // of the coarse stage's time).
     q.audit = !fine_tracking_;
-    if (!odometry_.empty()) {
+    // In an odometry dropout the coarse stage matches without odometry: a distance of zero
+    // would hold it at the place where the readings stopped.
+    if (!odometry_.empty() && q.time_s - last_odometry_time_ > options_.odometry_timeout_s) {
+        last_forward_odometry_.reset();
+    } else if (!odometry_.empty()) {
         if (last_forward_odometry_) q.travelled_m = travelled_since_forward_;
         last_forward_odometry_ = odometry_.back().second;
         travelled_since_forward_ = 0;
@@ -620,7 +651,8 @@ Localizer::GlobalOutcome Localizer::separatePlaces(const mrpt::obs::CObservation
     for (const auto& open : open_places_) {
         if (out.time_s - open.time_s > options_.max_tracking_gap_s) continue;
         const auto then = odometryAt(open.time_s);
-        const mrpt::poses::CPose2D moved = now && then ? open.pose + (*now - *then) : open.pose;
+        const mrpt::poses::CPose2D moved =
+            now && then ? open.pose + (now->pose - then->pose) : open.pose;
         auto r = refineAgainst(query, referencesNear(moved), moved, out);
         if (r->accepted()) alive.push_back({r, out.reference_indices});
     }
@@ -706,7 +738,9 @@ std::optional<std::string> Localizer::trackDisagreesWithOdometry(
     // are normal; fixes that keep landing far from it follow something else than the vehicle.
     const double d = std::hypot(tracked.pose.mean.x() - prediction.pose.x(),
                                 tracked.pose.mean.y() - prediction.pose.y());
-    const double allowed = kTrackDisagreementM + kTrackDisagreementPerM * prediction.travelled_m;
+    const double allowed = kTrackDisagreementM +
+                           kTrackDisagreementPerM * prediction.motion.travelled_m +
+                           3 * refiner_.acceptance().extrapolationSigmaXy(prediction.motion);
     disagreeing_fixes_ = d > allowed ? disagreeing_fixes_ + 1 : 0;
     if (disagreeing_fixes_ < kDisagreeingFixesToDrop) return std::nullopt;
     disagreeing_fixes_ = 0;
@@ -872,7 +906,7 @@ void Localizer::emit(const Attempt& a, const std::optional<Prediction>& predicti
     if (prediction) {
         out.has_pose = true;
         out.pose_source = "prediction";
-        out.pose = refiner_.acceptance().deadReckoned(prediction->pose, prediction->travelled_m);
+        out.pose = refiner_.acceptance().deadReckoned(prediction->pose, prediction->motion);
     } else if (out.coarse_pose) {
         out.has_pose = true;
         out.pose_source = "coarse";

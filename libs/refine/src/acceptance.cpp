@@ -42,12 +42,24 @@ mrpt::poses::CPosePDFGaussian AcceptancePolicy::fallback(const mrpt::poses::CPos
     return gaussian(pose, options_.fallback_sigma_xy_m, options_.fallback_sigma_yaw_deg);
 }
 
+double AcceptancePolicy::extrapolationSigmaXy(const DeadReckoning& d) const {
+    const double t = d.extrapolated_s;
+    return d.velocity_known ? 0.5 * options_.extrapolation_accel_mps2 * t * t
+                            : options_.unknown_motion_speed_mps * t;
+}
+
 mrpt::poses::CPosePDFGaussian AcceptancePolicy::deadReckoned(const mrpt::poses::CPose2D& pose,
-                                                             double travelled_m) const {
+                                                             const DeadReckoning& d) const {
     const AcceptanceOptions& o = options_;
-    return gaussian(
-        pose, o.dead_reckoning_sigma_xy_m + o.dead_reckoning_sigma_xy_per_m * travelled_m,
-        o.dead_reckoning_sigma_yaw_deg + o.dead_reckoning_sigma_yaw_deg_per_m * travelled_m);
+    const double t = d.extrapolated_s;
+    const double yaw_extrapolation = d.velocity_known
+                                         ? 0.5 * o.extrapolation_yaw_accel_deg_s2 * t * t
+                                         : o.unknown_motion_yaw_rate_deg_s * t;
+    return gaussian(pose,
+                    o.dead_reckoning_sigma_xy_m + o.dead_reckoning_sigma_xy_per_m * d.travelled_m +
+                        extrapolationSigmaXy(d),
+                    o.dead_reckoning_sigma_yaw_deg +
+                        o.dead_reckoning_sigma_yaw_deg_per_m * d.travelled_m + yaw_extrapolation);
 }
 
 }  // namespace lookup::refine

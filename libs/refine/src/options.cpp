@@ -76,6 +76,10 @@ void AcceptanceOptions::declareKeys(OptionsTable& t) {
     t.add("dead_reckoning_sigma_xy_per_m", dead_reckoning_sigma_xy_per_m, 0.0);
     t.add("dead_reckoning_sigma_yaw_deg", dead_reckoning_sigma_yaw_deg, common::kPositive);
     t.add("dead_reckoning_sigma_yaw_deg_per_m", dead_reckoning_sigma_yaw_deg_per_m, 0.0);
+    t.add("extrapolation_accel_mps2", extrapolation_accel_mps2, 0.0);
+    t.add("extrapolation_yaw_accel_deg_s2", extrapolation_yaw_accel_deg_s2, 0.0);
+    t.add("unknown_motion_speed_mps", unknown_motion_speed_mps, common::kPositive);
+    t.add("unknown_motion_yaw_rate_deg_s", unknown_motion_yaw_rate_deg_s, common::kPositive);
 }
 
 // ---------------------------------------------------------------- checks

@@ -141,7 +141,12 @@ class Localizer {
   private:
     struct Prediction {
         mrpt::poses::CPose2D pose;
-        double travelled_m = 0;  ///< odometry distance since the fix
+        refine::DeadReckoning motion;  ///< what the pose rests on since the fix
+    };
+    /// The odometry's pose at a time, extrapolated past the last reading.
+    struct OdometryPose {
+        mrpt::poses::CPose2D pose;
+        double extrapolated_s = 0;  ///< time since the last reading (0: interpolated)
     };
     FrameResult processCeiling(const mrpt::obs::CObservationImage& query);
     /// What a frame found: the refinement to report, or why there is no place.
@@ -181,7 +186,8 @@ class Localizer {
     std::vector<CoarseFix> startupSeeds() const;
     std::optional<CoarseFix> fixFromMatch(const coarse::CoarseResult& match) const;
     std::optional<Prediction> predict(double time_s) const;
-    std::optional<mrpt::poses::CPose2D> odometryAt(double time_s) const;
+    std::optional<OdometryPose> odometryAt(double time_s) const;
+    OdometryPose extrapolatedOdometry(double time_s) const;
     std::vector<std::size_t> referencesNearTime(double time_s) const;
     std::vector<std::size_t> referencesNear(const mrpt::poses::CPose2D& pose) const;
     std::shared_ptr<const refine::RefineResult> acquire(

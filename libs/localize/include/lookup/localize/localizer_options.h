@@ -20,6 +20,9 @@ struct LocalizerOptions : public common::TableOptions<LocalizerOptions> {
     bool use_tracking = true;
     /// A fix older than this (in time without a new fix) is not used to predict [s].
     double max_tracking_gap_s = 1.0;
+    /// No odometry reading for this long is a dropout: the coarse stage matches without
+    /// odometry and predictions are extrapolated with a growing uncertainty [s].
+    double odometry_timeout_s = 0.2;
     /// Acquisition (not tracking): also try references within this distance of the coarse
     /// match, one by one, before giving up, since the SAD window covers only +-L_SR/2 [m].
     double acquisition_radius_m = 4.0;

@@ -15,6 +15,13 @@
 
 namespace lookup::refine {
 
+/// What a pose dead-reckoned from the last fix rests on.
+struct DeadReckoning {
+    double travelled_m = 0;      ///< odometry distance since the fix (extrapolation included)
+    double extrapolated_s = 0;   ///< time not covered by odometry readings
+    bool velocity_known = true;  ///< false: no odometry at all, the vehicle's motion unknown
+};
+
 class AcceptancePolicy {
   public:
     struct Rejection {
@@ -32,10 +39,12 @@ class AcceptancePolicy {
     /// A coarse or reference pose reported in place of a fix.
     mrpt::poses::CPosePDFGaussian fallback(const mrpt::poses::CPose2D& pose) const;
 
-    /// A pose dead-reckoned over `travelled_m` of odometry since the last fix: the uncertainty
-    /// grows by a share of the distance.
+    /// A pose dead-reckoned from the last fix: the uncertainty grows by a share of the
+    /// distance, and with the time that odometry did not cover.
     mrpt::poses::CPosePDFGaussian deadReckoned(const mrpt::poses::CPose2D& pose,
-                                               double travelled_m) const;
+                                               const DeadReckoning& d) const;
+    /// The part of deadReckoned's position sigma that the time without odometry adds [m].
+    double extrapolationSigmaXy(const DeadReckoning& d) const;
 
     const AcceptanceOptions& options() const { return options_; }
 

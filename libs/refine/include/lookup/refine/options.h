@@ -152,6 +152,15 @@ struct AcceptanceOptions : public common::TableOptions<AcceptanceOptions> {
     double dead_reckoning_sigma_xy_per_m = 0.05;
     double dead_reckoning_sigma_yaw_deg = 1.0;        ///< ... in heading [deg]
     double dead_reckoning_sigma_yaw_deg_per_m = 2.0;  ///< [deg per m]
+    /// Where odometry readings stop (a dropout, a reading late against the image) the pose is
+    /// extrapolated at the last odometry velocity; a vehicle braking or speeding up meanwhile
+    /// leaves it off by half its acceleration times the time squared [m/s^2], [deg/s^2].
+    double extrapolation_accel_mps2 = 2.5;
+    double extrapolation_yaw_accel_deg_s2 = 30.0;
+    /// Without any odometry velocity the vehicle may have driven at up to this speed since the
+    /// last fix [m/s], [deg/s].
+    double unknown_motion_speed_mps = 10.0;
+    double unknown_motion_yaw_rate_deg_s = 30.0;
 
     /// Adds every key of its .ini section to `t` (load, save and the unknown-key check).
     void declareKeys(common::OptionsTable& t);
