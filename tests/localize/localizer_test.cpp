@@ -238,8 +238,8 @@ TEST(Localize, AnOdometryDropoutIsBridgedAtTheLastVelocityWithAGrowingEllipse) {
         EXPECT_LT(std::hypot(f.x - truth[i].pose.x(), f.y - truth[i].pose.y()), 0.1) << i;
     }
     EXPECT_GT(run.frames[15].cov_xx, run.frames[8].cov_xx);
-    const auto report = eval::evaluate(
-        {eval::loadGroundTruth((dir / "query.rawlog.GT.txt").string())}, {run}, {});
+    const auto report =
+        eval::evaluate({eval::loadGroundTruth((dir / "query.rawlog.GT.txt").string())}, {run}, {});
     ASSERT_EQ(report.rows.size(), 2u);
     EXPECT_EQ(report.rows[1].confident_wrong, 0u);
     EXPECT_EQ(run.frames[16].status, "refined") << run.frames[16].reason;

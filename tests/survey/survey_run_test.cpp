@@ -82,6 +82,26 @@ TEST(SurveyRun, PoseFileGivesCameraPosesEqualToTruthComposedWithMount) {
     EXPECT_LT(result.traverses.at(0).error.max_m, 1e-6);
 }
 
+TEST(SurveyRun, DeskewedScansAreCountedInTheReport) {
+    const auto dir = tempDir("deskew_count");
+    const auto f = lookup::test::makeSurveyRawlog(dir.string(), "corridor", 6.0);
+    auto in = inputsFor(f, dir / "db");
+    in.poses_file = f.ground_truth;
+    const auto plain = Survey(shareOptions(), shareIni()).run(in);
+    ASSERT_TRUE(plain.ok()) << plain.reason;
+    EXPECT_EQ(plain.traverses.at(0).scans_deskewed, 0u);
+    SurveyOptions o = shareOptions();
+    o.lidar_sweep_ms = 50;
+    in.out_dir = (dir / "db2").string();
+    const auto swept = Survey(o, shareIni()).run(in);
+    ASSERT_TRUE(swept.ok()) << swept.reason;
+    const auto deskewed = swept.traverses.at(0).scans_deskewed;
+    EXPECT_GT(deskewed, 10u);
+    EXPECT_NE(swept.toJson().find("\"scans_deskewed\": " + std::to_string(deskewed)),
+              std::string::npos)
+        << swept.toJson();
+}
+
 TEST(SurveyRun, PosesFromEachTraverseGroundTruth) {
     const auto dir = tempDir("posesgt");
     const auto f = lookup::test::makeSurveyRawlog(dir.string(), "corridor", 4.0);

@@ -312,50 +312,16 @@ void Localizer::processOdometry(const mrpt::obs::CObservation& obs) {
     const double t = mrpt::Clock::toDouble(odo->timestamp);
     if (t <= last_odometry_time_) return;  // check() refused it already; never corrupt the track
     if (!odometry_.empty()) {
-        travelled_since_forward_ += (odo->odometry - odometry_.back().second).translation().norm();
+        travelled_since_forward_ += (odo->odometry - odometry_.lastPose()).translation().norm();
     }
     last_odometry_time_ = t;
-    odometry_.emplace_back(t, odo->odometry);
+    odometry_.add(t, odo->odometry);
     // Keep what a prediction can need: back to the last fix (bounded by the tracking gap).
-    const double keep_from = t - 2 * options_.max_tracking_gap_s - 1.0;
-    while (odometry_.size() > 2 && odometry_[1].first < keep_from) odometry_.pop_front();
+    odometry_.forgetBefore(t - 2 * options_.max_tracking_gap_s - 1.0);
 }
 
-namespace {
-/// `p0 + a · (p1 - p0)` in p0's frame: a fraction (or, past p1, a multiple) of one motion.
-mrpt::poses::CPose2D along(const mrpt::poses::CPose2D& p0, const mrpt::poses::CPose2D& p1,
-                           double a) {
-    const mrpt::poses::CPose2D d = p1 - p0;
-    return p0 + mrpt::poses::CPose2D(a * d.x(), a * d.y(), a * d.phi());
-}
-}  // namespace
-
-std::optional<Localizer::OdometryPose> Localizer::odometryAt(double t) const {
-    if (odometry_.empty() || t < odometry_.front().first ||
-        t > odometry_.back().first + options_.max_tracking_gap_s) {
-        return std::nullopt;
-    }
-    if (t > odometry_.back().first) return extrapolatedOdometry(t);
-    auto it = std::lower_bound(odometry_.begin(), odometry_.end(), t,
-                               [](const auto& e, double v) { return e.first < v; });
-    if (it == odometry_.begin()) return OdometryPose{it->second};
-    const auto& [t1, p1] = *it;
-    const auto& [t0, p0] = *std::prev(it);
-    return OdometryPose{along(p0, p1, (t - t0) / (t1 - t0))};
-}
-
-Localizer::OdometryPose Localizer::extrapolatedOdometry(double t) const {
-    // Past the last reading (one late against the image, or a dropout) the vehicle keeps the
-    // velocity of its last readings, taken over a tenth of a second at least: a single step's
-    // time-stamp jitter would dominate it. Holding the last pose instead would leave the
-    // prediction behind by all the vehicle drove since.
-    constexpr double kVelocitySpanS = 0.1;
-    const auto& [t1, p1] = odometry_.back();
-    auto first = odometry_.rbegin();
-    while (std::next(first) != odometry_.rend() && t1 - first->first < kVelocitySpanS) ++first;
-    if (first->first >= t1) return OdometryPose{p1, t - t1};
-    return OdometryPose{along(first->second, p1, (t - first->first) / (t1 - first->first)),
-                        t - t1};
+std::optional<common::OdometryTrack::Pose> Localizer::odometryAt(double t) const {
+    return odometry_.at(t, options_.max_tracking_gap_s);
 }
 
 std::optional<Localizer::Prediction> Localizer::predict(double t) const {
@@ -370,8 +336,7 @@ std::optional<Localizer::Prediction> Localizer::predict(double t) const {
     // Both ends extrapolated lie in the same gap in the readings: the later one's error bounds
     // the motion's.
     const double extrapolated_s = std::max(odo_now->extrapolated_s, odo_fix->extrapolated_s);
-    return Prediction{last_fix_->pose + delta,
-                      {delta.translation().norm(), extrapolated_s, true}};
+    return Prediction{last_fix_->pose + delta, {delta.translation().norm(), extrapolated_s, true}};
 }
 
 void Localizer::processForward(const mrpt::obs::CObservationImage& image) {
@@ -391,7 +356,7 @@ void Localizer::processForward(const mrpt::obs::CObservationImage& image) {
         last_forward_odometry_.reset();
     } else if (!odometry_.empty()) {
         if (last_forward_odometry_) q.travelled_m = travelled_since_forward_;
-        last_forward_odometry_ = odometry_.back().second;
+        last_forward_odometry_ = odometry_.lastPose();
         travelled_since_forward_ = 0;
     }
     last_coarse_ = coarse_->locate(q);

@@ -9,10 +9,10 @@
 #include <utility>
 #include <vector>
 
+#include "lookup/common/odometry_track.h"
+
 namespace lookup::survey {
 namespace {
-
-using OdometryTrack = std::vector<std::pair<double, mrpt::poses::CPose2D>>;
 
 // Neighbouring returns farther apart than this (plus a few rays' spacing at their range) lie
 // on different surfaces and are not joined [m].
@@ -22,30 +22,15 @@ mrpt::poses::CPose2D interpolate(const mrpt::poses::CPose2D& motion, double a) {
     return mrpt::poses::CPose2D(a * motion.x(), a * motion.y(), a * motion.phi());
 }
 
-OdometryTrack odometryOf(const TraverseData& traverse) {
-    OdometryTrack track;
+common::OdometryTrack odometryOf(const TraverseData& traverse) {
+    common::OdometryTrack track;
     for (const auto& o : traverse.laser_sequence) {
         if (auto odo = std::dynamic_pointer_cast<mrpt::obs::CObservationOdometry>(o)) {
-            track.emplace_back(mrpt::Clock::toDouble(odo->timestamp), odo->odometry);
+            track.add(mrpt::Clock::toDouble(odo->timestamp), odo->odometry);
         }
     }
     return track;
 }
-
-/// Odometry pose at `t`, interpolated between the records around it; nullopt outside them.
-std::optional<mrpt::poses::CPose2D> odometryAt(const OdometryTrack& track, double t) {
-    auto it = std::lower_bound(track.begin(), track.end(), t,
-                               [](const auto& e, double v) { return e.first < v; });
-    if (it == track.end() || it == track.begin()) return std::nullopt;
-    const auto& [t1, p1] = *it;
-    const auto& [t0, p0] = *std::prev(it);
-    if (!(t1 > t0)) return p0;
-    return p0 + interpolate(p1 - p0, (t - t0) / (t1 - t0));
-}
-
-}  // namespace
-
-namespace {
 
 /// Scan points in the first ray's sensor frame, each with its bearing measured from the first
 /// bin (bin b lies at b * step); invalid rays are flagged.
@@ -124,15 +109,16 @@ void deskewScan(mrpt::obs::CObservation2DRangeScan& scan, const mrpt::poses::CPo
 
 std::size_t deskewTraverse(TraverseData& traverse, double sweep_s) {
     if (!(sweep_s > 0)) return 0;
-    const OdometryTrack odometry = odometryOf(traverse);
+    const common::OdometryTrack odometry = odometryOf(traverse);
     std::size_t corrected = 0;
     for (auto& o : traverse.laser_sequence) {
         auto scan = std::dynamic_pointer_cast<mrpt::obs::CObservation2DRangeScan>(o);
         if (!scan) continue;
         const double t = mrpt::Clock::toDouble(scan->timestamp);
-        const auto first = odometryAt(odometry, t), last = odometryAt(odometry, t + sweep_s);
+        // Only where odometry covers the whole sweep: no extrapolation.
+        const auto first = odometry.at(t), last = odometry.at(t + sweep_s);
         if (!first || !last) continue;
-        deskewScan(*scan, *last - *first);
+        deskewScan(*scan, last->pose - first->pose);
         ++corrected;
     }
     return corrected;

@@ -223,7 +223,8 @@ nlohmann::ordered_json traverseJson(const TraverseReport& t) {
                       {"rejected_exposure", t.rejected_exposure},
                       {"rejected_image", t.rejected_image},
                       {"rejected_forward", t.rejected_forward},
-                      {"without_forward", t.without_forward}};
+                      {"without_forward", t.without_forward},
+                      {"scans_deskewed", t.scans_deskewed}};
     j["skipped"] = {{"lidar_ranges", t.skipped.lidar_ranges},
                     {"scans", t.skipped.scans},
                     {"odometry", t.skipped.odometry},
@@ -715,6 +716,7 @@ TraverseReport addTraverse(const TraverseSpec& spec, const TraverseData& d, cons
     const KeyframeSelection selection = selectReferences(d, frames, o, cameras, rep);
     rep.rejected_image = selection.rejected_unusable;
     rep.skipped = d.skipped;
+    rep.scans_deskewed = d.scans_deskewed;
     rep.rejected_blur = selection.rejected_blur;
     rep.rejected_exposure = selection.rejected_exposure;
     const ReferenceErrors errors =

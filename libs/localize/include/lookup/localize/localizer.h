@@ -23,6 +23,7 @@
 #include <vector>
 
 #include "lookup/coarse/coarse_source.h"
+#include "lookup/common/odometry_track.h"
 #include "lookup/database/reference_database.h"
 #include "lookup/localize/localizer_options.h"
 #include "lookup/refine/rectifier.h"
@@ -186,8 +187,7 @@ class Localizer {
     std::vector<CoarseFix> startupSeeds() const;
     std::optional<CoarseFix> fixFromMatch(const coarse::CoarseResult& match) const;
     std::optional<Prediction> predict(double time_s) const;
-    std::optional<OdometryPose> odometryAt(double time_s) const;
-    OdometryPose extrapolatedOdometry(double time_s) const;
+    std::optional<common::OdometryTrack::Pose> odometryAt(double time_s) const;
     std::vector<std::size_t> referencesNearTime(double time_s) const;
     std::vector<std::size_t> referencesNear(const mrpt::poses::CPose2D& pose) const;
     std::shared_ptr<const refine::RefineResult> acquire(
@@ -238,7 +238,7 @@ class Localizer {
 
     std::optional<coarse::CoarseResult> last_coarse_;
     double coarse_ms_since_frame_ = 0;
-    std::deque<std::pair<double, mrpt::poses::CPose2D>> odometry_;  ///< (time, odometry)
+    common::OdometryTrack odometry_;
     double last_odometry_time_ = -1;
     double travelled_since_forward_ = 0;
     std::optional<mrpt::poses::CPose2D> last_forward_odometry_;

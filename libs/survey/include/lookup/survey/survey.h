@@ -72,6 +72,7 @@ struct TraverseReport {
     std::size_t rejected_forward = 0;  ///< forward images unreadable, empty or of the wrong size
     std::size_t without_forward = 0;   ///< references with no forward image in time
     SkippedRecords skipped;            ///< sensor records refused while reading the rawlog
+    std::size_t scans_deskewed = 0;    ///< lidar scans redrawn for the motion over their sweep
     std::string first_image_problem;   ///< the first refused image: file and reason
     double localisation_time_s = 0;    ///< MCL (or ICP-SLAM) wall time for this traverse
     std::string start_source;          ///< "map origin", "ground truth" or "scan match"
