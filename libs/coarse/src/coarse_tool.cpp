@@ -337,6 +337,8 @@ bool CoarseTool::initialize(int argc, const char* const* argv) {
     return true;
 }
 
+int CoarseTool::run() { return run(std::cout, std::cerr); }
+
 int CoarseTool::run(std::ostream& out, std::ostream& err) {
     try {
         exit_code_ = runOrThrow(out, err);
