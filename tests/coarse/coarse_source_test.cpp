@@ -6,6 +6,7 @@
 #include <fstream>
 
 #include "lookup/common/config.h"
+#include "lookup/test/support.h"
 
 namespace fs = std::filesystem;
 
@@ -22,15 +23,8 @@ std::shared_ptr<ReferenceDescriptors> posedReferences() {
     return refs;
 }
 
-fs::path tempDir(const std::string& name) {
-    auto dir = fs::temp_directory_path() / ("lookup_coarse_" + name);
-    fs::remove_all(dir);
-    fs::create_directories(dir);
-    return dir;
-}
-
 TEST(MatchFileSource, NearestRowWithinGapAndBadRows) {
-    const auto dir = tempDir("matchfile");
+    const auto dir = lookup::test::freshDir("lookup_coarse_matchfile");
     const std::string path = (dir / "matches.txt").string();
     std::ofstream(path) << "# query reference\n10.0 503.0\n\n11.0 504.2\n12.0 505.0\n";
     MatchFileSource src(path, 0.3, posedReferences());
@@ -61,7 +55,7 @@ TEST(MatchFileSource, NearestRowWithinGapAndBadRows) {
 }
 
 TEST(PoseFileSource, InterpolatesAndFindsTheNearestReference) {
-    const auto dir = tempDir("posefile");
+    const auto dir = lookup::test::freshDir("lookup_coarse_posefile");
     const std::string path = (dir / "coarse.tum").string();
     common::PoseTrack track = {{20.0, mrpt::poses::CPose3D(0, 0, 0, 0, 0, 0)},
                                {22.0, mrpt::poses::CPose3D(20, 0, 0, 0, 0, 0)}};

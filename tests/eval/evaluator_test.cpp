@@ -11,8 +11,11 @@
 
 #include "../common/round_trip.h"
 #include "lookup/common/config.h"
+#include "lookup/common/pose_files.h"
+#include "lookup/eval/eval_app.h"
 #include "lookup/eval/evaluator.h"
 #include "lookup/eval/report_json.h"
+#include "lookup/test/support.h"
 
 namespace fs = std::filesystem;
 using namespace lookup::eval;
@@ -141,9 +144,7 @@ TEST(Evaluate, RunOutsideEveryTruthIsReportedNotMatched) {
 }
 
 TEST(RunIo, RoundTripAndMalformedRowNamesFileAndLine) {
-    const auto dir = fs::temp_directory_path() / "lookup_eval_run";
-    fs::remove_all(dir);
-    fs::create_directories(dir);
+    const auto dir = lookup::test::freshDir("lookup_eval_run");
     auto run = runWithOffsets({0.1, 0.2}, 1.0);
     run.frames[1].reason = "inliers 40%, below N_th";
     writeFramesCsv((dir / "frames.csv").string(), run.frames);
@@ -188,9 +189,7 @@ TEST(Report, WritesMarkdownJsonAndChart) {
 }
 
 TEST(RunIo, HugeValuesRoundTripThroughFramesCsv) {
-    const auto dir = fs::temp_directory_path() / "lookup_eval_huge";
-    fs::remove_all(dir);
-    fs::create_directories(dir);
+    const auto dir = lookup::test::freshDir("lookup_eval_huge");
     FrameRow r;
     r.time_s = 1.7e9;
     r.status = "fallback";
@@ -213,9 +212,7 @@ TEST(RunIo, HugeValuesRoundTripThroughFramesCsv) {
 }
 
 TEST(RunIo, IncompleteEmptyAndNonFiniteRunsAreNamedProblems) {
-    const auto dir = fs::temp_directory_path() / "lookup_eval_problems";
-    fs::remove_all(dir);
-    fs::create_directories(dir);
+    const auto dir = lookup::test::freshDir("lookup_eval_problems");
     auto run = runWithOffsets({0.1, 0.2, 0.3}, 1.0);
     writeFramesCsv((dir / "frames.csv").string(), run.frames);
     EXPECT_NE(runProblem(loadRun(dir.string())).find("no timing.json"), std::string::npos);
@@ -252,15 +249,6 @@ TEST(Report, RowRoundTripsThroughJson) {
     EXPECT_THROW(methodResultFromJson(broken), nlohmann::json::exception);
 }
 
-namespace {
-
-std::string readText(const fs::path& p) {
-    std::ifstream f(p);
-    return std::string((std::istreambuf_iterator<char>(f)), {});
-}
-
-}  // namespace
-
 TEST(Pictures, EveryMethodHasItsOwnColour) {
     const auto& table = methodColourTable();
     std::vector<std::string> names, colours;
@@ -291,9 +279,7 @@ TEST(Pictures, EveryMethodHasItsOwnColour) {
 }
 
 TEST(Pictures, TrajectoryAndErrorAlongTheRouteForASmallRun) {
-    const auto dir = fs::temp_directory_path() / "lookup_eval_pictures";
-    fs::remove_all(dir);
-    fs::create_directories(dir);
+    const auto dir = lookup::test::freshDir("lookup_eval_pictures");
     auto grid_run = runWithOffsets({0.05, 0.1, 0.2, 0.1, 0.3, 0.05}, 1.0);
     grid_run.frames[2].status = "fallback";
     grid_run.frames[3].status = "lost";
@@ -330,12 +316,12 @@ TEST(Pictures, TrajectoryAndErrorAlongTheRouteForASmallRun) {
             EXPECT_GT(fs::file_size(out / png), 1000u) << png;
         }
     }
-    const std::string traj = readText(out / "trajectory_zigzag_lookup-grid24.gp");
+    const std::string traj = lookup::test::readText(out / "trajectory_zigzag_lookup-grid24.gp");
     EXPECT_NE(traj.find("fallback"), std::string::npos) << traj;
     EXPECT_NE(traj.find("lost"), std::string::npos) << traj;
     EXPECT_NE(traj.find("map_walls.dat"), std::string::npos) << traj;
-    const std::string along = readText(out / "error_along_zigzag.gp");
-    const std::string errors = readText(out / "errors.gp");
+    const std::string along = lookup::test::readText(out / "error_along_zigzag.gp");
+    const std::string errors = lookup::test::readText(out / "errors.gp");
     for (const char* m : {"lookup-grid24", "laser-ecc", "coarse"}) {
         const std::string colour = methodColour(m, {});
         EXPECT_NE(along.find(colour), std::string::npos) << m << "\n" << along;

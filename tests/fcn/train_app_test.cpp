@@ -4,6 +4,7 @@
 // drawing another database's heat maps).
 
 #include <gtest/gtest.h>
+#include <mrpt/config/CConfigFileMemory.h>
 
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -12,6 +13,7 @@
 #include "lookup/database/heat_maps.h"
 #include "lookup/database/reference_database.h"
 #include "lookup/fcn/train_app.h"
+#include "lookup/test/support.h"
 
 using namespace lookup;
 using namespace lookup::fcn;
@@ -19,16 +21,12 @@ namespace fs = std::filesystem;
 
 namespace {
 
-std::string slurp(const fs::path& p) {
-    std::ifstream in(p, std::ios::binary);
-    return std::string(std::istreambuf_iterator<char>(in), {});
-}
-
 // Everything in the database folder (name -> content).
 std::map<std::string, std::string> snapshot(const fs::path& dir) {
     std::map<std::string, std::string> out;
     for (const auto& e : fs::recursive_directory_iterator(dir)) {
-        if (e.is_regular_file()) out[fs::relative(e.path(), dir).string()] = slurp(e.path());
+        if (e.is_regular_file())
+            out[fs::relative(e.path(), dir).string()] = lookup::test::readText(e.path());
     }
     return out;
 }
@@ -42,7 +40,7 @@ struct TrainSetup {
 
 TrainSetup makeSetup(const std::string& name) {
     TrainSetup s;
-    s.dir = fixture::freshDir(name);
+    s.dir = lookup::test::freshDir("lookup_fcn_" + name);
     s.db = (s.dir / "db").string();
     std::vector<double> xs;
     for (double x = -3; x <= 3.01; x += 0.5) xs.push_back(x);
@@ -76,7 +74,8 @@ TEST(TrainApp, WritesModelReportAndHeatMaps) {
     const auto db = database::ReferenceDatabase::load(s.db);
     EXPECT_EQ(db.info().heatmaps_dir, r.heat_maps.directory);
 
-    const auto j = nlohmann::json::parse(slurp(s.dir / "report" / "train_report.json"));
+    const auto j =
+        nlohmann::json::parse(lookup::test::readText(s.dir / "report" / "train_report.json"));
     EXPECT_EQ(j["training"]["epochs"].size(), 4u);
     EXPECT_EQ(j["labels"]["held_out_pairs"].get<std::size_t>(), r.labels.held_out_pairs);
     EXPECT_GT(j["labels"]["inlier_share"].get<double>(), 0.0);

@@ -36,7 +36,7 @@ namespace {
 // Two survey traverses with unrelated forward views (seeds 1 and 2): "long", 60 references,
 // then "short", 45; reference 60 + k is frame k of "short".
 database::ReferenceDatabase twoForwardTraverses(const std::string& name) {
-    const auto dir = freshDir(name);
+    const auto dir = lookup::test::freshDir("lookup_localize_" + name);
     writeDatabase(Scene(), (dir / "db").string(),
                   {{"long", 60, 100.0, /*forward_seed=*/1}, {"short", 45, 500.0, 2}});
     return database::ReferenceDatabase::load((dir / "db").string());
@@ -46,7 +46,7 @@ database::ReferenceDatabase twoForwardTraverses(const std::string& name) {
 
 TEST(Localize, RefinesCoarsePosesToCentimetresOnASyntheticCeiling) {
     Scene scene;
-    const auto dir = freshDir("planar");
+    const auto dir = lookup::test::freshDir("lookup_localize_planar");
     writeDatabase(scene, (dir / "db").string(), {{"survey", 65, 100.0}});  // x = -8 .. 8
 
     // Query drive: 0.4 m to the left of the survey line, slightly rotated, 20 frames.
@@ -266,7 +266,7 @@ TEST(Localize, AcquisitionCandidatesCoverEveryNearbyTraverse) {
     // nearer one would shadow the other, and a query driving beside the farther one would get
     // candidates only 0.4 m further off, beyond the SAD window (mine-a query4 start-up).
     const Scene scene;
-    const auto dir = freshDir("candidates");
+    const auto dir = lookup::test::freshDir("lookup_localize_candidates");
     writeDatabase(scene, (dir / "db").string(),
                   {{"near", 40, 100.0, 0, /*y_m=*/0.0}, {"far", 40, 200.0, 0, /*y_m=*/0.4}});
     const auto db = database::ReferenceDatabase::load((dir / "db").string());
@@ -328,7 +328,7 @@ TEST(Localize, SkippedCoarseSearchesStillBuildTheSequence) {
 }
 
 TEST(Localize, MissingDatabaseAndRawlogWithoutCeilingImagesAreRefused) {
-    const auto dir = freshDir("bad");
+    const auto dir = lookup::test::freshDir("lookup_localize_bad");
     localize::LocalizeRequest req;
     req.db_dir = (dir / "nodb").string();
     req.rawlog = (dir / "q.rawlog").string();
@@ -423,7 +423,7 @@ void writeStartUpQuery(const Scene& ceiling, const fs::path& path, int frames,
 
 TEST(Localize, StartUpAcquisitionFixesBeforeTheCoarseSequenceIsFullAndOnlyOnTheRightCeiling) {
     const Scene scene;
-    const auto dir = freshDir("startup");
+    const auto dir = lookup::test::freshDir("lookup_localize_startup");
     writeDatabase(scene, (dir / "db").string(), {{"survey", 65, 100.0, /*forward_seed=*/1}});
     writeStartUpQuery(scene, dir / "query.rawlog", 32);
 
@@ -474,7 +474,7 @@ TEST(Localize, StartUpAcquisitionFixesBeforeTheCoarseSequenceIsFullAndOnlyOnTheR
 }
 
 TEST(Localize, NonFiniteOrGarbageObservationsAreSkippedAndCountedNeverPoses) {
-    const auto dir = freshDir("garbage");
+    const auto dir = lookup::test::freshDir("lookup_localize_garbage");
     const double nan = std::numeric_limits<double>::quiet_NaN();
     const auto req = planarRun(
         dir, [&](int i, mrpt::obs::CObservationImage& img, mrpt::obs::CObservationOdometry& odo) {
@@ -505,7 +505,7 @@ TEST(Localize, NonFiniteOrGarbageObservationsAreSkippedAndCountedNeverPoses) {
 }
 
 TEST(Localize, AQueryCameraOfAnotherSizeAndFocalLengthIsRectifiedIntoTheDatabases) {
-    const auto dir = freshDir("other_camera");
+    const auto dir = lookup::test::freshDir("lookup_localize_other_camera");
     const auto req = planarRun(
         dir, [&](int, mrpt::obs::CObservationImage& img, mrpt::obs::CObservationOdometry&) {
             cv::Mat m;
@@ -525,7 +525,7 @@ TEST(Localize, AQueryCameraOfAnotherSizeAndFocalLengthIsRectifiedIntoTheDatabase
 }
 
 TEST(Localize, QueryIntrinsicsThatCannotDescribeTheImageAreRefusedNamingTheRecord) {
-    const auto dir = freshDir("bad_intrinsics");
+    const auto dir = lookup::test::freshDir("lookup_localize_bad_intrinsics");
     const auto req = planarRun(
         dir, [&](int i, mrpt::obs::CObservationImage& img, mrpt::obs::CObservationOdometry&) {
             if (i == 4) img.cameraParams.ncols = 640;  // the calibration of another resolution
@@ -559,12 +559,12 @@ std::string errorOf(const localize::LocalizeRequest& req) {
 }  // namespace
 
 TEST(Localize, RunsThatCannotWorkAreRefusedAtTheStartWithTheReason) {
-    const auto dir = freshDir("cannot_work");
+    const auto dir = lookup::test::freshDir("lookup_localize_cannot_work");
     auto req = planarRun(dir, [](int, auto&, auto&) {});
 
     // Query ceiling images of another size than their intrinsics say (another size than the
     // references' with intrinsics to match is rectified into the database's camera).
-    const auto half = freshDir("cannot_work_size");
+    const auto half = lookup::test::freshDir("lookup_localize_cannot_work_size");
     auto small = planarRun(half, [](int, mrpt::obs::CObservationImage& img, auto&) {
         cv::Mat m;
         cv::resize(img.image.asCvMat<cv::Mat>(mrpt::img::SHALLOW_COPY), m, cv::Size(160, 120));
@@ -595,7 +595,7 @@ TEST(Localize, RunsThatCannotWorkAreRefusedAtTheStartWithTheReason) {
 
 TEST(Localize, AForwardCameraLabelWithoutImagesIsRefusedNamingThePresentLabels) {
     const Scene scene;
-    const auto dir = freshDir("forward_label");
+    const auto dir = lookup::test::freshDir("lookup_localize_forward_label");
     writeDatabase(scene, (dir / "db").string(), {{"survey", 65, 100.0, /*forward_seed=*/1}});
     writeStartUpQuery(scene, dir / "query.rawlog", 8);
     std::ofstream(dir / "label.ini") << "[localizer]\nforward_camera_label = FRONT_CAM\n";
@@ -613,7 +613,7 @@ TEST(Localize, AForwardCameraLabelWithoutImagesIsRefusedNamingThePresentLabels) 
 
 TEST(Localize, RepeatedPassesRefineAsTheFirstOneDoes) {
     const Scene scene;
-    const auto dir = freshDir("repeat_passes");
+    const auto dir = lookup::test::freshDir("lookup_localize_repeat_passes");
     writeDatabase(scene, (dir / "db").string(), {{"survey", 65, 100.0, /*forward_seed=*/1}});
     writeStartUpQuery(scene, dir / "query.rawlog", 32, /*odometry=*/true);
     localize::LocalizeRequest req;
