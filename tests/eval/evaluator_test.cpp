@@ -335,3 +335,72 @@ TEST(EvalOptions, SaveThenLoadGivesTheSameOptions) {
     o.confident_wrong_min_error_m = 1.0 / 3.0;
     lookup::options_testing::expectRoundTrip(o, "eval");
 }
+
+// EvalApp, the lookup-eval program as a class.
+namespace {
+
+// A finished run folder (frames.csv, run.ini, timing.json) and the ground truth it drove.
+void writeRunAndTruth(const fs::path& dir) {
+    fs::create_directories(dir / "run");
+    const auto run = runWithOffsets({0.1, 0.2, 0.3}, 1.0);
+    writeFramesCsv((dir / "run" / "frames.csv").string(), run.frames);
+    std::ofstream(dir / "run" / "run.ini") << "[run]\nmethod = lookup-grid24\n";
+    std::ofstream(dir / "run" / "timing.json") << R"({"frames": 3, "frames_per_s": 10})";
+    lookup::common::writeTumPoseFile((dir / "zigzag.rawlog.GT.txt").string(),
+                                     straightTruth().track);
+}
+
+}  // namespace
+
+TEST(EvalApp, RunScoresTheRunsAndPrintsTheReport) {
+    const auto dir = lookup::test::freshDir("lookup_eval_app_run");
+    writeRunAndTruth(dir);
+    EvalApp app;
+    const auto r =
+        lookup::test::runApp("lookup-eval", app,
+                             {"--gt", (dir / "zigzag.rawlog.GT.txt").string(), "--runs",
+                              (dir / "run").string(), "--out", (dir / "report").string()});
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_NE(r.out.find("| zigzag | lookup-grid24 | 3 |"), std::string::npos) << r.out;
+    EXPECT_EQ(r.out, lookup::test::readText(dir / "report" / "report.md"));
+    EXPECT_TRUE(fs::is_regular_file(dir / "report" / "report.json"));
+}
+
+TEST(EvalApp, AnUnfinishedRunIsRefusedUnlessPartial) {
+    const auto dir = lookup::test::freshDir("lookup_eval_app_partial");
+    writeRunAndTruth(dir);
+    fs::remove(dir / "run" / "timing.json");
+    const std::vector<std::string> args{"--gt",   (dir / "zigzag.rawlog.GT.txt").string(),
+                                        "--runs", (dir / "run").string(),
+                                        "--out",  (dir / "report").string()};
+    EvalApp refused;
+    const auto r = lookup::test::runApp("lookup-eval", refused, args);
+    EXPECT_EQ(r.code, 2);
+    EXPECT_NE(r.err.find("not scored: no timing.json"), std::string::npos) << r.err;
+    EvalApp partial;
+    std::vector<std::string> with_partial = args;
+    with_partial.push_back("--partial");
+    const auto p = lookup::test::runApp("lookup-eval", partial, with_partial);
+    EXPECT_EQ(p.code, 0) << p.err;
+    EXPECT_NE(p.err.find("scored, flagged"), std::string::npos) << p.err;
+}
+
+TEST(EvalApp, BadFlagsAndIniTyposAreRefusedNamingThem) {
+    const auto dir = lookup::test::freshDir("lookup_eval_app_ini");
+    const std::string ini = (dir / "eval.ini").string();
+    const std::vector<std::string> base{"--gt", "G", "--runs", "R", "--out", "O", "--ini", ini};
+    for (const auto& [text, names] : std::vector<std::pair<std::string, std::string>>{
+             {"[evl]\ncoarse_exclusion_m = 3\n", ini + " [evl]: unknown section"},
+             {"[eval]\ncoarse_exclusion = 3\n", ini + " [eval] coarse_exclusion: unknown key"},
+             {"[eval]\nmax_gt_gap_s = soon\n", ini + " [eval] max_gt_gap_s"}}) {
+        std::ofstream(ini) << text;
+        EvalApp app;
+        const auto r = lookup::test::runApp("lookup-eval", app, base);
+        EXPECT_EQ(r.code, 1) << text;
+        EXPECT_EQ(r.err.rfind("lookup-eval: " + names, 0), 0u) << r.err;
+    }
+    EvalApp app;
+    const auto r = lookup::test::runApp("lookup-eval", app, {"--gt", "G", "--out", "O"});
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.err.find("--runs"), std::string::npos) << r.err;
+}
