@@ -31,7 +31,7 @@ TEST(MatchFileSource, NearestRowWithinGapAndBadRows) {
     CoarseQuery q;
     q.time_s = 11.1;
     auto r = src.locate(q);
-    EXPECT_EQ(r.status, CoarseStatus::kExternal);
+    EXPECT_EQ(r.status, CoarseStatus::External);
     EXPECT_TRUE(r.usable());
     EXPECT_DOUBLE_EQ(r.reference_time_s, 504.2);
     EXPECT_EQ(r.reference_index, 4u);  // nearest reference in time to 504.2
@@ -39,7 +39,7 @@ TEST(MatchFileSource, NearestRowWithinGapAndBadRows) {
     EXPECT_DOUBLE_EQ(r.coarse_pose->x(), 12.0);
     q.time_s = 13.0;  // 1 s from the last row: beyond the gap
     r = src.locate(q);
-    EXPECT_EQ(r.status, CoarseStatus::kLost);
+    EXPECT_EQ(r.status, CoarseStatus::Lost);
     EXPECT_FALSE(r.reason.empty());
     EXPECT_EQ(r.query_index, 1u);
 
@@ -64,13 +64,13 @@ TEST(PoseFileSource, InterpolatesAndFindsTheNearestReference) {
     CoarseQuery q;
     q.time_s = 21.2;  // x = 12
     auto r = src.locate(q);
-    ASSERT_EQ(r.status, CoarseStatus::kExternal);
+    ASSERT_EQ(r.status, CoarseStatus::External);
     ASSERT_TRUE(r.coarse_pose.has_value());
     EXPECT_NEAR(r.coarse_pose->x(), 12.0, 1e-3);
     EXPECT_EQ(r.reference_index, 4u);
     EXPECT_DOUBLE_EQ(r.reference_time_s, 504.0);
     q.time_s = 30.0;
-    EXPECT_EQ(src.locate(q).status, CoarseStatus::kLost);
+    EXPECT_EQ(src.locate(q).status, CoarseStatus::Lost);
     EXPECT_THROW(PoseFileSource((dir / "none.tum").string(), 1.0), std::exception);
 }
 

@@ -312,7 +312,7 @@ TEST(Localize, SkippedCoarseSearchesStillBuildTheSequence) {
         q.search = k >= 32;
         const auto r = source->locate(q);
         if (k < 32) {
-            EXPECT_EQ(r.status, coarse::CoarseStatus::kNotSearched) << "frame " << k;
+            EXPECT_EQ(r.status, coarse::CoarseStatus::NotSearched) << "frame " << k;
             EXPECT_FALSE(r.usable());
             EXPECT_EQ(r.evaluated_references, 0u);
             continue;
@@ -320,7 +320,7 @@ TEST(Localize, SkippedCoarseSearchesStillBuildTheSequence) {
         ASSERT_TRUE(r.usable()) << "frame " << k << ": " << r.reason;
         // The first search after skipped frames is global (the last match went stale).
         if (k == 32) {
-            EXPECT_EQ(r.status, coarse::CoarseStatus::kGlobal);
+            EXPECT_EQ(r.status, coarse::CoarseStatus::Global);
         }
         EXPECT_EQ(db.reference(r.reference_index).traverse, "short");
         EXPECT_LE(std::abs(static_cast<int>(r.reference_index) - 60 - k), 1) << "frame " << k;
