@@ -48,7 +48,7 @@ class CoarseTool : public common::App {
     bool initialize(int argc, const char* const* argv) override;
     bool initialize(const std::vector<std::string>& args);
 
-    /// Runs; returns the exit code (common::ExitCode: 1 options, 2 bad input data, 3 write
+    /// Runs; returns the exit code (common::kExit*: 1 options, 2 bad input data, 3 write
     /// error). Errors (bad rawlogs, options, ...) are printed to `err` on one line naming the
     /// file and record (MRPT's dump only with --verbose), never thrown.
     int run(std::ostream& out, std::ostream& err);

@@ -18,7 +18,7 @@ class App {
     /// once with exitCode(): 0 after --help / --version, else the error was printed on stderr
     /// as one line naming the flag, or the file, section and key.
     virtual bool initialize(int argc, const char* const* argv) = 0;
-    /// Does the work; returns the process exit code (common::ExitCode unless the program's
+    /// Does the work; returns the process exit code (common::kExit* unless the program's
     /// --help says otherwise), also kept in exitCode().
     virtual int run() = 0;
     int exitCode() const { return exit_code_; }

@@ -25,7 +25,7 @@ class SurveyApp : public common::App {
     /// error to stderr) when the program should exit; `exitCode()` then tells how.
     bool initialize(int argc, const char* const* argv) override;
     /// Runs the survey, prints the summary line on stdout (on success) or the failure on stderr.
-    /// Returns the process exit code (common::ExitCode); never throws.
+    /// Returns the process exit code (common::kExit*); never throws.
     int run() override;
 
     const SurveyResult& result() const { return result_; }
