@@ -103,7 +103,7 @@ void coarseTrackingFrame(benchmark::State& state, bool odometry) {
         ++frames;
         evaluated += r.evaluated_references;
         candidates += r.searched_candidates;
-        tracking += r.status == lookup::coarse::CoarseStatus::kTracking;
+        tracking += r.status == lookup::coarse::CoarseStatus::Tracking;
     }
     state.counters["evaluated_per_frame"] = static_cast<double>(evaluated) / frames;
     state.counters["candidates_per_frame"] = static_cast<double>(candidates) / frames;

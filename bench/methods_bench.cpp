@@ -23,8 +23,8 @@ struct MethodsWorld {
     synthetic::SyntheticCeiling ceiling = synthetic::SyntheticCeiling::make(5.0, 14.0, 0.008, 11);
     mrpt::img::TCamera camera = synthetic::makeCamera(640, 480, 400);
     CPose3D on_vehicle = synthetic::ceilingCameraOnVehicle();
-    std::vector<Reference> references;  // every 0.5 m along the tunnel
-    std::vector<cv::Mat> queries;       // one near each reference
+    std::vector<ReferenceImage> references;  // every 0.5 m along the tunnel
+    std::vector<cv::Mat> queries;            // one near each reference
     std::vector<CPose3D> query_vehicles;
 
     MethodsWorld() {
@@ -62,8 +62,8 @@ void refinerMethodBench(benchmark::State& state, CorrespondenceMethod method) {
     std::size_t i = 0;
     for (auto _ : state) {
         const std::size_t k = i++ % (w.queries.size() - 5);
-        const std::vector<Reference> refs(w.references.begin() + long(k),
-                                          w.references.begin() + long(k) + n_refs);
+        const std::vector<ReferenceImage> refs(w.references.begin() + long(k),
+                                               w.references.begin() + long(k) + n_refs);
         CoarseHint hint;
         hint.vehicle_pose = w.references[k].vehicle_in_map;
         const auto r = refiner.refine(w.queries[k], w.camera, w.on_vehicle, hint, refs);

@@ -34,7 +34,7 @@ struct World {
     CPose3D on_vehicle = synthetic::ceilingCameraOnVehicle();
 
     struct Pair {
-        Reference reference;
+        ReferenceImage reference;
         cv::Mat query;
         CPose3D query_vehicle;
         cv::Matx33d H;  // true reference -> query pixels
@@ -355,7 +355,7 @@ void refinerBench(benchmark::State& state) {
     for (auto _ : state) {
         // The query of pair k against references k .. k + n_refs - 1 (0.5 m apart).
         const std::size_t k = i++ % (w.pairs.size() - 5);
-        std::vector<Reference> refs;
+        std::vector<ReferenceImage> refs;
         for (int j = 0; j < n_refs; ++j) refs.push_back(w.pairs[k + j].reference);
         CoarseHint hint;
         hint.vehicle_pose = w.pairs[k].reference.vehicle_in_map;

@@ -48,12 +48,15 @@ function(lookup_add_executable)
     set_property(GLOBAL APPEND PROPERTY LOOKUP_PROGRAMS ${ARG_NAME})
 endfunction()
 
-# lookup_add_test(NAME <unit>_test SOURCES ... DEPS ... [LABELS ...])
-# One GoogleTest executable per unit; each TEST becomes its own ctest entry.
+# lookup_add_test(NAME <unit>_test SOURCES ... DEPS ... [LABELS ...] [SLOW Suite.Test ...])
+# One GoogleTest executable per unit, linked with lookup_test_support (tests/support); each
+# TEST becomes its own ctest entry with LABELS. SLOW: the tests of this executable that take
+# over 10 s, labelled `slow` as well (ctest -LE slow leaves them out).
 function(lookup_add_test)
-    cmake_parse_arguments(ARG "" "NAME" "SOURCES;DEPS;LABELS" ${ARGN})
+    cmake_parse_arguments(ARG "" "NAME" "SOURCES;DEPS;LABELS;SLOW" ${ARGN})
     add_executable(${ARG_NAME} ${ARG_SOURCES})
-    target_link_libraries(${ARG_NAME} PRIVATE ${ARG_DEPS} GTest::gtest GTest::gtest_main)
+    target_link_libraries(${ARG_NAME} PRIVATE ${ARG_DEPS} lookup_test_support GTest::gtest
+                                              GTest::gtest_main)
     target_compile_definitions(${ARG_NAME} PRIVATE
         LOOKUP_SOURCE_SHARE_DIR="${LOOKUP_SOURCE_SHARE_DIR}"
         LOOKUP_BINARY_DIR="${CMAKE_BINARY_DIR}")
@@ -61,9 +64,26 @@ function(lookup_add_test)
     # Test folders go under this build tree, not the shared /tmp: two build trees running
     # their tests at once (a CI clone beside a working copy) would remove each other's files.
     file(MAKE_DIRECTORY ${CMAKE_BINARY_DIR}/test-tmp)
-    gtest_discover_tests(${ARG_NAME} DISCOVERY_TIMEOUT 60
-                         PROPERTIES LABELS "${ARG_LABELS}"
-                                    ENVIRONMENT "TMPDIR=${CMAKE_BINARY_DIR}/test-tmp")
+    # An empty LABELS value would swallow the next property name (one label here; SLOW adds
+    # `slow` to it).
+    set(properties ENVIRONMENT "TMPDIR=${CMAKE_BINARY_DIR}/test-tmp")
+    if(ARG_LABELS)
+        list(APPEND properties LABELS ${ARG_LABELS})
+    endif()
+    gtest_discover_tests(${ARG_NAME} DISCOVERY_TIMEOUT 60 PROPERTIES ${properties})
+    # The discovered names are known only at test time: ctest reads this file after the
+    # discovered tests (TEST_INCLUDE_FILES in order); names not discovered are ignored.
+    if(ARG_SLOW)
+        set(slow_labels ${ARG_LABELS} slow)
+        set(script "")
+        foreach(test ${ARG_SLOW})
+            string(APPEND script
+                   "set_tests_properties([=[${test}]=] PROPERTIES LABELS \"${slow_labels}\")\n")
+        endforeach()
+        set(file ${CMAKE_CURRENT_BINARY_DIR}/${ARG_NAME}_slow.cmake)
+        file(WRITE ${file} "${script}")
+        set_property(DIRECTORY APPEND PROPERTY TEST_INCLUDE_FILES ${file})
+    endif()
     if("fault" IN_LIST ARG_LABELS AND TARGET lookup_fault_tests)
         add_dependencies(lookup_fault_tests ${ARG_NAME})
     endif()

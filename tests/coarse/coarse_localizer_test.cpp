@@ -52,7 +52,7 @@ RunStats runQuery(SyntheticRoute& route, CoarseLocalizer& loc, double x0, double
         const auto r = loc.process(image, 1000.0 + t,
                                    odometry && t > 0 ? std::optional<double>(speed) : std::nullopt);
         if (t < loc.options().sequence_length - 1) {
-            EXPECT_EQ(r.status, CoarseStatus::kNotEnoughFrames) << "frame " << t;
+            EXPECT_EQ(r.status, CoarseStatus::NotEnoughFrames) << "frame " << t;
             continue;
         }
         ++s.full;
@@ -69,7 +69,7 @@ RunStats runQuery(SyntheticRoute& route, CoarseLocalizer& loc, double x0, double
             if (v < best_d) best_d = v, best = i;
         }
         if (std::abs(static_cast<long>(best) - truth) <= 1) ++s.single_correct;
-        if (r.status == CoarseStatus::kTracking) {
+        if (r.status == CoarseStatus::Tracking) {
             ++s.tracking;
             s.max_tracking_evaluated = std::max(s.max_tracking_evaluated, r.evaluated_references);
             s.max_tracking_candidates = std::max(s.max_tracking_candidates, r.searched_candidates);
@@ -147,7 +147,7 @@ TEST(CoarseLocalizer, IndexedGlobalSearchFindsThePlaceAtACostThatDoesNotGrowWith
                 for (int t = 0; t < 70; ++t) {
                     const double x = x0 + t;
                     const auto r = loc.process(route.image(x, 8.0, 0.7, 25.0), 1000.0 * leg + t);
-                    const bool global = r.status != CoarseStatus::kTracking;
+                    const bool global = r.status != CoarseStatus::Tracking;
                     if (use_index && global) {
                         global_candidates[k] =
                             std::max(global_candidates[k], r.searched_candidates);
@@ -192,7 +192,7 @@ TEST(CoarseLocalizer, UnconfidentIndexedSearchesFallBackToTheWholeReference) {
             since_whole = 0;
         } else {
             ++since_whole;
-            if (r.status != CoarseStatus::kTracking) {
+            if (r.status != CoarseStatus::Tracking) {
                 EXPECT_LT(r.searched_candidates, 1500u) << "frame " << t;
             }
         }
@@ -264,12 +264,12 @@ TEST(CoarseLocalizer, OdometryHoldsTheTrackThroughAUniformStretch) {
                                        t > 0 ? std::optional<double>(1.0) : std::nullopt);
             const bool right = r.hasMatch() &&
                                std::abs(static_cast<long>(r.reference_index) - std::lround(x)) <= 2;
-            if (r.usable() && !right && r.status != CoarseStatus::kOdometry) ++in.confident_wrong;
+            if (r.usable() && !right && r.status != CoarseStatus::Odometry) ++in.confident_wrong;
             if (x < 110 || x > 179) continue;  // inside, a few places past its start
             ++in.frames;
             in.usable += r.usable();
             in.right += r.usable() && right;
-            in.held += r.status == CoarseStatus::kOdometry;
+            in.held += r.status == CoarseStatus::Odometry;
         }
         return in;
     };
@@ -306,7 +306,7 @@ TEST(CoarseLocalizer, HeldTrackIsDroppedAndTheRightPlaceFoundAfterKidnappingWith
         } else if (r.usable() && t >= o.sequence_length) {
             // Until the buffer holds mostly post-jump frames the old trajectory may still win
             // (as without odometry); after that the old place is only held, never claimed.
-            EXPECT_EQ(r.status, CoarseStatus::kOdometry) << "frame " << t << ": " << r.reason;
+            EXPECT_EQ(r.status, CoarseStatus::Odometry) << "frame " << t << ": " << r.reason;
         }
     }
     // The held track is dropped once a sequence of unconfident windows says many places fit
@@ -325,7 +325,7 @@ TEST(CoarseLocalizer, HeldTrackIsDroppedAndTheRightPlaceFoundAfterKidnappingWith
     for (int t = 0; t <= recovered_after; ++t) {
         const auto r = unaudited.process(route.image(250.0 + t, 8.0), 70.0 + t, 1.0, true, false);
         if (t >= o.sequence_length) {
-            EXPECT_EQ(r.status, CoarseStatus::kOdometry) << "frame " << t << ": " << r.reason;
+            EXPECT_EQ(r.status, CoarseStatus::Odometry) << "frame " << t << ": " << r.reason;
         }
     }
 }
@@ -340,17 +340,17 @@ TEST(CoarseLocalizer, RejectedMatchStartsAFreshConfirmedAcquisition) {
     };
     int t = 0;
     for (; t < 80; ++t) frame(t);
-    ASSERT_EQ(frame(t++).status, CoarseStatus::kTracking);
+    ASSERT_EQ(frame(t++).status, CoarseStatus::Tracking);
     // The consumer found no ceiling match around it: the stage searches the whole reference
     // again, and trusts the result only once a later sequence agrees.
     loc.rejectLastMatch();
     const auto first = frame(t++);
-    EXPECT_EQ(first.status, CoarseStatus::kUnconfirmed) << first.reason;
+    EXPECT_EQ(first.status, CoarseStatus::Unconfirmed) << first.reason;
     EXPECT_FALSE(first.usable());
     int confirmed_after = -1;
     for (int k = 1; k <= o.sequence_length + 1 && confirmed_after < 0; ++k, ++t) {
         const auto r = frame(t);
-        if (r.status == CoarseStatus::kGlobal) {
+        if (r.status == CoarseStatus::Global) {
             confirmed_after = k;
             EXPECT_NEAR(static_cast<double>(r.reference_index), 20.0 + t, 1.0);
         }
@@ -377,24 +377,24 @@ TEST(CoarseLocalizer, BadInputGivesReasonsNotCrashes) {
     CoarseLocalizer loc(makeReferences(route, 50, o), o);
     // A single query frame: a best guess, flagged as not enough frames, with a reason.
     auto r = loc.process(route.image(3, 4.0), 0);
-    EXPECT_EQ(r.status, CoarseStatus::kNotEnoughFrames);
+    EXPECT_EQ(r.status, CoarseStatus::NotEnoughFrames);
     EXPECT_FALSE(r.usable());
     EXPECT_NE(r.reason.find("sequence_length"), std::string::npos);
     // A query image of another size.
     cv::Mat big(96, 128, CV_8U, cv::Scalar(100));
     r = loc.process(mrpt::img::CImage(big, mrpt::img::DEEP_COPY), 1);
-    EXPECT_EQ(r.status, CoarseStatus::kInvalidInput);
+    EXPECT_EQ(r.status, CoarseStatus::InvalidInput);
     EXPECT_NE(r.reason.find("128x96"), std::string::npos);
     EXPECT_NE(r.reason.find("64x48"), std::string::npos);
     // An empty image and a missing one.
     r = loc.process(mrpt::img::CImage(), 2);
-    EXPECT_EQ(r.status, CoarseStatus::kInvalidInput);
+    EXPECT_EQ(r.status, CoarseStatus::InvalidInput);
     CoarseQuery q;
     q.time_s = 3;
-    EXPECT_EQ(loc.locate(q).status, CoarseStatus::kInvalidInput);
+    EXPECT_EQ(loc.locate(q).status, CoarseStatus::InvalidInput);
     // A descriptor of the wrong length.
     r = loc.processDescriptor(Descriptor(10, 128), 4);
-    EXPECT_EQ(r.status, CoarseStatus::kInvalidInput);
+    EXPECT_EQ(r.status, CoarseStatus::InvalidInput);
     // A featureless query stream (lens covered): never a confident match.
     cv::Mat flat(48, 64, CV_8U, cv::Scalar(90));
     for (int t = 0; t < 30; ++t) {

@@ -6,6 +6,7 @@
 #include <fstream>
 
 #include "lookup/common/config.h"
+#include "lookup/test/support.h"
 
 namespace fs = std::filesystem;
 
@@ -22,22 +23,15 @@ std::shared_ptr<ReferenceDescriptors> posedReferences() {
     return refs;
 }
 
-fs::path tempDir(const std::string& name) {
-    auto dir = fs::temp_directory_path() / ("lookup_coarse_" + name);
-    fs::remove_all(dir);
-    fs::create_directories(dir);
-    return dir;
-}
-
 TEST(MatchFileSource, NearestRowWithinGapAndBadRows) {
-    const auto dir = tempDir("matchfile");
+    const auto dir = lookup::test::freshDir("lookup_coarse_matchfile");
     const std::string path = (dir / "matches.txt").string();
     std::ofstream(path) << "# query reference\n10.0 503.0\n\n11.0 504.2\n12.0 505.0\n";
     MatchFileSource src(path, 0.3, posedReferences());
     CoarseQuery q;
     q.time_s = 11.1;
     auto r = src.locate(q);
-    EXPECT_EQ(r.status, CoarseStatus::kExternal);
+    EXPECT_EQ(r.status, CoarseStatus::External);
     EXPECT_TRUE(r.usable());
     EXPECT_DOUBLE_EQ(r.reference_time_s, 504.2);
     EXPECT_EQ(r.reference_index, 4u);  // nearest reference in time to 504.2
@@ -45,7 +39,7 @@ TEST(MatchFileSource, NearestRowWithinGapAndBadRows) {
     EXPECT_DOUBLE_EQ(r.coarse_pose->x(), 12.0);
     q.time_s = 13.0;  // 1 s from the last row: beyond the gap
     r = src.locate(q);
-    EXPECT_EQ(r.status, CoarseStatus::kLost);
+    EXPECT_EQ(r.status, CoarseStatus::Lost);
     EXPECT_FALSE(r.reason.empty());
     EXPECT_EQ(r.query_index, 1u);
 
@@ -61,7 +55,7 @@ TEST(MatchFileSource, NearestRowWithinGapAndBadRows) {
 }
 
 TEST(PoseFileSource, InterpolatesAndFindsTheNearestReference) {
-    const auto dir = tempDir("posefile");
+    const auto dir = lookup::test::freshDir("lookup_coarse_posefile");
     const std::string path = (dir / "coarse.tum").string();
     common::PoseTrack track = {{20.0, mrpt::poses::CPose3D(0, 0, 0, 0, 0, 0)},
                                {22.0, mrpt::poses::CPose3D(20, 0, 0, 0, 0, 0)}};
@@ -70,13 +64,13 @@ TEST(PoseFileSource, InterpolatesAndFindsTheNearestReference) {
     CoarseQuery q;
     q.time_s = 21.2;  // x = 12
     auto r = src.locate(q);
-    ASSERT_EQ(r.status, CoarseStatus::kExternal);
+    ASSERT_EQ(r.status, CoarseStatus::External);
     ASSERT_TRUE(r.coarse_pose.has_value());
     EXPECT_NEAR(r.coarse_pose->x(), 12.0, 1e-3);
     EXPECT_EQ(r.reference_index, 4u);
     EXPECT_DOUBLE_EQ(r.reference_time_s, 504.0);
     q.time_s = 30.0;
-    EXPECT_EQ(src.locate(q).status, CoarseStatus::kLost);
+    EXPECT_EQ(src.locate(q).status, CoarseStatus::Lost);
     EXPECT_THROW(PoseFileSource((dir / "none.tum").string(), 1.0), std::exception);
 }
 

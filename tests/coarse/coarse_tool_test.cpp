@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "lookup/coarse/options.h"
+#include "lookup/test/support.h"
 #include "route_rawlog.h"
 
 namespace fs = std::filesystem;
@@ -24,9 +25,7 @@ struct Fixture {
 
 Fixture writeFixture(const std::string& name) {
     Fixture f;
-    f.dir = fs::temp_directory_path() / ("lookup_coarse_tool_" + name);
-    fs::remove_all(f.dir);
-    fs::create_directories(f.dir);
+    f.dir = lookup::test::freshDir("lookup_coarse_tool_" + name);
     SyntheticRoute route(120, 3, 21);
     f.ref = fs::absolute(f.dir / "ref.rawlog").string();
     f.query = fs::absolute(f.dir / "query.rawlog").string();

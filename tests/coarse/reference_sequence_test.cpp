@@ -6,6 +6,7 @@
 #include <fstream>
 
 #include "lookup/common/rawlog_io.h"
+#include "lookup/test/support.h"
 #include "route_rawlog.h"
 
 namespace fs = std::filesystem;
@@ -14,13 +15,6 @@ namespace lookup::coarse {
 namespace {
 
 using testing::SyntheticRoute;
-
-fs::path tempDir(const std::string& name) {
-    auto dir = fs::temp_directory_path() / ("lookup_coarse_" + name);
-    fs::remove_all(dir);
-    fs::create_directories(dir);
-    return dir;
-}
 
 TEST(Descriptor, InvariantToIlluminationButNotToPlace) {
     SyntheticRoute route(10, 10, 3);
@@ -54,7 +48,7 @@ TEST(ReferenceDescriptors, SaveLoadRoundTripAndBrokenFiles) {
     EXPECT_EQ(refs.nearestInTime(105.1), 10u);
     EXPECT_EQ(refs.nearestInSpace(mrpt::poses::CPose3D(41, 1, 0, 0, 0, 0)), 20u);
 
-    const auto dir = tempDir("descriptors");
+    const auto dir = lookup::test::freshDir("lookup_coarse_descriptors");
     const std::string path = (dir / "forward.coarse").string();
     refs.saveDescriptors(path);
     EXPECT_FALSE(fs::exists(path + ".tmp"));
@@ -96,7 +90,7 @@ TEST(ReferenceDescriptors, SaveLoadRoundTripAndBrokenFiles) {
 
 TEST(BuildReferenceSequence, FromRawlogWithPosesAndBadInput) {
     SyntheticRoute route(40, 3, 9);
-    const auto dir = tempDir("build");
+    const auto dir = lookup::test::freshDir("lookup_coarse_build");
     const std::string rawlog = fs::absolute(dir / "ref.rawlog").string();
     const std::string gt = (dir / "ref.rawlog.GT.txt").string();
     testing::writeRouteRawlog(rawlog, route, testing::positionsFrom(0, 1, 25), 50.0, "FORWARD_CAM",

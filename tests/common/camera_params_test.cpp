@@ -9,6 +9,7 @@
 
 #include "lookup/common/camera_params.h"
 #include "lookup/common/config.h"
+#include "lookup/test/support.h"
 
 namespace fs = std::filesystem;
 using lookup::common::applyCameraParams;
@@ -19,9 +20,7 @@ namespace {
 
 // A sensors.ini path in a fresh folder holding `calib.ini` with `calib_text`.
 std::string sensorsPathWithCalib(const std::string& name, const std::string& calib_text) {
-    const fs::path dir = fs::temp_directory_path() / ("camera_params_" + name);
-    fs::remove_all(dir);
-    fs::create_directories(dir);
+    const fs::path dir = lookup::test::freshDir("camera_params_" + name);
     std::ofstream(dir / "calib.ini") << calib_text;
     return (dir / "sensors.ini").string();
 }

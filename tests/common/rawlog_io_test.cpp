@@ -6,6 +6,7 @@
 #include <fstream>
 
 #include "lookup/common/rawlog_io.h"
+#include "lookup/test/support.h"
 
 namespace fs = std::filesystem;
 using lookup::common::RawlogError;
@@ -13,12 +14,6 @@ using lookup::common::RawlogReader;
 using lookup::common::RawlogWriter;
 
 namespace {
-fs::path tempDir(const std::string& name) {
-    auto dir = fs::temp_directory_path() / ("lookup_common_" + name);
-    fs::remove_all(dir);
-    fs::create_directories(dir);
-    return dir;
-}
 
 void writeSample(const std::string& path) {
     RawlogWriter w(path);
@@ -40,7 +35,7 @@ void writeSample(const std::string& path) {
 }  // namespace
 
 TEST(Rawlog, RoundTripWithExternalImagesFromAbsolutePath) {
-    const auto dir = tempDir("roundtrip");
+    const auto dir = lookup::test::freshDir("lookup_common_roundtrip");
     const std::string path = fs::absolute(dir / "traverse.rawlog").string();
     writeSample(path);
     ASSERT_TRUE(fs::exists(dir / "traverse_Images" / "CEILING_CAM_2.png"));
@@ -65,7 +60,7 @@ TEST(Rawlog, RoundTripWithExternalImagesFromAbsolutePath) {
 TEST(Rawlog, MissingFileAndTruncatedDataNameTheFile) {
     EXPECT_THROW(RawlogReader("/nonexistent/x.rawlog"), RawlogError);
 
-    const auto dir = tempDir("truncated");
+    const auto dir = lookup::test::freshDir("lookup_common_truncated");
     const std::string path = (dir / "t.rawlog").string();
     writeSample(path);
     // Re-write uncompressed and cut in the middle of a record.
@@ -77,7 +72,8 @@ TEST(Rawlog, MissingFileAndTruncatedDataNameTheFile) {
         while ((n = in.Read(buf.data(), buf.size())) > 0) bytes.append(buf.data(), n);
     }
     const std::string cut = (dir / "cut.rawlog").string();
-    std::ofstream(cut, std::ios::binary).write(bytes.data(), bytes.size() - 5);  // inside the last record
+    std::ofstream(cut, std::ios::binary)
+        .write(bytes.data(), bytes.size() - 5);  // inside the last record
     RawlogReader r(cut);
     mrpt::obs::CObservation::Ptr obs;
     try {

@@ -19,18 +19,12 @@
 #include "lookup/database/database_writer.h"
 #include "lookup/database/manifest.h"
 #include "lookup/database/reference_database.h"
+#include "lookup/test/support.h"
 
 namespace fs = std::filesystem;
 using namespace lookup::database;
 
 namespace {
-
-fs::path tempDir(const std::string& name) {
-    auto dir = fs::temp_directory_path() / ("lookup_database_fault_" + name);
-    fs::remove_all(dir);
-    fs::create_directories(dir);
-    return dir;
-}
 
 // A database of `n` references of 64x48 px of noise (so PNG and gzip cannot shrink them).
 void writeDatabase(const fs::path& out, int n) {
@@ -114,7 +108,7 @@ int leftovers(const fs::path& dir) {
 }  // namespace
 
 TEST(DatabaseFault, FlippedByteInAnyFileRefusedNamingIt) {
-    const auto dir = tempDir("flip");
+    const auto dir = lookup::test::freshDir("lookup_database_fault_flip");
     writeDatabase(dir / "db", 4);
     ASSERT_EQ(loadError(dir / "db"), "");
     for (const std::string rel :
@@ -138,7 +132,7 @@ TEST(DatabaseFault, FlippedByteInAnyFileRefusedNamingIt) {
 
 // Heat maps as lookup-train leaves them: a folder with a manifest of its own, listed in db.ini.
 TEST(DatabaseFault, DamagedOrMissingHeatMapsNamed) {
-    const auto dir = tempDir("heatmaps");
+    const auto dir = lookup::test::freshDir("lookup_database_fault_heatmaps");
     const fs::path db = dir / "db";
     const fs::path heat = db / "heatmaps_001";
     const auto withHeatMaps = [&](const std::string& listed) {
@@ -172,7 +166,7 @@ TEST(DatabaseFault, DamagedOrMissingHeatMapsNamed) {
 }
 
 TEST(DatabaseFault, MalformedDbIniValuesNamed) {
-    const auto dir = tempDir("dbini");
+    const auto dir = lookup::test::freshDir("lookup_database_fault_dbini");
     const auto rewrite = [&](const std::string& from, const std::string& to) {
         writeDatabase(dir / "db", 2);
         fs::remove(dir / "db" / kManifest);  // the values, not the checksum, are under test
@@ -199,7 +193,7 @@ TEST(DatabaseFault, MalformedDbIniValuesNamed) {
 }
 
 TEST(DatabaseFault, KillAtEveryStepOfTheReplacementLosesNothing) {
-    const auto dir = tempDir("kill");
+    const auto dir = lookup::test::freshDir("lookup_database_fault_kill");
     const fs::path db = dir / "db";
     for (const char* point : {"staging-created", "between-renames", "before-old-removed"}) {
         fs::remove_all(db);
@@ -230,7 +224,7 @@ TEST(DatabaseFault, KillAtEveryStepOfTheReplacementLosesNothing) {
 }
 
 TEST(DatabaseFault, FullDiskIsAWriteErrorAndKeepsTheOldDatabase) {
-    const auto dir = tempDir("full");
+    const auto dir = lookup::test::freshDir("lookup_database_fault_full");
     const fs::path db = dir / "db";
     writeDatabase(dir / "probe", 60);
     const auto png = fs::file_size(dir / "probe" / "refs_Images" / "ceiling_000000.png");
@@ -256,7 +250,7 @@ TEST(DatabaseFault, FullDiskIsAWriteErrorAndKeepsTheOldDatabase) {
 }
 
 TEST(DatabaseFault, NonFinitePoseNeverStored) {
-    const auto dir = tempDir("nanpose");
+    const auto dir = lookup::test::freshDir("lookup_database_fault_nanpose");
     DatabaseWriter w((dir / "db").string());
     ReferenceInput in;
     in.ceiling = mrpt::obs::CObservationImage::Create();

@@ -7,18 +7,12 @@
 
 #include "lookup/database/database_writer.h"
 #include "lookup/database/reference_database.h"
+#include "lookup/test/support.h"
 
 namespace fs = std::filesystem;
 using namespace lookup::database;
 
 namespace {
-
-fs::path tempDir(const std::string& name) {
-    auto dir = fs::temp_directory_path() / ("lookup_database_" + name);
-    fs::remove_all(dir);
-    fs::create_directories(dir);
-    return dir;
-}
 
 mrpt::poses::CPose3D poseOf(int i) {
     // A winding path with a few revisits, so spatial and time order differ.
@@ -68,7 +62,7 @@ void writeDatabase(const fs::path& out, int n) {
 }  // namespace
 
 TEST(Database, RoundTripPosesIntrinsicsAndLazyBoundedImages) {
-    const auto dir = tempDir("roundtrip");
+    const auto dir = lookup::test::freshDir("lookup_database_roundtrip");
     writeDatabase(dir / "db", 40);
     auto db = ReferenceDatabase::load((dir / "db").string(), 5);
     ASSERT_EQ(db.size(), 40u);
@@ -103,7 +97,7 @@ TEST(Database, RoundTripPosesIntrinsicsAndLazyBoundedImages) {
 }
 
 TEST(Database, SpatialAndTimeQueriesMatchBruteForce) {
-    const auto dir = tempDir("queries");
+    const auto dir = lookup::test::freshDir("lookup_database_queries");
     writeDatabase(dir / "db", 60);
     const auto db = ReferenceDatabase::load((dir / "db").string());
     auto& rng = mrpt::random::getRandomGenerator();
@@ -140,7 +134,7 @@ TEST(Database, SpatialAndTimeQueriesMatchBruteForce) {
 }
 
 TEST(Database, UncommittedWriterLeavesNothingAndKeepsExistingDatabase) {
-    const auto dir = tempDir("atomic");
+    const auto dir = lookup::test::freshDir("lookup_database_atomic");
     { DatabaseWriter w((dir / "fresh").string()); }  // e.g. a survey that threw
     EXPECT_FALSE(fs::exists(dir / "fresh"));
     writeDatabase(dir / "db", 4);
@@ -160,7 +154,7 @@ TEST(Database, UncommittedWriterLeavesNothingAndKeepsExistingDatabase) {
 }
 
 TEST(Database, MissingImageAndMissingFolderNamed) {
-    const auto dir = tempDir("broken");
+    const auto dir = lookup::test::freshDir("lookup_database_broken");
     writeDatabase(dir / "db", 3);
     fs::remove(dir / "db" / "refs_Images" / "ceiling_000001.png");
     try {

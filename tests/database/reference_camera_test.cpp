@@ -14,18 +14,12 @@
 #include "lookup/database/manifest.h"
 #include "lookup/database/reference_database.h"
 #include "lookup/obs/observation_lookup_reference.h"
+#include "lookup/test/support.h"
 
 namespace fs = std::filesystem;
 using namespace lookup::database;
 
 namespace {
-
-fs::path tempDir(const std::string& name) {
-    auto dir = fs::temp_directory_path() / ("lookup_refcam_" + name);
-    fs::remove_all(dir);
-    fs::create_directories(dir);
-    return dir;
-}
 
 mrpt::img::TCamera camera(double f, bool barrel) {
     mrpt::img::TCamera c;
@@ -118,7 +112,7 @@ void downgradeToVersionZero(const fs::path& db) {
 }  // namespace
 
 TEST(ReferenceCamera, EachReferenceKeepsItsOwnIntrinsicsAndDistortion) {
-    const auto dir = tempDir("own");
+    const auto dir = lookup::test::freshDir("lookup_refcam_own");
     writeTwoCameras(dir / "db");
     const auto db = ReferenceDatabase::load((dir / "db").string());
     ASSERT_EQ(db.size(), 6u);
@@ -133,7 +127,7 @@ TEST(ReferenceCamera, EachReferenceKeepsItsOwnIntrinsicsAndDistortion) {
 }
 
 TEST(ReferenceCamera, VersionZeroRecordsTakeTheDatabaseCamera) {
-    const auto dir = tempDir("v0");
+    const auto dir = lookup::test::freshDir("lookup_refcam_v0");
     writeTwoCameras(dir / "db");
     downgradeToVersionZero(dir / "db");
     const auto db = ReferenceDatabase::load((dir / "db").string());
@@ -147,7 +141,7 @@ TEST(ReferenceCamera, VersionZeroRecordsTakeTheDatabaseCamera) {
 }
 
 TEST(ReferenceCamera, BadIntrinsicsAreRefusedNamingTheReference) {
-    const auto dir = tempDir("bad");
+    const auto dir = lookup::test::freshDir("lookup_refcam_bad");
     DatabaseWriter w((dir / "db").string());
     w.add(input(0, camera(20.0, false)));
     auto nan_dist = camera(20.0, true);

@@ -11,8 +11,11 @@
 
 #include "../common/round_trip.h"
 #include "lookup/common/config.h"
+#include "lookup/common/pose_files.h"
+#include "lookup/eval/eval_app.h"
 #include "lookup/eval/evaluator.h"
 #include "lookup/eval/report_json.h"
+#include "lookup/test/support.h"
 
 namespace fs = std::filesystem;
 using namespace lookup::eval;
@@ -141,9 +144,7 @@ TEST(Evaluate, RunOutsideEveryTruthIsReportedNotMatched) {
 }
 
 TEST(RunIo, RoundTripAndMalformedRowNamesFileAndLine) {
-    const auto dir = fs::temp_directory_path() / "lookup_eval_run";
-    fs::remove_all(dir);
-    fs::create_directories(dir);
+    const auto dir = lookup::test::freshDir("lookup_eval_run");
     auto run = runWithOffsets({0.1, 0.2}, 1.0);
     run.frames[1].reason = "inliers 40%, below N_th";
     writeFramesCsv((dir / "frames.csv").string(), run.frames);
@@ -188,9 +189,7 @@ TEST(Report, WritesMarkdownJsonAndChart) {
 }
 
 TEST(RunIo, HugeValuesRoundTripThroughFramesCsv) {
-    const auto dir = fs::temp_directory_path() / "lookup_eval_huge";
-    fs::remove_all(dir);
-    fs::create_directories(dir);
+    const auto dir = lookup::test::freshDir("lookup_eval_huge");
     FrameRow r;
     r.time_s = 1.7e9;
     r.status = "fallback";
@@ -213,9 +212,7 @@ TEST(RunIo, HugeValuesRoundTripThroughFramesCsv) {
 }
 
 TEST(RunIo, IncompleteEmptyAndNonFiniteRunsAreNamedProblems) {
-    const auto dir = fs::temp_directory_path() / "lookup_eval_problems";
-    fs::remove_all(dir);
-    fs::create_directories(dir);
+    const auto dir = lookup::test::freshDir("lookup_eval_problems");
     auto run = runWithOffsets({0.1, 0.2, 0.3}, 1.0);
     writeFramesCsv((dir / "frames.csv").string(), run.frames);
     EXPECT_NE(runProblem(loadRun(dir.string())).find("no timing.json"), std::string::npos);
@@ -252,15 +249,6 @@ TEST(Report, RowRoundTripsThroughJson) {
     EXPECT_THROW(methodResultFromJson(broken), nlohmann::json::exception);
 }
 
-namespace {
-
-std::string readText(const fs::path& p) {
-    std::ifstream f(p);
-    return std::string((std::istreambuf_iterator<char>(f)), {});
-}
-
-}  // namespace
-
 TEST(Pictures, EveryMethodHasItsOwnColour) {
     const auto& table = methodColourTable();
     std::vector<std::string> names, colours;
@@ -291,9 +279,7 @@ TEST(Pictures, EveryMethodHasItsOwnColour) {
 }
 
 TEST(Pictures, TrajectoryAndErrorAlongTheRouteForASmallRun) {
-    const auto dir = fs::temp_directory_path() / "lookup_eval_pictures";
-    fs::remove_all(dir);
-    fs::create_directories(dir);
+    const auto dir = lookup::test::freshDir("lookup_eval_pictures");
     auto grid_run = runWithOffsets({0.05, 0.1, 0.2, 0.1, 0.3, 0.05}, 1.0);
     grid_run.frames[2].status = "fallback";
     grid_run.frames[3].status = "lost";
@@ -330,12 +316,12 @@ TEST(Pictures, TrajectoryAndErrorAlongTheRouteForASmallRun) {
             EXPECT_GT(fs::file_size(out / png), 1000u) << png;
         }
     }
-    const std::string traj = readText(out / "trajectory_zigzag_lookup-grid24.gp");
+    const std::string traj = lookup::test::readText(out / "trajectory_zigzag_lookup-grid24.gp");
     EXPECT_NE(traj.find("fallback"), std::string::npos) << traj;
     EXPECT_NE(traj.find("lost"), std::string::npos) << traj;
     EXPECT_NE(traj.find("map_walls.dat"), std::string::npos) << traj;
-    const std::string along = readText(out / "error_along_zigzag.gp");
-    const std::string errors = readText(out / "errors.gp");
+    const std::string along = lookup::test::readText(out / "error_along_zigzag.gp");
+    const std::string errors = lookup::test::readText(out / "errors.gp");
     for (const char* m : {"lookup-grid24", "laser-ecc", "coarse"}) {
         const std::string colour = methodColour(m, {});
         EXPECT_NE(along.find(colour), std::string::npos) << m << "\n" << along;
@@ -348,4 +334,73 @@ TEST(EvalOptions, SaveThenLoadGivesTheSameOptions) {
     o.max_gt_gap_s = 0.125;
     o.confident_wrong_min_error_m = 1.0 / 3.0;
     lookup::options_testing::expectRoundTrip(o, "eval");
+}
+
+// EvalApp, the lookup-eval program as a class.
+namespace {
+
+// A finished run folder (frames.csv, run.ini, timing.json) and the ground truth it drove.
+void writeRunAndTruth(const fs::path& dir) {
+    fs::create_directories(dir / "run");
+    const auto run = runWithOffsets({0.1, 0.2, 0.3}, 1.0);
+    writeFramesCsv((dir / "run" / "frames.csv").string(), run.frames);
+    std::ofstream(dir / "run" / "run.ini") << "[run]\nmethod = lookup-grid24\n";
+    std::ofstream(dir / "run" / "timing.json") << R"({"frames": 3, "frames_per_s": 10})";
+    lookup::common::writeTumPoseFile((dir / "zigzag.rawlog.GT.txt").string(),
+                                     straightTruth().track);
+}
+
+}  // namespace
+
+TEST(EvalApp, RunScoresTheRunsAndPrintsTheReport) {
+    const auto dir = lookup::test::freshDir("lookup_eval_app_run");
+    writeRunAndTruth(dir);
+    EvalApp app;
+    const auto r =
+        lookup::test::runApp("lookup-eval", app,
+                             {"--gt", (dir / "zigzag.rawlog.GT.txt").string(), "--runs",
+                              (dir / "run").string(), "--out", (dir / "report").string()});
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_NE(r.out.find("| zigzag | lookup-grid24 | 3 |"), std::string::npos) << r.out;
+    EXPECT_EQ(r.out, lookup::test::readText(dir / "report" / "report.md"));
+    EXPECT_TRUE(fs::is_regular_file(dir / "report" / "report.json"));
+}
+
+TEST(EvalApp, AnUnfinishedRunIsRefusedUnlessPartial) {
+    const auto dir = lookup::test::freshDir("lookup_eval_app_partial");
+    writeRunAndTruth(dir);
+    fs::remove(dir / "run" / "timing.json");
+    const std::vector<std::string> args{"--gt",   (dir / "zigzag.rawlog.GT.txt").string(),
+                                        "--runs", (dir / "run").string(),
+                                        "--out",  (dir / "report").string()};
+    EvalApp refused;
+    const auto r = lookup::test::runApp("lookup-eval", refused, args);
+    EXPECT_EQ(r.code, 2);
+    EXPECT_NE(r.err.find("not scored: no timing.json"), std::string::npos) << r.err;
+    EvalApp partial;
+    std::vector<std::string> with_partial = args;
+    with_partial.push_back("--partial");
+    const auto p = lookup::test::runApp("lookup-eval", partial, with_partial);
+    EXPECT_EQ(p.code, 0) << p.err;
+    EXPECT_NE(p.err.find("scored, flagged"), std::string::npos) << p.err;
+}
+
+TEST(EvalApp, BadFlagsAndIniTyposAreRefusedNamingThem) {
+    const auto dir = lookup::test::freshDir("lookup_eval_app_ini");
+    const std::string ini = (dir / "eval.ini").string();
+    const std::vector<std::string> base{"--gt", "G", "--runs", "R", "--out", "O", "--ini", ini};
+    for (const auto& [text, names] : std::vector<std::pair<std::string, std::string>>{
+             {"[evl]\ncoarse_exclusion_m = 3\n", ini + " [evl]: unknown section"},
+             {"[eval]\ncoarse_exclusion = 3\n", ini + " [eval] coarse_exclusion: unknown key"},
+             {"[eval]\nmax_gt_gap_s = soon\n", ini + " [eval] max_gt_gap_s"}}) {
+        std::ofstream(ini) << text;
+        EvalApp app;
+        const auto r = lookup::test::runApp("lookup-eval", app, base);
+        EXPECT_EQ(r.code, 1) << text;
+        EXPECT_EQ(r.err.rfind("lookup-eval: " + names, 0), 0u) << r.err;
+    }
+    EvalApp app;
+    const auto r = lookup::test::runApp("lookup-eval", app, {"--gt", "G", "--out", "O"});
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.err.find("--runs"), std::string::npos) << r.err;
 }

@@ -55,13 +55,6 @@ const PipeScene& scene() {
     return s;
 }
 
-fs::path freshDir(const std::string& name) {
-    const auto dir = fs::temp_directory_path() / ("lookup_fcn_" + name);
-    fs::remove_all(dir);
-    fs::create_directories(dir);
-    return dir;
-}
-
 namespace {
 mrpt::obs::CObservationImage::Ptr observation(const mrpt::poses::CPose3D& vehicle, double t) {
     auto obs = mrpt::obs::CObservationImage::Create();

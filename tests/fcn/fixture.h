@@ -11,6 +11,7 @@
 #include "lookup/common/pose_files.h"
 #include "lookup/fcn/options.h"
 #include "lookup/refine/testing/synthetic_ceiling.h"
+#include "lookup/test/support.h"
 
 namespace lookup::fcn::fixture {
 
@@ -30,8 +31,6 @@ struct PipeScene {
     cv::Mat pipeMask(const mrpt::poses::CPose3D& vehicle) const;
 };
 const PipeScene& scene();
-
-std::filesystem::path freshDir(const std::string& name);
 
 /// A database of references along y = 0 at the given x [m] (survey times 100 + 0.1 k s).
 void writeDatabase(const std::string& dir, const std::vector<double>& xs);

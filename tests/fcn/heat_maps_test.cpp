@@ -11,23 +11,19 @@
 #include "lookup/database/manifest.h"
 #include "lookup/database/reference_database.h"
 #include "lookup/fcn/heat_maps.h"
+#include "lookup/test/support.h"
 
 using namespace lookup;
 using namespace lookup::fcn;
 namespace fs = std::filesystem;
 
-namespace {
-std::string slurp(const fs::path& p) {
-    std::ifstream in(p, std::ios::binary);
-    return std::string(std::istreambuf_iterator<char>(in), {});
-}
-}  // namespace
+namespace {}  // namespace
 
 TEST(HeatMaps, WrittenInTheLocalisersFormatAndListedInDbIni) {
-    const auto dir = fixture::freshDir("heat");
+    const auto dir = lookup::test::freshDir("lookup_fcn_heat");
     const std::string db_dir = (dir / "db").string();
     fixture::writeDatabase(db_dir, {0.0, 0.5, 1.0});
-    const std::string before = slurp(fs::path(db_dir) / "db.ini");
+    const std::string before = lookup::test::readText(fs::path(db_dir) / "db.ini");
     const HeatMapModel model(fixture::smallOptions().network, 5);
     {
         const auto db = database::ReferenceDatabase::load(db_dir);
@@ -70,7 +66,7 @@ TEST(HeatMaps, WrittenInTheLocalisersFormatAndListedInDbIni) {
         }
     }
     // Every line of the survey's db.ini but the [heatmaps] directory is kept.
-    const std::string after = slurp(fs::path(db_dir) / "db.ini");
+    const std::string after = lookup::test::readText(fs::path(db_dir) / "db.ini");
     EXPECT_EQ(after.size(), before.size() + first_dir.size());
     EXPECT_NE(after.find("directory = " + first_dir), std::string::npos);
 
@@ -82,18 +78,19 @@ TEST(HeatMaps, WrittenInTheLocalisersFormatAndListedInDbIni) {
 }
 
 TEST(HeatMaps, ChecksummedInTheirFolderAndADamagedOneRefusedByName) {
-    const auto dir = fixture::freshDir("heat_crc");
+    const auto dir = lookup::test::freshDir("lookup_fcn_heat_crc");
     const std::string db_dir = (dir / "db").string();
     fixture::writeDatabase(db_dir, {0.0, 0.5});
-    const std::string survey_manifest = slurp(fs::path(db_dir) / database::kManifest);
+    const std::string survey_manifest =
+        lookup::test::readText(fs::path(db_dir) / database::kManifest);
     const auto w = writeHeatMaps(database::ReferenceDatabase::load(db_dir),
                                  HeatMapModel(fixture::smallOptions().network, 5));
     const fs::path heat = fs::path(db_dir) / w.directory;
     EXPECT_TRUE(fs::is_regular_file(heat / database::kManifest));
-    EXPECT_EQ(slurp(fs::path(db_dir) / database::kManifest), survey_manifest);
+    EXPECT_EQ(lookup::test::readText(fs::path(db_dir) / database::kManifest), survey_manifest);
     ASSERT_NO_THROW(database::ReferenceDatabase::load(db_dir));
     const fs::path file = heat / database::heatMapFileName(1);
-    std::string bytes = slurp(file);
+    std::string bytes = lookup::test::readText(file);
     bytes[bytes.size() / 2] ^= 0x04;
     std::ofstream(file, std::ios::binary) << bytes;
     try {
@@ -106,11 +103,11 @@ TEST(HeatMaps, ChecksummedInTheirFolderAndADamagedOneRefusedByName) {
 }
 
 TEST(HeatMaps, SetDirectoryAddsTheSectionWhenAbsentAndRefusesAMissingFile) {
-    const auto dir = fixture::freshDir("heat_ini");
+    const auto dir = lookup::test::freshDir("lookup_fcn_heat_ini");
     const auto ini = dir / "db.ini";
     fixture::writeDatabase((dir / "db").string(), {0.0});
     // Strip the [heatmaps] section to simulate an older db.ini.
-    std::string text = slurp(dir / "db" / "db.ini");
+    std::string text = lookup::test::readText(dir / "db" / "db.ini");
     const auto at = text.find("[heatmaps]");
     ASSERT_NE(at, std::string::npos);
     text.replace(at, std::string("[heatmaps]\ndirectory = \n").size(), "");

@@ -74,7 +74,7 @@ TEST(Labels, PipesAreOutliersAndTheCeilingInliers) {
 }
 
 TEST(Labels, GeneratedFromRawlogsWithATimeSplit) {
-    const auto dir = fixture::freshDir("labels");
+    const auto dir = lookup::test::freshDir("lookup_fcn_labels");
     std::vector<double> xs;
     for (double x = -3; x <= 3.01; x += 0.5) xs.push_back(x);
     fixture::writeDatabase((dir / "db").string(), xs);
@@ -113,7 +113,7 @@ TEST(Labels, GeneratedFromRawlogsWithATimeSplit) {
 }
 
 TEST(Labels, PreciseTargetsAreTheInliersThatFitTheHomographyClosely) {
-    const auto dir = fixture::freshDir("labels-precise");
+    const auto dir = lookup::test::freshDir("lookup_fcn_labels-precise");
     std::vector<double> xs;
     for (double x = -2; x <= 2.01; x += 0.5) xs.push_back(x);
     fixture::writeDatabase((dir / "db").string(), xs);
@@ -145,7 +145,7 @@ TEST(Labels, PreciseTargetsAreTheInliersThatFitTheHomographyClosely) {
 }
 
 TEST(Labels, MissingGroundTruthAndWrongCameraLabelAreRefusedNamingTheFile) {
-    const auto dir = fixture::freshDir("labels_bad");
+    const auto dir = lookup::test::freshDir("lookup_fcn_labels_bad");
     fixture::writeDatabase((dir / "db").string(), {0.0, 0.5});
     fixture::writeQuery((dir / "q.rawlog").string(), fixture::drive(0, 0.4, 0.2, 0.1));
     const auto db = database::ReferenceDatabase::load((dir / "db").string());

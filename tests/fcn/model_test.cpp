@@ -41,7 +41,7 @@ TEST(Model, OutputHasTheImageSizeAndIsAProbability) {
 }
 
 TEST(Model, SaveLoadRoundTripGivesIdenticalOutputs) {
-    const auto dir = fixture::freshDir("model");
+    const auto dir = lookup::test::freshDir("lookup_fcn_model");
     const HeatMapModel model(small(), 3);
     const cv::Mat image = fixture::scene().render(mrpt::poses::CPose3D(0.3, 0, 0, 0, 0, 0));
     const std::string path = (dir / "m.pt").string();
@@ -57,7 +57,7 @@ TEST(Model, SaveLoadRoundTripGivesIdenticalOutputs) {
 }
 
 TEST(Model, AnotherArchitectureATruncatedOrForeignFileIsRefusedNamingTheFile) {
-    const auto dir = fixture::freshDir("model_bad");
+    const auto dir = lookup::test::freshDir("lookup_fcn_model_bad");
     const std::string path = (dir / "m.pt").string();
     HeatMapModel(small()).save(path);
 

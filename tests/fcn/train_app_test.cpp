@@ -4,6 +4,7 @@
 // drawing another database's heat maps).
 
 #include <gtest/gtest.h>
+#include <mrpt/config/CConfigFileMemory.h>
 
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -12,6 +13,7 @@
 #include "lookup/database/heat_maps.h"
 #include "lookup/database/reference_database.h"
 #include "lookup/fcn/train_app.h"
+#include "lookup/test/support.h"
 
 using namespace lookup;
 using namespace lookup::fcn;
@@ -19,16 +21,12 @@ namespace fs = std::filesystem;
 
 namespace {
 
-std::string slurp(const fs::path& p) {
-    std::ifstream in(p, std::ios::binary);
-    return std::string(std::istreambuf_iterator<char>(in), {});
-}
-
 // Everything in the database folder (name -> content).
 std::map<std::string, std::string> snapshot(const fs::path& dir) {
     std::map<std::string, std::string> out;
     for (const auto& e : fs::recursive_directory_iterator(dir)) {
-        if (e.is_regular_file()) out[fs::relative(e.path(), dir).string()] = slurp(e.path());
+        if (e.is_regular_file())
+            out[fs::relative(e.path(), dir).string()] = lookup::test::readText(e.path());
     }
     return out;
 }
@@ -42,7 +40,7 @@ struct TrainSetup {
 
 TrainSetup makeSetup(const std::string& name) {
     TrainSetup s;
-    s.dir = fixture::freshDir(name);
+    s.dir = lookup::test::freshDir("lookup_fcn_" + name);
     s.db = (s.dir / "db").string();
     std::vector<double> xs;
     for (double x = -3; x <= 3.01; x += 0.5) xs.push_back(x);
@@ -76,7 +74,8 @@ TEST(TrainApp, WritesModelReportAndHeatMaps) {
     const auto db = database::ReferenceDatabase::load(s.db);
     EXPECT_EQ(db.info().heatmaps_dir, r.heat_maps.directory);
 
-    const auto j = nlohmann::json::parse(slurp(s.dir / "report" / "train_report.json"));
+    const auto j =
+        nlohmann::json::parse(lookup::test::readText(s.dir / "report" / "train_report.json"));
     EXPECT_EQ(j["training"]["epochs"].size(), 4u);
     EXPECT_EQ(j["labels"]["held_out_pairs"].get<std::size_t>(), r.labels.held_out_pairs);
     EXPECT_GT(j["labels"]["inlier_share"].get<double>(), 0.0);
@@ -151,4 +150,98 @@ TEST(TrainApp, HeatMapsOnlyDrawsAnotherDatabaseWithASavedModel) {
         EXPECT_NE(std::string(e.what()).find("corrupt.pt"), std::string::npos) << e.what();
     }
     EXPECT_EQ(snapshot(other), before);
+}
+
+// TrainApp, the lookup-train program as a class.
+namespace {
+
+bool initialize(TrainApp& app, std::vector<std::string> args, std::string* err) {
+    args.insert(args.begin(), "lookup-train");
+    std::vector<const char*> argv;
+    for (const auto& a : args) argv.push_back(a.c_str());
+    testing::internal::CaptureStderr();
+    const bool ok = app.initialize(int(argv.size()), argv.data());
+    *err = testing::internal::GetCapturedStderr();
+    return ok;
+}
+
+std::string writeIni(const fs::path& path, const TrainOptions& options) {
+    mrpt::config::CConfigFileMemory ini;
+    options.saveToConfigFile(ini, "fcn");
+    std::ofstream(path) << ini.getContent();
+    return path.string();
+}
+
+}  // namespace
+
+TEST(TrainApp, FlagsFillTheRequestAndTheOptionsComeFromTheIni) {
+    const auto dir = lookup::test::freshDir("lookup_fcn_app_flags");
+    TrainOptions o = fixture::smallOptions();
+    o.training.epochs = 3;
+    const std::string ini = writeIni(dir / "train.ini", o);
+    TrainApp app;
+    std::string err;
+    ASSERT_TRUE(
+        initialize(app,
+                   {"--db", "D", "--train", "a.rawlog,,b.rawlog", "--out-model", "M.pt", "--out",
+                    "R", "--init-model", "I.pt", "--no-heatmaps", "--quiet", "--ini", ini},
+                   &err))
+        << err;
+    EXPECT_EQ(app.request().db_dir, "D");
+    EXPECT_EQ(app.request().train_rawlogs, (std::vector<std::string>{"a.rawlog", "b.rawlog"}));
+    EXPECT_EQ(app.request().out_model, "M.pt");
+    EXPECT_EQ(app.request().report_dir, "R");
+    EXPECT_EQ(app.request().init_model, "I.pt");
+    EXPECT_FALSE(app.request().write_heat_maps);
+    EXPECT_FALSE(app.request().progress);
+    EXPECT_EQ(app.options().training.epochs, 3);
+}
+
+TEST(TrainApp, BadFlagsAndIniTyposAreRefusedNamingThem) {
+    const auto dir = lookup::test::freshDir("lookup_fcn_app_typos");
+    const std::string ini = writeIni(dir / "train.ini", fixture::smallOptions());
+    const std::string text = lookup::test::readText(ini);
+    struct Case {
+        std::string ini_text;
+        std::vector<std::string> args;
+        std::string names;
+    };
+    for (const Case& c : std::vector<Case>{
+             {text + "\n[fcn.trainng]\nepochs = 2\n", {"--train", "q"}, ini + " [fcn.trainng]"},
+             {text + "\n[fcn.training]\nepochz = 2\n",
+              {"--train", "q"},
+              ini + " [fcn.training] epochz: unknown key"},
+             {text, {}, "--train FILES is required (or --heatmaps-only MODEL)"},
+             {text, {"--train", "q", "--figure-ref", "x"}, "--figure-ref"}}) {
+        std::ofstream(ini) << c.ini_text;
+        std::vector<std::string> args{"--db", "D", "--ini", ini};
+        args.insert(args.end(), c.args.begin(), c.args.end());
+        TrainApp app;
+        std::string err;
+        EXPECT_FALSE(initialize(app, args, &err)) << c.names;
+        EXPECT_EQ(app.exitCode(), 1) << c.names;
+        EXPECT_NE(err.find(c.names), std::string::npos) << err;
+        EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
+    }
+}
+
+TEST(TrainApp, RunTrainsThenDrawsTheFigureOfAReference) {
+    TrainSetup s = makeSetup("app_run");
+    s.options.training.epochs = 1;
+    const std::string ini = writeIni(s.dir / "train.ini", s.options);
+    TrainApp train;
+    const auto r = lookup::test::runApp("lookup-train", train,
+                                        {"--db", s.db, "--train", s.req.train_rawlogs[0], "--out",
+                                         s.req.report_dir, "--ini", ini, "--quiet"});
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_NE(r.out.find("model: " + s.db + "/fcn_model.pt\n"), std::string::npos) << r.out;
+    EXPECT_TRUE(fs::is_regular_file(s.dir / "report" / "train_report.json"));
+
+    const std::string png = (s.dir / "figure.png").string();
+    TrainApp figure;
+    const auto f = lookup::test::runApp("lookup-train", figure,
+                                        {"--db", s.db, "--figure", png, "--figure-ref", "2"});
+    ASSERT_EQ(f.code, 0) << f.err;
+    EXPECT_EQ(f.out, png + ": reference 2 of " + s.db + "\n");
+    EXPECT_GT(fs::file_size(png), 1000u);
 }

@@ -34,7 +34,7 @@ Data makeData(const database::ReferenceDatabase& db, const TrainOptions& o,
 }  // namespace
 
 TEST(Trainer, LearnsToScorePipesBelowTheCeiling) {
-    const auto dir = fixture::freshDir("trainer");
+    const auto dir = lookup::test::freshDir("lookup_fcn_trainer");
     std::vector<double> xs;
     for (double x = -4; x <= 4.01; x += 0.5) xs.push_back(x);
     fixture::writeDatabase((dir / "db").string(), xs);

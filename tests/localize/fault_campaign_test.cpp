@@ -32,6 +32,7 @@
 #include "localize_fixture.h"
 #include "lookup/common/pose_files.h"
 #include "lookup/database/reference_database.h"
+#include "lookup/test/support.h"
 
 namespace fs = std::filesystem;
 using namespace lookup;
@@ -65,11 +66,6 @@ struct Tally {
     std::vector<std::string> failures;
 };
 
-std::string slurp(const fs::path& p) {
-    std::ifstream in(p, std::ios::binary);
-    return {std::istreambuf_iterator<char>(in), {}};
-}
-
 Verdict judge(const Case& c, int code, bool hung, const std::string& log) {
     if (hung) return kHang;
     if (c.kill_after_s >= 0 && code == 128 + SIGKILL) return !c.kept || c.kept() ? kHandled : kLost;
@@ -87,34 +83,13 @@ Verdict judge(const Case& c, int code, bool hung, const std::string& log) {
 // `stdout_full`), `c.env` set and `c.file_size_limit` applied; polls `stop` every 10 ms and
 // kills the program when it returns true. Returns the exit code, or 128 + signal.
 int runCase(const Case& c, const fs::path& log, const std::function<bool()>& stop) {
-    const std::string exe = std::string(LOOKUP_BINARY_DIR) + "/bin/" + c.program;
-    std::vector<char*> argv{const_cast<char*>(exe.c_str())};
-    for (const auto& a : c.args) argv.push_back(const_cast<char*>(a.c_str()));
-    argv.push_back(nullptr);
-    const pid_t pid = fork();
-    if (pid == 0) {
-        const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-        ::dup2(c.stdout_full ? ::open("/dev/full", O_WRONLY) : fd, 1);
-        ::dup2(fd, 2);
-        if (!c.env.empty()) ::putenv(const_cast<char*>(c.env.c_str()));
-        if (c.file_size_limit > 0) {
-            std::signal(SIGXFSZ, SIG_IGN);
-            const rlimit limit{rlim_t(c.file_size_limit), rlim_t(c.file_size_limit)};
-            ::setrlimit(RLIMIT_FSIZE, &limit);
-        }
-        ::execv(exe.c_str(), argv.data());
-        _exit(127);
-    }
-    int status = 0;
-    while (::waitpid(pid, &status, WNOHANG) != pid) {
-        if (stop()) {
-            ::kill(pid, SIGKILL);
-            ::waitpid(pid, &status, 0);
-            break;
-        }
-        ::usleep(10000);
-    }
-    return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+    lookup::test::ProgramRun how;
+    how.log = log;
+    how.env = c.env;
+    how.file_size_limit = c.file_size_limit;
+    how.stdout_full = c.stdout_full;
+    how.kill_when = stop;
+    return lookup::test::runProgram(c.program, c.args, how);
 }
 
 void run(const Case& c, const fs::path& dir, Tally& t) {
@@ -127,7 +102,7 @@ void run(const Case& c, const fs::path& dir, Tally& t) {
         hung = seconds() > kHangS;
         return hung || (c.kill_after_s >= 0 && seconds() > c.kill_after_s);
     });
-    const std::string log = slurp(dir / "case.log");
+    const std::string log = lookup::test::readText(dir / "case.log");
     const Verdict v = judge(c, code, hung, log);
     ++t.rows[c.program + " | " + c.kind][v];
     if (v != kClear && v != kHandled) {
@@ -141,7 +116,7 @@ void run(const Case& c, const fs::path& dir, Tally& t) {
 // A copy of `file` as `<dir>/<name><ext>` with `damage` applied to its bytes.
 std::string damaged(const fs::path& file, const fs::path& dir, const std::string& name,
                     const std::function<void(std::string&)>& damage) {
-    std::string bytes = slurp(file);
+    std::string bytes = lookup::test::readText(file);
     damage(bytes);
     const fs::path out = dir / (name + file.extension().string());
     std::ofstream(out, std::ios::binary) << bytes;
@@ -157,7 +132,7 @@ std::function<void(std::string&)> flipAt(double share) {
 
 // `rows` with row 2 (1-based, after the first data row) replaced by `bad`.
 std::string poseFileWithRow(const fs::path& good, const fs::path& out, const std::string& bad) {
-    std::istringstream in(slurp(good));
+    std::istringstream in(lookup::test::readText(good));
     std::string first, line;
     while (std::getline(in, first) && (first.empty() || first[0] == '#')) {
     }
@@ -211,8 +186,8 @@ struct Data {
 };
 
 bool runIntact(const Data& d) {
-    return slurp(fs::path(d.req.out_dir) / "frames.csv") == d.frames &&
-           slurp(fs::path(d.req.out_dir) / "timing.json") == d.timing;
+    return lookup::test::readText(fs::path(d.req.out_dir) / "frames.csv") == d.frames &&
+           lookup::test::readText(fs::path(d.req.out_dir) / "timing.json") == d.timing;
 }
 
 // The complete run back at --out, as it was before the cases.
@@ -231,8 +206,9 @@ bool runComplete(const fs::path& run) {
 std::function<bool()> runChecksOut(const Data& d, const fs::path& run, const fs::path& rawlog) {
     return [&d, run, rawlog] {
         if (!runComplete(run)) return false;
-        const std::string log = slurp(d.dir / "case.log");
-        return slurp(run / "poses.tum") == slurp(fs::path(d.req.out_dir) / "poses.tum") ||
+        const std::string log = lookup::test::readText(d.dir / "case.log");
+        return lookup::test::readText(run / "poses.tum") ==
+                   lookup::test::readText(fs::path(d.req.out_dir) / "poses.tum") ||
                log.find(rawlog.filename().string()) != std::string::npos;
     };
 }
@@ -291,7 +267,7 @@ void localizeDatabaseCases(const Data& d, const Refuse& refuse) {
         const fs::path bad_db = d.dir / "db_bad";
         fs::remove_all(bad_db);
         fs::copy(db, bad_db, fs::copy_options::recursive);
-        std::string bytes = slurp(bad_db / file);
+        std::string bytes = lookup::test::readText(bad_db / file);
         spoil(bytes);
         std::ofstream(bad_db / file, std::ios::binary) << bytes;
         refuse("damaged database file", with(localizeArgs(d.req), "--db", bad_db.string()),
@@ -307,7 +283,7 @@ void localizeDatabaseCases(const Data& d, const Refuse& refuse) {
         fs::remove_all(bad_db);
         fs::copy(db, bad_db, fs::copy_options::recursive);
         fs::remove(bad_db / "manifest.crc32");
-        std::string text = slurp(bad_db / "db.ini");
+        std::string text = lookup::test::readText(bad_db / "db.ini");
         text.replace(text.find(from), from.size(), to);
         std::ofstream(bad_db / "db.ini") << text;
         refuse("bad value in db.ini", with(localizeArgs(d.req), "--db", bad_db.string()),
@@ -393,11 +369,11 @@ void evalCases(const Data& d, Tally& t) {
     const fs::path report = d.dir / "report";
     const std::vector<std::string> args{"--gt",        d.gt.string(), "--runs",
                                         d.req.out_dir, "--out",       report.string()};
-    const std::string good = slurp(report / "report.md");
+    const std::string good = lookup::test::readText(report / "report.md");
     const Refuse refuse = [&](const std::string& kind, std::vector<std::string> a,
                               const std::string& names) {
         Case c{"lookup-eval", kind, std::move(a), names};
-        c.kept = [report, good] { return slurp(report / "report.md") == good; };
+        c.kept = [report, good] { return lookup::test::readText(report / "report.md") == good; };
         run(c, d.dir, t);
     };
     for (const auto& bad : badPoseFiles(d.gt, d.dir, false)) {
@@ -438,7 +414,7 @@ void evalCases(const Data& d, Tally& t) {
     for (long limit : {300L, 600L}) {  // stderr is capped too: room for the message
         Case c{"lookup-eval", "write past a file-size limit", args, report.string()};
         c.file_size_limit = limit;
-        c.kept = [report, good] { return slurp(report / "report.md") == good; };
+        c.kept = [report, good] { return lookup::test::readText(report / "report.md") == good; };
         run(c, d.dir, t);
     }
     Case full{"lookup-eval", "stdout on /dev/full", args, "stdout"};
@@ -454,9 +430,9 @@ void coarseCases(const Data& d, Tally& t) {
                                         "--out",    out.string(),  "--quiet"};
     Case first{"lookup-coarse", "", args, ""};
     ASSERT_EQ(runCase(first, d.dir / "case.log", [] { return false; }), 0)
-        << slurp(d.dir / "case.log");
-    const std::string good = slurp(out);
-    const auto kept = [out, good] { return slurp(out) == good; };
+        << lookup::test::readText(d.dir / "case.log");
+    const std::string good = lookup::test::readText(out);
+    const auto kept = [out, good] { return lookup::test::readText(out) == good; };
     const auto refuse = [&](const std::string& kind, std::vector<std::string> a,
                             const std::string& names) {
         Case c{"lookup-coarse", kind, std::move(a), names};
@@ -494,7 +470,7 @@ void coarseCases(const Data& d, Tally& t) {
 // share/lookup/survey.ini with `key = value` in `[section]`.
 std::string surveyIniWith(const fs::path& dir, const std::string& section, const std::string& key,
                           const std::string& value) {
-    std::string text = slurp(std::string(LOOKUP_SOURCE_SHARE_DIR) + "/survey.ini");
+    std::string text = lookup::test::readText(std::string(LOOKUP_SOURCE_SHARE_DIR) + "/survey.ini");
     const auto at = text.find("\n[" + section + "]");
     const auto end = text.find("\n[", at + 1);
     const auto line = text.find("\n" + key + " ", at);
@@ -520,9 +496,12 @@ void surveyCases(const fs::path& dir, Tally& t) {
         }
     };
     Case first{"lookup-survey", "", args, ""};
-    ASSERT_EQ(runCase(first, dir / "case.log", [] { return false; }), 0) << slurp(dir / "case.log");
-    const std::string manifest = slurp(db / "manifest.crc32");
-    const auto kept = [db, manifest] { return slurp(db / "manifest.crc32") == manifest; };
+    ASSERT_EQ(runCase(first, dir / "case.log", [] { return false; }), 0)
+        << lookup::test::readText(dir / "case.log");
+    const std::string manifest = lookup::test::readText(db / "manifest.crc32");
+    const auto kept = [db, manifest] {
+        return lookup::test::readText(db / "manifest.crc32") == manifest;
+    };
     const Refuse refuse = [&](const std::string& kind, std::vector<std::string> a,
                               const std::string& names) {
         Case c{"lookup-survey", kind, std::move(a), names};
@@ -547,9 +526,10 @@ void surveyCases(const fs::path& dir, Tally& t) {
     }
     const auto bin = iniFile(dir, "survey_binary", kBinary);
     refuse("bad --ini", with(args, "--ini", bin), bin);
-    const auto section = iniFile(dir, "survey_section",
-                                 slurp(std::string(LOOKUP_SOURCE_SHARE_DIR) + "/survey.ini") +
-                                     "\n[pose_graf]\nenabled = true\n");
+    const auto section =
+        iniFile(dir, "survey_section",
+                lookup::test::readText(std::string(LOOKUP_SOURCE_SHARE_DIR) + "/survey.ini") +
+                    "\n[pose_graf]\nenabled = true\n");
     refuse("bad --ini", with(args, "--ini", section), section);
     for (const auto& [section, key, value] :
          std::vector<std::array<std::string, 3>>{{"pose_graph", "point_std_m", "nan"},
@@ -601,11 +581,11 @@ void trainCases(const Data& d, Tally& t) {
         {{"--db", d.req.db_dir, "--train", d.req.rawlog, "--ini", bin}, bin},
         {{"--db", d.req.db_dir, "--train", d.req.rawlog, "--ini", section}, section},
         {{"--db", d.req.db_dir, "--train", "/nonexistent/t.rawlog"}, "/nonexistent/t.rawlog"}};
-    const std::string manifest = slurp(fs::path(d.req.db_dir) / "manifest.crc32");
+    const std::string manifest = lookup::test::readText(fs::path(d.req.db_dir) / "manifest.crc32");
     for (const auto& [args, names] : cases) {
         Case c{"lookup-train", "bad input or command line", args, names};
         c.kept = [&d, manifest] {
-            return slurp(fs::path(d.req.db_dir) / "manifest.crc32") == manifest;
+            return lookup::test::readText(fs::path(d.req.db_dir) / "manifest.crc32") == manifest;
         };
         run(c, d.dir, t);
     }
@@ -656,14 +636,14 @@ std::string table(const Tally& t) {
 
 TEST(FaultCampaign, EveryCaseAClearErrorOrAHandledRun) {
     Data d;
-    d.dir = freshDir("campaign");
+    d.dir = lookup::test::freshDir("lookup_localize_campaign");
     d.req = planarRun(d.dir, [](int, auto&, auto&) {});
     Case good{"lookup-localize", "", localizeArgs(d.req), ""};
     ASSERT_EQ(runCase(good, d.dir / "case.log", [] { return false; }), 0)
-        << slurp(d.dir / "case.log");
+        << lookup::test::readText(d.dir / "case.log");
     fs::copy(d.req.out_dir, d.dir / "run_complete", fs::copy_options::recursive);
-    d.frames = slurp(fs::path(d.req.out_dir) / "frames.csv");
-    d.timing = slurp(fs::path(d.req.out_dir) / "timing.json");
+    d.frames = lookup::test::readText(fs::path(d.req.out_dir) / "frames.csv");
+    d.timing = lookup::test::readText(fs::path(d.req.out_dir) / "timing.json");
     common::PoseTrack truth;
     for (int i = 0; i < 20; ++i) {
         truth.push_back({kT0 + 0.1 * i, mrpt::poses::CPose3D(-5 + 0.3 * i, 0.4, 0, 0.05, 0, 0)});
@@ -676,7 +656,7 @@ TEST(FaultCampaign, EveryCaseAClearErrorOrAHandledRun) {
         {"--gt", d.gt.string(), "--runs", d.req.out_dir, "--out", (d.dir / "report").string()},
         ""};
     ASSERT_EQ(runCase(eval, d.dir / "case.log", [] { return false; }), 0)
-        << slurp(d.dir / "case.log");
+        << lookup::test::readText(d.dir / "case.log");
 
     Tally t;
     evalCases(d, t);

@@ -73,7 +73,7 @@ void expectClearError(const Outcome& o, const std::string& rawlog) {
 }  // namespace
 
 TEST(Fault, TruncatedQueryRawlogsAreRefusedClearlyAndKeepTheOldRun) {
-    const auto dir = freshDir("fault_truncated");
+    const auto dir = lookup::test::freshDir("lookup_localize_fault_truncated");
     auto req = planarRun(dir, [](int, auto&, auto&) {});
     ASSERT_EQ(localizeWithTimeout(req, dir / "ok.log").code, 0);
     for (double share : {0.02, 0.3, 0.5, 0.77}) {
@@ -92,7 +92,7 @@ TEST(Fault, TruncatedQueryRawlogsAreRefusedClearlyAndKeepTheOldRun) {
 }
 
 TEST(Fault, ByteFlipsGiveAClearErrorOrFiniteFrames) {
-    const auto dir = freshDir("fault_flips");
+    const auto dir = lookup::test::freshDir("lookup_localize_fault_flips");
     auto req = planarRun(dir, [](int, auto&, auto&) {});
     ASSERT_EQ(localizeWithTimeout(req, dir / "ok.log").code, 0);
     int errors = 0, ran = 0;
@@ -118,7 +118,7 @@ TEST(Fault, ByteFlipsGiveAClearErrorOrFiniteFrames) {
 }
 
 TEST(Fault, NanAndInfInEveryOdometryFieldAreSkippedNeverPoses) {
-    const auto dir = freshDir("fault_odometry");
+    const auto dir = lookup::test::freshDir("lookup_localize_fault_odometry");
     const double nan = std::numeric_limits<double>::quiet_NaN();
     const double inf = std::numeric_limits<double>::infinity();
     // Frames 2..13: x, y, phi, vx, vy, omega, each NaN then -inf.
@@ -145,7 +145,7 @@ TEST(Fault, NanAndInfInEveryOdometryFieldAreSkippedNeverPoses) {
 }
 
 TEST(Fault, KillNineAtAnyPointKeepsTheCompleteRun) {
-    const auto dir = freshDir("fault_kill");
+    const auto dir = lookup::test::freshDir("lookup_localize_fault_kill");
     auto req = planarRun(dir, [](int, auto&, auto&) {});
     ASSERT_EQ(localizeWithTimeout(req, dir / "ok.log").code, 0);
     const fs::path partial = req.out_dir + ".partial";
@@ -163,7 +163,7 @@ TEST(Fault, KillNineAtAnyPointKeepsTheCompleteRun) {
 }
 
 TEST(Fault, LookupCoarseRefusesTruncatedAndFlippedQueriesOnOneLine) {
-    const auto dir = freshDir("fault_coarse");
+    const auto dir = lookup::test::freshDir("lookup_localize_fault_coarse");
     const auto req = planarRun(dir, [](int, auto&, auto&) {});
     std::ofstream(dir / "s5.ini") << "[coarse]\nsequence_length = 5\n";
     const auto coarse = [&](const std::string& query) {
@@ -190,7 +190,7 @@ TEST(Fault, LookupCoarseRefusesTruncatedAndFlippedQueriesOnOneLine) {
 }
 
 TEST(Fault, LookupEvalRefusesDamagedRunFilesNamingThem) {
-    const auto dir = freshDir("fault_eval");
+    const auto dir = lookup::test::freshDir("lookup_localize_fault_eval");
     const auto req = planarRun(dir, [](int, auto&, auto&) {});
     ASSERT_EQ(localizeWithTimeout(req, dir / "ok.log").code, 0);
     common::PoseTrack truth;
@@ -228,7 +228,7 @@ TEST(Fault, LookupEvalRefusesDamagedRunFilesNamingThem) {
 }
 
 TEST(Fault, LookupEvalRefusesBadGroundTruthAsBadInputNamingLine) {
-    const auto dir = freshDir("fault_eval_gt");
+    const auto dir = lookup::test::freshDir("lookup_localize_fault_eval_gt");
     const auto req = planarRun(dir, [](int, auto&, auto&) {});
     ASSERT_EQ(localizeWithTimeout(req, dir / "ok.log").code, 0);
     const fs::path gt = dir / "gt.tum";

@@ -9,6 +9,7 @@
 
 #include "lookup/localize/fix_store.h"
 #include "lookup/localize/health.h"
+#include "lookup/test/support.h"
 
 using namespace lookup::localize;
 namespace fs = std::filesystem;
@@ -63,9 +64,7 @@ TEST(HealthMonitor, ReportsAClockJumpWithItsSensorAndSize) {
 }
 
 TEST(FixPersister, WritesTheLastRefinedFixAtItsIntervalAndAtFlush) {
-    const auto dir = fs::temp_directory_path() / "lookup_fix_persister";
-    fs::remove_all(dir);
-    fs::create_directories(dir);
+    const auto dir = lookup::test::freshDir("lookup_fix_persister");
     const std::string path = (dir / "fix.json").string();
     FixPersister persister(path, /*interval_s=*/0.05, "/db", "id-1");
     FrameResult frame;

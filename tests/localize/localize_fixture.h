@@ -26,9 +26,12 @@
 #include "lookup/database/database_writer.h"
 #include "lookup/localize/localize_app.h"
 #include "lookup/refine/testing/synthetic_ceiling.h"
+#include "lookup/test/support.h"
 
 namespace lookup::localize_testing {
 namespace fs = std::filesystem;
+using test::readText;
+using test::runProgram;
 
 constexpr double kCeilingHeight = 5.0;
 constexpr double kT0 = 1.7e9;
@@ -50,13 +53,6 @@ struct Scene {
         return obs;
     }
 };
-
-inline fs::path freshDir(const std::string& name) {
-    const auto dir = fs::temp_directory_path() / ("lookup_localize_" + name);
-    fs::remove_all(dir);
-    fs::create_directories(dir);
-    return dir;
-}
 
 // A forward view for frame k of a traverse: smooth random texture, distinct per frame and
 // per traverse (seed), as a tunnel seen from a different lateral position would be.
@@ -168,51 +164,6 @@ inline std::size_t nonFiniteLines(const fs::path& path, int skip_lines) {
         }
     }
     return bad;
-}
-
-/// Runs a built program (bin/<name>) with `args`, stdout and stderr into `log`; with
-/// `file_size_limit` > 0 every file it writes is capped there (RLIMIT_FSIZE, SIGXFSZ ignored:
-/// writes beyond fail with EFBIG, as on a full disk). `kill_when(pid)` is polled every 10 ms
-/// while it runs; returning true kills it with SIGKILL. Returns the exit code, or 128 + signal.
-inline int runProgram(const std::string& name, const std::vector<std::string>& args,
-                      const fs::path& log, long file_size_limit = 0,
-                      const std::function<bool()>& kill_when = {}) {
-    const std::string exe = std::string(LOOKUP_BINARY_DIR) + "/bin/" + name;
-    std::vector<char*> argv{const_cast<char*>(exe.c_str())};
-    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-    argv.push_back(nullptr);
-    const pid_t pid = fork();
-    if (pid == 0) {
-        const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-        ::dup2(fd, 1);
-        ::dup2(fd, 2);
-        if (file_size_limit > 0) {
-            std::signal(SIGXFSZ, SIG_IGN);  // inherited through exec
-            const rlimit limit{rlim_t(file_size_limit), rlim_t(file_size_limit)};
-            ::setrlimit(RLIMIT_FSIZE, &limit);
-        }
-        ::execv(exe.c_str(), argv.data());
-        _exit(127);
-    }
-    int status = 0;
-    for (;;) {
-        const pid_t done = ::waitpid(pid, &status, kill_when ? WNOHANG : 0);
-        if (done == pid) break;
-        if (kill_when && kill_when()) {
-            ::kill(pid, SIGKILL);
-            ::waitpid(pid, &status, 0);
-            break;
-        }
-        ::usleep(10000);
-    }
-    return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-}
-
-inline std::string readText(const fs::path& path) {
-    std::ifstream in(path);
-    std::stringstream s;
-    s << in.rdbuf();
-    return s.str();
 }
 
 /// Command-line arguments of lookup-localize for `req`.

@@ -36,7 +36,7 @@ namespace {
 // Two survey traverses with unrelated forward views (seeds 1 and 2): "long", 60 references,
 // then "short", 45; reference 60 + k is frame k of "short".
 database::ReferenceDatabase twoForwardTraverses(const std::string& name) {
-    const auto dir = freshDir(name);
+    const auto dir = lookup::test::freshDir("lookup_localize_" + name);
     writeDatabase(Scene(), (dir / "db").string(),
                   {{"long", 60, 100.0, /*forward_seed=*/1}, {"short", 45, 500.0, 2}});
     return database::ReferenceDatabase::load((dir / "db").string());
@@ -46,7 +46,7 @@ database::ReferenceDatabase twoForwardTraverses(const std::string& name) {
 
 TEST(Localize, RefinesCoarsePosesToCentimetresOnASyntheticCeiling) {
     Scene scene;
-    const auto dir = freshDir("planar");
+    const auto dir = lookup::test::freshDir("lookup_localize_planar");
     writeDatabase(scene, (dir / "db").string(), {{"survey", 65, 100.0}});  // x = -8 .. 8
 
     // Query drive: 0.4 m to the left of the survey line, slightly rotated, 20 frames.
@@ -303,7 +303,7 @@ TEST(Localize, AcquisitionCandidatesCoverEveryNearbyTraverse) {
     // nearer one would shadow the other, and a query driving beside the farther one would get
     // candidates only 0.4 m further off, beyond the SAD window (mine-a query4 start-up).
     const Scene scene;
-    const auto dir = freshDir("candidates");
+    const auto dir = lookup::test::freshDir("lookup_localize_candidates");
     writeDatabase(scene, (dir / "db").string(),
                   {{"near", 40, 100.0, 0, /*y_m=*/0.0}, {"far", 40, 200.0, 0, /*y_m=*/0.4}});
     const auto db = database::ReferenceDatabase::load((dir / "db").string());
@@ -349,7 +349,7 @@ TEST(Localize, SkippedCoarseSearchesStillBuildTheSequence) {
         q.search = k >= 32;
         const auto r = source->locate(q);
         if (k < 32) {
-            EXPECT_EQ(r.status, coarse::CoarseStatus::kNotSearched) << "frame " << k;
+            EXPECT_EQ(r.status, coarse::CoarseStatus::NotSearched) << "frame " << k;
             EXPECT_FALSE(r.usable());
             EXPECT_EQ(r.evaluated_references, 0u);
             continue;
@@ -357,7 +357,7 @@ TEST(Localize, SkippedCoarseSearchesStillBuildTheSequence) {
         ASSERT_TRUE(r.usable()) << "frame " << k << ": " << r.reason;
         // The first search after skipped frames is global (the last match went stale).
         if (k == 32) {
-            EXPECT_EQ(r.status, coarse::CoarseStatus::kGlobal);
+            EXPECT_EQ(r.status, coarse::CoarseStatus::Global);
         }
         EXPECT_EQ(db.reference(r.reference_index).traverse, "short");
         EXPECT_LE(std::abs(static_cast<int>(r.reference_index) - 60 - k), 1) << "frame " << k;
@@ -365,7 +365,7 @@ TEST(Localize, SkippedCoarseSearchesStillBuildTheSequence) {
 }
 
 TEST(Localize, MissingDatabaseAndRawlogWithoutCeilingImagesAreRefused) {
-    const auto dir = freshDir("bad");
+    const auto dir = lookup::test::freshDir("lookup_localize_bad");
     localize::LocalizeRequest req;
     req.db_dir = (dir / "nodb").string();
     req.rawlog = (dir / "q.rawlog").string();
@@ -460,7 +460,7 @@ void writeStartUpQuery(const Scene& ceiling, const fs::path& path, int frames,
 
 TEST(Localize, StartUpAcquisitionFixesBeforeTheCoarseSequenceIsFullAndOnlyOnTheRightCeiling) {
     const Scene scene;
-    const auto dir = freshDir("startup");
+    const auto dir = lookup::test::freshDir("lookup_localize_startup");
     writeDatabase(scene, (dir / "db").string(), {{"survey", 65, 100.0, /*forward_seed=*/1}});
     writeStartUpQuery(scene, dir / "query.rawlog", 32);
 
@@ -511,7 +511,7 @@ TEST(Localize, StartUpAcquisitionFixesBeforeTheCoarseSequenceIsFullAndOnlyOnTheR
 }
 
 TEST(Localize, NonFiniteOrGarbageObservationsAreSkippedAndCountedNeverPoses) {
-    const auto dir = freshDir("garbage");
+    const auto dir = lookup::test::freshDir("lookup_localize_garbage");
     const double nan = std::numeric_limits<double>::quiet_NaN();
     const auto req = planarRun(
         dir, [&](int i, mrpt::obs::CObservationImage& img, mrpt::obs::CObservationOdometry& odo) {
@@ -542,7 +542,7 @@ TEST(Localize, NonFiniteOrGarbageObservationsAreSkippedAndCountedNeverPoses) {
 }
 
 TEST(Localize, AQueryCameraOfAnotherSizeAndFocalLengthIsRectifiedIntoTheDatabases) {
-    const auto dir = freshDir("other_camera");
+    const auto dir = lookup::test::freshDir("lookup_localize_other_camera");
     const auto req = planarRun(
         dir, [&](int, mrpt::obs::CObservationImage& img, mrpt::obs::CObservationOdometry&) {
             cv::Mat m;
@@ -562,7 +562,7 @@ TEST(Localize, AQueryCameraOfAnotherSizeAndFocalLengthIsRectifiedIntoTheDatabase
 }
 
 TEST(Localize, QueryIntrinsicsThatCannotDescribeTheImageAreRefusedNamingTheRecord) {
-    const auto dir = freshDir("bad_intrinsics");
+    const auto dir = lookup::test::freshDir("lookup_localize_bad_intrinsics");
     const auto req = planarRun(
         dir, [&](int i, mrpt::obs::CObservationImage& img, mrpt::obs::CObservationOdometry&) {
             if (i == 4) img.cameraParams.ncols = 640;  // the calibration of another resolution
@@ -596,12 +596,12 @@ std::string errorOf(const localize::LocalizeRequest& req) {
 }  // namespace
 
 TEST(Localize, RunsThatCannotWorkAreRefusedAtTheStartWithTheReason) {
-    const auto dir = freshDir("cannot_work");
+    const auto dir = lookup::test::freshDir("lookup_localize_cannot_work");
     auto req = planarRun(dir, [](int, auto&, auto&) {});
 
     // Query ceiling images of another size than their intrinsics say (another size than the
     // references' with intrinsics to match is rectified into the database's camera).
-    const auto half = freshDir("cannot_work_size");
+    const auto half = lookup::test::freshDir("lookup_localize_cannot_work_size");
     auto small = planarRun(half, [](int, mrpt::obs::CObservationImage& img, auto&) {
         cv::Mat m;
         cv::resize(img.image.asCvMat<cv::Mat>(mrpt::img::SHALLOW_COPY), m, cv::Size(160, 120));
@@ -632,7 +632,7 @@ TEST(Localize, RunsThatCannotWorkAreRefusedAtTheStartWithTheReason) {
 
 TEST(Localize, AForwardCameraLabelWithoutImagesIsRefusedNamingThePresentLabels) {
     const Scene scene;
-    const auto dir = freshDir("forward_label");
+    const auto dir = lookup::test::freshDir("lookup_localize_forward_label");
     writeDatabase(scene, (dir / "db").string(), {{"survey", 65, 100.0, /*forward_seed=*/1}});
     writeStartUpQuery(scene, dir / "query.rawlog", 8);
     std::ofstream(dir / "label.ini") << "[localizer]\nforward_camera_label = FRONT_CAM\n";
@@ -650,7 +650,7 @@ TEST(Localize, AForwardCameraLabelWithoutImagesIsRefusedNamingThePresentLabels) 
 
 TEST(Localize, RepeatedPassesRefineAsTheFirstOneDoes) {
     const Scene scene;
-    const auto dir = freshDir("repeat_passes");
+    const auto dir = lookup::test::freshDir("lookup_localize_repeat_passes");
     writeDatabase(scene, (dir / "db").string(), {{"survey", 65, 100.0, /*forward_seed=*/1}});
     writeStartUpQuery(scene, dir / "query.rawlog", 32, /*odometry=*/true);
     localize::LocalizeRequest req;

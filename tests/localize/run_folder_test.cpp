@@ -42,7 +42,7 @@ std::string truncatedCopy(const fs::path& dir, double share) {
 }  // namespace
 
 TEST(RunFolder, AFailedRerunKeepsTheOldRunAndItsFramesApart) {
-    const auto dir = freshDir("rerun");
+    const auto dir = lookup::test::freshDir("lookup_localize_rerun");
     auto req = planarRun(dir, [](int, auto&, auto&) {});
     localize::runLocalization(req);
     ASSERT_EQ(frameRows(req.out_dir), 20u);
@@ -87,7 +87,7 @@ TEST(RunFolder, AFailedRerunKeepsTheOldRunAndItsFramesApart) {
 }
 
 TEST(RunFolder, AFullDiskIsAWriteErrorNamingTheFileAndKeepsTheOldRun) {
-    const auto dir = freshDir("fulldisk");
+    const auto dir = lookup::test::freshDir("lookup_localize_fulldisk");
     auto req = planarRun(dir, [](int, auto&, auto&) {});
     ASSERT_EQ(runProgram("lookup-localize", localizeArgs(req), dir / "ok.log"), 0)
         << readText(dir / "ok.log");
@@ -115,7 +115,7 @@ TEST(RunFolder, OutputFilesReportAFullDevice) {
 }
 
 TEST(RunFolder, ATruncatedResultsRawlogIsAWriteErrorNotRenamedIntoPlace) {
-    const auto dir = freshDir("rawlog_limit");
+    const auto dir = lookup::test::freshDir("lookup_localize_rawlog_limit");
     const fs::path path = dir / "results.rawlog";
     const pid_t pid = fork();
     if (pid == 0) {
@@ -147,7 +147,7 @@ TEST(RunFolder, ATruncatedResultsRawlogIsAWriteErrorNotRenamedIntoPlace) {
 }
 
 TEST(RunFolder, EvalRefusesUnfinishedRunsFlagsThemOnRequestAndReportsAFullDisk) {
-    const auto dir = freshDir("eval_runs");
+    const auto dir = lookup::test::freshDir("lookup_localize_eval_runs");
     auto req = planarRun(dir, [](int, auto&, auto&) {});
     localize::runLocalization(req);
     common::PoseTrack truth;
@@ -188,7 +188,7 @@ TEST(RunFolder, EvalRefusesUnfinishedRunsFlagsThemOnRequestAndReportsAFullDisk) 
 }
 
 TEST(RunFolder, ProgramsDocumentTheirExitCodesAndFailOnOneLine) {
-    const auto dir = freshDir("exit_codes");
+    const auto dir = lookup::test::freshDir("lookup_localize_exit_codes");
     for (const char* program :
          {"lookup-localize", "lookup-eval", "lookup-coarse", "lookup-place"}) {
         EXPECT_EQ(runProgram(program, {"--help"}, dir / "help.log"), 0) << program;

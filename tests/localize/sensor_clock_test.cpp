@@ -86,7 +86,7 @@ TEST(SensorClock, ShiftsStampsAndReleasesInCorrectedOrder) {
 
 TEST(SensorClock, AConfiguredCameraOffsetShiftsTheReportedFrameTimes) {
     // The query camera stamps 50 ms after its exposure; odometry is on time.
-    const auto dir = freshDir("sensor_clock");
+    const auto dir = lookup::test::freshDir("lookup_localize_sensor_clock");
     auto req = planarRun(dir, [](int, mrpt::obs::CObservationImage& img, auto&) {
         img.timestamp = mrpt::Clock::fromDouble(mrpt::Clock::toDouble(img.timestamp) + 0.05);
     });

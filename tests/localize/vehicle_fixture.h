@@ -20,6 +20,7 @@
 #include "lookup/common/rawlog_io.h"
 #include "lookup/database/database_writer.h"
 #include "lookup/refine/testing/synthetic_ceiling.h"
+#include "lookup/test/support.h"
 
 namespace lookup::vehicle_test {
 
@@ -47,13 +48,6 @@ struct Scene {
         return obs;
     }
 };
-
-inline fs::path freshDir(const std::string& name) {
-    const auto dir = fs::temp_directory_path() / ("lookup_vehicle_" + name);
-    fs::remove_all(dir);
-    fs::create_directories(dir);
-    return dir;
-}
 
 /// Forward view of survey frame k: smooth random texture, distinct per frame.
 inline mrpt::obs::CObservationImage::Ptr forwardView(int k, double t) {

@@ -24,7 +24,8 @@ struct CoarseFileRun {
     fs::path dir;
     localize::LocalizeRequest req;
 
-    explicit CoarseFileRun(const std::string& name, QuerySpec q = {}) : dir(freshDir(name)) {
+    explicit CoarseFileRun(const std::string& name, QuerySpec q = {})
+        : dir(lookup::test::freshDir("lookup_vehicle_" + name)) {
         const Scene scene;
         writeDatabase(scene, (dir / "db").string());
         writeQuery(scene, dir / "query.rawlog", q);
@@ -258,7 +259,7 @@ namespace {
 // The start-up scene: coarse stage from the forward views (SeqSLAM), so a run that starts
 // without a fix needs start-up frames before it refines.
 struct RestartScene {
-    fs::path dir = freshDir("restart");
+    fs::path dir = lookup::test::freshDir("lookup_vehicle_restart");
     Scene scene;
     localize::LocalizeRequest req;
     RestartScene() {

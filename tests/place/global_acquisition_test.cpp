@@ -48,7 +48,7 @@ double errorOf(const localize::FrameResult& f, const CPose3D& truth) {
 }
 
 TEST(GlobalAcquisition, FirstFixWithinThreeFramesFromAColdStartAnywhereInEitherDirection) {
-    const auto dir = localize_testing::freshDir("global_cold_starts");
+    const auto dir = lookup::test::freshDir("lookup_localize_global_cold_starts");
     const auto scene = sceneWithDatabase(dir);
     CeilingOnly run(dir);
     int starts = 0, fixed = 0;
@@ -70,7 +70,7 @@ TEST(GlobalAcquisition, FirstFixWithinThreeFramesFromAColdStartAnywhereInEitherD
 }
 
 TEST(GlobalAcquisition, ARepeatingCeilingIsAmbiguousNeverAConfidentPlace) {
-    const auto dir = localize_testing::freshDir("global_periodic");
+    const auto dir = lookup::test::freshDir("lookup_localize_global_periodic");
     const auto scene = sceneWithDatabase(dir, 4.0);
     CeilingOnly run(dir);
     int ambiguous = 0;
@@ -84,7 +84,7 @@ TEST(GlobalAcquisition, ARepeatingCeilingIsAmbiguousNeverAConfidentPlace) {
 }
 
 TEST(GlobalAcquisition, ATrackOnAnAliasedPlaceIsDroppedByTheCheck) {
-    const auto dir = localize_testing::freshDir("global_track_check");
+    const auto dir = lookup::test::freshDir("lookup_localize_global_track_check");
     const auto scene = sceneWithDatabase(dir, 4.0);
     CeilingOnly run(dir, /*check_every=*/1);
     // Started one period off: the ceiling confirms the wrong place exactly.
@@ -98,7 +98,7 @@ TEST(GlobalAcquisition, ATrackOnAnAliasedPlaceIsDroppedByTheCheck) {
 }
 
 TEST(GlobalAcquisition, KidnappingsAlongTheRouteAreCountedAndFixedFromTheCeilingAlone) {
-    const auto dir = localize_testing::freshDir("global_kidnap");
+    const auto dir = lookup::test::freshDir("lookup_localize_global_kidnap");
     auto req = localize_testing::planarRun(dir, [](int, auto&, auto&) {});
     const auto db = database::ReferenceDatabase::load(req.db_dir);
     place::PlaceIndex::build(db, place::PlaceIndexOptions())
@@ -115,7 +115,7 @@ TEST(GlobalAcquisition, KidnappingsAlongTheRouteAreCountedAndFixedFromTheCeiling
 }
 
 TEST(GlobalAcquisition, CeilingOnlyRunsRefuseADatabaseWithoutItsIndex) {
-    const auto dir = localize_testing::freshDir("global_no_index");
+    const auto dir = lookup::test::freshDir("lookup_localize_global_no_index");
     auto req = localize_testing::planarRun(dir, [](int, auto&, auto&) {});
     req.coarse_poses.clear();
     std::ofstream((dir / "ceiling.ini").string()) << "[localizer]\ncoarse = ceiling\n";

@@ -5,8 +5,10 @@
 #include <fstream>
 
 #include "../common/round_trip.h"
+#include "../localize/localize_fixture.h"
 #include "lookup/place/place_app.h"
 #include "lookup/place/place_index.h"
+#include "lookup/test/support.h"
 
 namespace fs = std::filesystem;
 
@@ -54,4 +56,31 @@ TEST(PlaceIndexOptions, SaveThenLoadGivesTheSameOptions) {
     o.reference_spacing_m = 1.0 / 3.0;
     o.lsh_probe_level = 3;
     lookup::options_testing::expectRoundTrip(o, "place_index");
+}
+
+TEST(PlaceApp, BadFlagsAreRefusedOnOneLineNamingThem) {
+    for (const auto& [args, names] : std::vector<std::pair<std::vector<std::string>, std::string>>{
+             {{"--db", "D", "--evaluate", "Q.rawlog"}, "--evaluate needs --gt"},
+             {{"--evaluate", "Q.rawlog"}, "--db"},
+             {{"--db", "D", "--every", "often"}, "--every"}}) {
+        lookup::place::PlaceApp app;
+        const auto r = lookup::test::runApp("lookup-place", app, args);
+        EXPECT_EQ(r.code, 1) << names;
+        EXPECT_NE(r.err.find(names), std::string::npos) << r.err;
+        EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    }
+}
+
+TEST(PlaceApp, RunBuildsTheIndexIntoTheDatabase) {
+    const auto dir = lookup::test::freshDir("lookup_place_app_run");
+    const std::string db = (dir / "db").string();
+    lookup::localize_testing::writeDatabase(lookup::localize_testing::Scene(), db,
+                                            {{"survey", 20, 100.0}});
+    lookup::place::PlaceApp app;
+    const auto r = lookup::test::runApp("lookup-place", app, {"--db", db, "--quiet"});
+    ASSERT_EQ(r.code, 0) << r.err;
+    const std::string index = db + "/" + lookup::place::kPlaceIndexFile;
+    EXPECT_EQ(r.out.rfind(index + ": ", 0), 0u) << r.out;
+    EXPECT_NE(r.out.find(" of 20 references"), std::string::npos) << r.out;
+    EXPECT_GT(fs::file_size(index), 1000u);
 }

@@ -36,7 +36,7 @@ Located locate(const place::PlaceIndex& index, const database::ReferenceDatabase
 }
 
 TEST(PlaceIndex, FindsThePlaceAnywhereAtAnyHeadingFromOneImage) {
-    const auto dir = localize_testing::freshDir("place_any_heading");
+    const auto dir = lookup::test::freshDir("lookup_localize_place_any_heading");
     const auto scene = sceneWithDatabase(dir);
     const auto db = database::ReferenceDatabase::load((dir / "db").string());
     const auto index = place::PlaceIndex::load((dir / "db" / place::kPlaceIndexFile).string(), db,
@@ -56,7 +56,7 @@ TEST(PlaceIndex, FindsThePlaceAnywhereAtAnyHeadingFromOneImage) {
 }
 
 TEST(PlaceIndex, NoCandidateOnAnImageWithoutTexture) {
-    const auto dir = localize_testing::freshDir("place_flat");
+    const auto dir = lookup::test::freshDir("lookup_localize_place_flat");
     sceneWithDatabase(dir);
     const auto db = database::ReferenceDatabase::load((dir / "db").string());
     const auto index = place::PlaceIndex::load((dir / "db" / place::kPlaceIndexFile).string(), db,
@@ -76,7 +76,7 @@ std::string errorOf(const std::string& file, const database::ReferenceDatabase& 
 }
 
 TEST(PlaceIndex, DamagedForeignOrMissingIndexFilesAreRefusedNamingTheFile) {
-    const auto dir = localize_testing::freshDir("place_bad_files");
+    const auto dir = lookup::test::freshDir("lookup_localize_place_bad_files");
     sceneWithDatabase(dir);
     const auto db = database::ReferenceDatabase::load((dir / "db").string());
     const std::string good = (dir / "db" / place::kPlaceIndexFile).string();
@@ -110,7 +110,7 @@ TEST(PlaceIndex, DamagedForeignOrMissingIndexFilesAreRefusedNamingTheFile) {
 }
 
 TEST(PlaceIndex, BuildingTheIndexLeavesTheReferencesUntouched) {
-    const auto dir = localize_testing::freshDir("place_untouched");
+    const auto dir = lookup::test::freshDir("lookup_localize_place_untouched");
     localize_testing::Scene scene;
     localize_testing::writeDatabase(scene, (dir / "db").string(), {{"survey", 20, 100.0}});
     const auto before = fs::last_write_time(dir / "db" / "refs.rawlog");

@@ -253,7 +253,7 @@ TEST(RefinerBaselines, OrbAndEccRecoverThePoseWithinCentimetres) {
     const CPose3D truth(0.22, -0.15, 0, yawRad(6), 0, 0);
     CoarseHint hint;
     hint.vehicle_pose = CPose3D(0.3, -0.1, 0, yawRad(4), 0, 0);  // coarse: 9 cm, 2 deg off
-    const std::vector<Reference> refs = {
+    const std::vector<ReferenceImage> refs = {
         s.ceiling.reference(1, s.camera, s.on_vehicle, CPose3D()),
         s.ceiling.reference(2, s.camera, s.on_vehicle, CPose3D(0.5, 0, 0, yawRad(2), 0, 0))};
     for (const auto method : {CorrespondenceMethod::Orb, CorrespondenceMethod::Ecc}) {
@@ -274,7 +274,8 @@ TEST(RefinerBaselines, BlankQueryFallsBackWithTheMatchersReason) {
     const cv::Mat blank(240, 320, CV_8UC1, cv::Scalar(90));
     CoarseHint hint;
     hint.vehicle_pose = CPose3D(0.1, 0, 0, 0, 0, 0);
-    const std::vector<Reference> refs = {s.ceiling.reference(4, s.camera, s.on_vehicle, CPose3D())};
+    const std::vector<ReferenceImage> refs = {
+        s.ceiling.reference(4, s.camera, s.on_vehicle, CPose3D())};
     for (const auto& [method, word] : {std::pair{CorrespondenceMethod::Orb, "orb"},
                                        std::pair{CorrespondenceMethod::Ecc, "ecc"}}) {
         const auto r =
@@ -293,7 +294,8 @@ TEST(RefinerBaselines, UnrelatedCeilingIsNotAcceptedAsAFix) {
     const cv::Mat query = other.render(s.camera, CPose3D(0.1, 0, 0, 0, 0, 0) + s.on_vehicle);
     CoarseHint hint;
     hint.vehicle_pose = CPose3D(0.1, 0, 0, 0, 0, 0);
-    const std::vector<Reference> refs = {s.ceiling.reference(5, s.camera, s.on_vehicle, CPose3D())};
+    const std::vector<ReferenceImage> refs = {
+        s.ceiling.reference(5, s.camera, s.on_vehicle, CPose3D())};
     for (const auto method : {CorrespondenceMethod::Orb, CorrespondenceMethod::Ecc}) {
         const auto r =
             Refiner(withMethod(method)).refine(query, s.camera, s.on_vehicle, hint, refs);

@@ -125,7 +125,7 @@ TEST(Rectifier, ObservationAndReferenceCarryTheTargetCamera) {
     EXPECT_EQ(out.cameraPose, obs.cameraPose);
     EXPECT_EQ(obs.cameraParams.distortion, mrpt::img::DistortionModel::plumb_bob);  // untouched
 
-    Reference ref;
+    ReferenceImage ref;
     ref.camera = barrel;
     ref.image = idealTexture();
     ref.heat_map = cv::Mat(240, 320, CV_32FC1, cv::Scalar(1.0f));

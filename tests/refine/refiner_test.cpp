@@ -19,7 +19,7 @@ struct Scene {
     mrpt::img::TCamera camera = synthetic::makeCamera(320, 240, 250);
     CPose3D on_vehicle = synthetic::ceilingCameraOnVehicle();
 
-    Reference reference(std::int64_t id, const CPose3D& vehicle) const {
+    ReferenceImage reference(std::int64_t id, const CPose3D& vehicle) const {
         return ceiling.reference(id, camera, on_vehicle, vehicle);
     }
     cv::Mat query(const CPose3D& vehicle) const {
@@ -106,7 +106,7 @@ TEST(Refiner, AProbeThatPassesChangesNothingAndOneThatFailsStopsEarly) {
     const Refiner refiner(options);
     CoarseHint hint;
     hint.vehicle_pose = CPose3D(0.3, 0.15, 0, 0.03, 0, 0);
-    const std::vector<Reference> refs{s.reference(1, CPose3D(0, 0, 0, 0, 0, 0))};
+    const std::vector<ReferenceImage> refs{s.reference(1, CPose3D(0, 0, 0, 0, 0, 0))};
     const auto full = refiner.refine(s.query(truth), s.camera, s.on_vehicle, hint, refs);
     ASSERT_TRUE(full.accepted()) << full.reason;
 
@@ -174,7 +174,7 @@ TEST(Refiner, BadInputIsARejectionWithAReason) {
     const Scene& s = scene();
     const Refiner refiner;
     const CPose3D coarse(0.3, 0.0, 0, 0, 0, 0);
-    const std::vector<Reference> refs = {s.reference(1, CPose3D())};
+    const std::vector<ReferenceImage> refs = {s.reference(1, CPose3D())};
     const cv::Mat good = s.query(coarse);
 
     // Blank query.
@@ -256,7 +256,7 @@ TEST(Refiner, ObservationEntryPointMatchesTheMatEntryPoint) {
     obs.cameraParams = s.camera;
     obs.cameraPose = s.on_vehicle;
     const Refiner refiner(optionsWithHeight(5.3));
-    const std::vector<Reference> refs = {s.reference(1, CPose3D())};
+    const std::vector<ReferenceImage> refs = {s.reference(1, CPose3D())};
     const CoarseHint hint{{}, CPose3D(), {}};
     const auto a = refiner.refine(obs, hint, refs);
     const auto b = refiner.refine(s.query(truth), s.camera, s.on_vehicle, hint, refs);
@@ -268,7 +268,7 @@ TEST(Refiner, ObservationEntryPointMatchesTheMatEntryPoint) {
 TEST(Refiner, HeatMapSamplingUsesTheBestRegionsAndIsDeterministic) {
     const Scene& s = scene();
     const CPose3D truth(0.12, 0.08, 0, 0.02, 0, 0);
-    Reference ref = s.reference(1, CPose3D());
+    ReferenceImage ref = s.reference(1, CPose3D());
     // Heat map of sharp blobs (as an FCN gives) in the right half, one weak blob on the left:
     // every chosen point must lie on the right.
     ref.heat_map = cv::Mat(ref.image.size(), CV_32F, cv::Scalar(0.0f));
@@ -311,7 +311,7 @@ TEST(Refiner, HeatMapSamplingUsesTheBestRegionsAndIsDeterministic) {
     EXPECT_EQ(e.references[0].matches[0].reference_px, ref.sample_points->points[0]);
 
     // A heat map with a NaN gets no cached points, and the Refiner refuses it, saying why.
-    Reference broken = ref;
+    ReferenceImage broken = ref;
     broken.heat_map = ref.heat_map.clone();
     broken.heat_map.at<float>(10, 10) = std::numeric_limits<float>::quiet_NaN();
     broken.prepareSamplePoints(refiner.options().sampler);
@@ -321,7 +321,7 @@ TEST(Refiner, HeatMapSamplingUsesTheBestRegionsAndIsDeterministic) {
     EXPECT_NE(f.reason.find("heat map"), std::string::npos) << f.reason;
 }
 
-TEST(Reference, FromObservationConvertsToGreyAndKeepsPoses) {
+TEST(ReferenceImage, FromObservationConvertsToGreyAndKeepsPoses) {
     const Scene& s = scene();
     const cv::Mat grey = s.query(CPose3D());
     cv::Mat bgr;
@@ -332,7 +332,7 @@ TEST(Reference, FromObservationConvertsToGreyAndKeepsPoses) {
     obs.cameraParams = s.camera;
     obs.cameraPose = s.on_vehicle;
     const CPose3D vehicle(1, 2, 0, 0.3, 0, 0);
-    const Reference r = Reference::fromObservation(9, obs, vehicle);
+    const ReferenceImage r = ReferenceImage::fromObservation(9, obs, vehicle);
     EXPECT_EQ(r.id, 9);
     ASSERT_EQ(r.image.type(), CV_8UC1);
     EXPECT_EQ(cv::norm(r.image, grey, cv::NORM_INF), 0.0);
@@ -342,7 +342,7 @@ TEST(Reference, FromObservationConvertsToGreyAndKeepsPoses) {
 
     mrpt::obs::CObservationImage empty;
     empty.sensorLabel = "CEILING_CAM";
-    EXPECT_THROW(Reference::fromObservation(3, empty, vehicle), std::runtime_error);
+    EXPECT_THROW(ReferenceImage::fromObservation(3, empty, vehicle), std::runtime_error);
 }
 
 TEST(Refiner, GlobalBrightnessChangeIsNormalisedAway) {
@@ -350,7 +350,7 @@ TEST(Refiner, GlobalBrightnessChangeIsNormalisedAway) {
     const CPose3D truth(0.15, -0.05, 0, 0.02, 0, 0);
     cv::Mat darker;
     s.query(truth).convertTo(darker, CV_8U, 0.55, 20.0);  // exposure / lighting change
-    const std::vector<Reference> refs = {s.reference(1, CPose3D())};
+    const std::vector<ReferenceImage> refs = {s.reference(1, CPose3D())};
     const CoarseHint hint{{}, CPose3D(), {}};
     RefinerOptions o = optionsWithHeight(5.3);
     const auto r = Refiner(o).refine(darker, s.camera, s.on_vehicle, hint, refs);

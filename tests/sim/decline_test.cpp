@@ -2,6 +2,7 @@
 // vehicle pitches on it, the lidar's scan plane tilts with it, the ground truth is 3-D; and a
 // scenario without a grade generates the same bytes as before the profile existed.
 
+#include "lookup/test/support.h"
 #include "test_worlds.h"
 
 #include <gtest/gtest.h>
@@ -173,11 +174,6 @@ start_m = 2
 plan = drive 15, stop 1, reverse 5
 )";
 
-std::string readText(const fs::path& p) {
-    std::ifstream f(p, std::ios::binary);
-    return std::string((std::istreambuf_iterator<char>(f)), {});
-}
-
 /// FNV-1a 64 over every file under `root` in path order (path, NUL, bytes, NUL), without
 /// scenario.ini's `threads` line and without the camera images: those go through OpenCV
 /// kernels that pick their SIMD code at run time, so another CPU may round a pixel
@@ -280,7 +276,7 @@ TEST(Decline, AGradedDatasetsGroundTruthDescendsTheRamp) {
     const double k = 1 + scenario.odometry.scale_error;
     EXPECT_NEAR(odometry / slope, k, 0.002);
     EXPECT_GT(odometry / plan, k + 0.004);
-    const std::string resolved = readText(dir / "out" / "scenario.ini");
+    const std::string resolved = lookup::test::readText(dir / "out" / "scenario.ini");
     EXPECT_NE(resolved.find("grade = 3 17 -1:7"), std::string::npos);
 }
 

@@ -2,6 +2,7 @@
 // auto-exposure, duty-cycle plans (stops, reversing, either direction), odometry slip and
 // dropouts, lidar scan skew and dust, and per-traverse overrides (another day, another vehicle).
 
+#include "lookup/test/support.h"
 #include "test_worlds.h"
 
 #include <gtest/gtest.h>
@@ -55,12 +56,6 @@ ScenarioOptions quickScenario() {
     return s;
 }
 
-fs::path tempDir(const std::string& name) {
-    const fs::path p = fs::temp_directory_path() / ("lookup_sim_ops_" + name);
-    fs::remove_all(p);
-    return p;
-}
-
 /// Every observation of traverse `name`, in file order.
 std::vector<mrpt::obs::CObservation::Ptr> readRawlog(const fs::path& dir, const std::string& name) {
     lookup::common::RawlogReader reader((dir / (name + ".rawlog")).string());
@@ -94,7 +89,7 @@ TEST(Operations, LatencyJitterAndDropsArePerSensor) {
     sc.lidar.timing.latency_ms = -10;
     sc.forward_camera.timing.jitter_ms = 3;
     sc.odometry.timing.drop_rate = 0.25;
-    const fs::path dir = tempDir("timing");
+    const fs::path dir = lookup::test::freshDir("lookup_sim_ops_timing");
     const SimulationResult r = runOk(sc, dir);
     const Simulator sim(sc);
     const double t0 = sim.groundTruth(0).front().time_s;
@@ -147,7 +142,8 @@ TEST(Operations, AutoExposureBringsTheImageToItsTarget) {
         sc.ceiling_camera.auto_exposure_target_dn = target;
         sc.ceiling_camera.auto_exposure_tau_s = 0.2;
         sc.ceiling_camera.exposure_variation = 0;
-        const fs::path dir = tempDir("ae" + std::to_string(int(target)));
+        const fs::path dir =
+            lookup::test::freshDir("lookup_sim_ops_ae" + std::to_string(int(target)));
         runOk(sc, dir);
         const double t0 = Simulator(sc).groundTruth(0).front().time_s;
         EXPECT_NEAR(meanCeilingLevel(dir, t0, 1.5), target, 0.12 * target);
@@ -184,7 +180,7 @@ TEST(Operations, PlanDrivesStopsAndReverses) {
     // The vehicle keeps facing +x (down the straight tunnel) throughout.
     for (const auto& row : gt) ASSERT_LT(std::abs(row.pose.yaw()), 0.2);
     // Odometry reads the reversing as negative forward velocity.
-    const fs::path dir = tempDir("plan");
+    const fs::path dir = lookup::test::freshDir("lookup_sim_ops_plan");
     runOk(sc, dir);
     double min_odo_v = 0;
     for (const auto& o : readRawlog(dir, "drive")) {
@@ -253,14 +249,14 @@ TEST(Operations, WheelSlipOverReadsByItsFactorAndDropoutsLeaveGaps) {
     sc.forward_camera.rate_hz = 2;
     sc.odometry.slip_fraction = 1;
     sc.odometry.slip_factor = 1.3;
-    const fs::path dir = tempDir("slip");
+    const fs::path dir = lookup::test::freshDir("lookup_sim_ops_slip");
     const SimulationResult r = runOk(sc, dir);
     EXPECT_NEAR(odometryLength(dir) / r.traverses[0].length_m, 1.3 * (1 + sc.odometry.scale_error),
                 0.01);
     sc.odometry.slip_fraction = 0;
     sc.odometry.dropout_fraction = 0.3;
     sc.odometry.dropout_s = 0.5;
-    const fs::path dir2 = tempDir("dropout");
+    const fs::path dir2 = lookup::test::freshDir("lookup_sim_ops_dropout");
     runOk(sc, dir2);
     double last = -1, longest_gap = 0;
     for (const auto& o : readRawlog(dir2, "drive")) {
@@ -310,14 +306,14 @@ TEST(Operations, AnotherDayLooksDifferentOnTheSameRoute) {
     sc.traverses[0].name = "d1";
     sc.traverses[1].name = "d2";
     sc.traverses[1].roles = "query";
-    const fs::path same = tempDir("sameday");
+    const fs::path same = lookup::test::freshDir("lookup_sim_ops_sameday");
     runOk(sc, same);
     sc.traverses[1].world = sc.world;
     sc.traverses[1].world->mesh_fraction = 1.0;
     sc.traverses[1].ceiling_camera = sc.ceiling_camera;
     sc.traverses[1].ceiling_camera->hfov_deg = 80;
     sc.traverses[1].ceiling_camera->noise_std_dn = 0;
-    const fs::path later = tempDir("later");
+    const fs::path later = lookup::test::freshDir("lookup_sim_ops_later");
     runOk(sc, later);
     auto frame = [](const fs::path& dir, const std::string& t) {
         std::ifstream f(dir / (t + "_Images") / "CEILING_CAM_000010.png", std::ios::binary);
@@ -365,7 +361,8 @@ TEST(Operations, RealisticEffectsStayDeterministicWhateverTheThreadCount) {
     }
     sc.forward_camera.width_px = 48;
     sc.forward_camera.height_px = 36;
-    const fs::path a = tempDir("real_t1"), b = tempDir("real_t2");
+    const fs::path a = lookup::test::freshDir("lookup_sim_ops_real_t1"),
+                   b = lookup::test::freshDir("lookup_sim_ops_real_t2");
     sc.threads = 1;
     runOk(sc, a);
     sc.threads = 2;
@@ -406,7 +403,7 @@ TEST(Operations, RollingShutterRowsAreExposedAfterTheStampedRow) {
         cam.exposure_variation = 0;
         cam.exposure_ms = 0;
         sc.forward_camera.rate_hz = 1;
-        const fs::path dir = tempDir("rs_" + ref);
+        const fs::path dir = lookup::test::freshDir("lookup_sim_ops_rs_" + ref);
         runOk(sc, dir);
         const Simulator sim(sc);
         const auto& gt = sim.groundTruth(0);

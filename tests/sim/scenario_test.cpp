@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include "lookup/test/support.h"
 
 namespace {
 
@@ -29,11 +30,6 @@ std::string writeTemp(const std::string& name, const std::string& text) {
     const std::string path = (dir / name).string();
     std::ofstream(path) << text;
     return path;
-}
-
-std::string readFile(const std::string& path) {
-    std::ifstream f(path);
-    return std::string(std::istreambuf_iterator<char>(f), {});
 }
 
 /// The error message `fromFile` gives for `text`, or "" if it was accepted.
@@ -86,7 +82,7 @@ TEST(Scenario, PresetsHaveThePapersTraverses) {
 }
 
 TEST(Scenario, UnknownKeyIsRefusedWithFileSectionAndKey) {
-    std::string text = readFile(presetPath("mine-b-mini"));
+    std::string text = lookup::test::readText(presetPath("mine-b-mini"));
     text.replace(text.find("speed_kmh"), 9, "sped_kmh");
     const std::string msg = refusal("typo.ini", text);
     EXPECT_NE(msg.find("typo.ini"), std::string::npos) << msg;
@@ -95,7 +91,7 @@ TEST(Scenario, UnknownKeyIsRefusedWithFileSectionAndKey) {
 }
 
 TEST(Scenario, MalformedNumberIsRefusedWithFileSectionAndKey) {
-    std::string text = readFile(presetPath("mine-b-mini"));
+    std::string text = lookup::test::readText(presetPath("mine-b-mini"));
     text.replace(text.find("width_m = 5.5"), 13, "width_m = 5,5");
     const std::string msg = refusal("comma.ini", text);
     EXPECT_NE(msg.find("comma.ini"), std::string::npos) << msg;
@@ -104,7 +100,7 @@ TEST(Scenario, MalformedNumberIsRefusedWithFileSectionAndKey) {
 }
 
 TEST(Scenario, OutOfRangeValueNamesTheField) {
-    std::string text = readFile(presetPath("mine-b-mini"));
+    std::string text = lookup::test::readText(presetPath("mine-b-mini"));
     text.replace(text.find("width_m = 5.5"), 13, "width_m = 1.0");
     const std::string msg = refusal("narrow.ini", text);
     EXPECT_NE(msg.find("narrow.ini"), std::string::npos) << msg;
@@ -112,7 +108,7 @@ TEST(Scenario, OutOfRangeValueNamesTheField) {
 }
 
 TEST(Scenario, UnknownSectionAndMissingTraverseAreRefused) {
-    std::string text = readFile(presetPath("mine-b-mini"));
+    std::string text = lookup::test::readText(presetPath("mine-b-mini"));
     EXPECT_NE(refusal("extra.ini", text + "\n[travers_9]\nname = x\n").find("[travers_9]"),
               std::string::npos);
     std::string fewer = text;
@@ -125,7 +121,7 @@ TEST(Scenario, UnknownSectionAndMissingTraverseAreRefused) {
 
 /// mine-b-mini with `extra` appended to section `[section]` (inserted after its header).
 std::string withKeys(const std::string& section, const std::string& extra) {
-    std::string text = readFile(presetPath("mine-b-mini"));
+    std::string text = lookup::test::readText(presetPath("mine-b-mini"));
     const std::string header = "[" + section + "]\n";
     const auto at = text.find(header);
     if (at == std::string::npos) return text + "\n" + header + extra + "\n";
@@ -163,7 +159,7 @@ TEST(Scenario, PhysicallyImpossibleSensorValuesAreRefusedNamingTheKey) {
         EXPECT_NE(msg.find("impossible.ini"), std::string::npos) << msg;
         EXPECT_NE(msg.find(c.field), std::string::npos) << msg;
     }
-    std::string text = readFile(presetPath("mine-b-mini"));
+    std::string text = lookup::test::readText(presetPath("mine-b-mini"));
     text.replace(text.find("rate_hz = 50"), 12, "rate_hz = -50");
     EXPECT_NE(refusal("negative.ini", text).find("odometry.rate_hz"), std::string::npos);
 }

@@ -20,6 +20,7 @@
 #include <fstream>
 #include <iostream>
 #include <map>
+#include "lookup/test/support.h"
 
 namespace {
 
@@ -53,24 +54,13 @@ ScenarioOptions tinyScenario() {
     return s;
 }
 
-fs::path tempDir(const std::string& name) {
-    const fs::path p = fs::temp_directory_path() / ("lookup_sim_test_" + name);
-    fs::remove_all(p);
-    return p;
-}
-
-std::string readAll(const fs::path& p) {
-    std::ifstream f(p, std::ios::binary);
-    return std::string(std::istreambuf_iterator<char>(f), {});
-}
-
 /// Every file under `root` by relative path; scenario.ini without its `threads` line, the one
 /// key that may differ between runs that must give the same data.
 std::map<std::string, std::string> allFiles(const fs::path& root) {
     std::map<std::string, std::string> files;
     for (const auto& e : fs::recursive_directory_iterator(root)) {
         if (!e.is_regular_file()) continue;
-        std::string bytes = readAll(e.path());
+        std::string bytes = lookup::test::readText(e.path());
         if (e.path().filename() == "scenario.ini") {
             const auto at = bytes.find("threads");
             if (at == std::string::npos) {
@@ -85,7 +75,7 @@ std::map<std::string, std::string> allFiles(const fs::path& root) {
 }
 
 TEST(Simulator, WritesTheDatasetLayout) {
-    const fs::path dir = tempDir("layout");
+    const fs::path dir = lookup::test::freshDir("lookup_sim_test_layout");
     const ScenarioOptions sc = tinyScenario();
     const Simulator sim(sc);
     const SimulationResult r = sim.run(dir.string());
@@ -129,7 +119,7 @@ TEST(Simulator, WritesTheDatasetLayout) {
 }
 
 TEST(Simulator, SensorsRunOnTheirOwnClocksInsideTheGroundTruth) {
-    const fs::path dir = tempDir("clocks");
+    const fs::path dir = lookup::test::freshDir("lookup_sim_test_clocks");
     const ScenarioOptions sc = tinyScenario();
     const SimulationResult r = Simulator(sc).run(dir.string());
     ASSERT_EQ(r.status, SimulationResult::Status::Ok) << r.reason;
@@ -182,7 +172,9 @@ TEST(Simulator, SensorsRunOnTheirOwnClocksInsideTheGroundTruth) {
 TEST(Simulator, SameSeedGivesTheSameBytesWhateverTheThreadCount) {
     ScenarioOptions sc = tinyScenario();
     sc.traverses.resize(1);
-    const fs::path a = tempDir("seed_a"), b = tempDir("seed_b"), c = tempDir("seed_c");
+    const fs::path a = lookup::test::freshDir("lookup_sim_test_seed_a"),
+                   b = lookup::test::freshDir("lookup_sim_test_seed_b"),
+                   c = lookup::test::freshDir("lookup_sim_test_seed_c");
     sc.threads = 1;
     ASSERT_EQ(Simulator(sc).run(a.string()).status, SimulationResult::Status::Ok);
     sc.threads = 2;
@@ -218,7 +210,7 @@ TEST(Simulator, MiniPresetsStayUnder50MB) {
             lookup::sim::findPreset(name, {std::string(LOOKUP_SOURCE_SHARE_DIR) + "/scenarios"}));
         sc.ceiling_camera.rate_hz /= kDecimation;
         sc.forward_camera.rate_hz /= kDecimation;
-        const fs::path dir = tempDir(name);
+        const fs::path dir = lookup::test::freshDir(std::string("lookup_sim_test_") + name);
         const auto start = std::chrono::steady_clock::now();
         const SimulationResult r = Simulator(sc).run(dir.string());
         const double secs =

@@ -5,6 +5,8 @@
 
 #include "lookup/common/config.h"
 #include "lookup/suite/suite.h"
+#include "lookup/suite/suite_app.h"
+#include "lookup/test/support.h"
 
 namespace fs = std::filesystem;
 using namespace lookup::suite;
@@ -14,8 +16,7 @@ namespace {
 const std::vector<std::string> kShare{LOOKUP_SOURCE_SHARE_DIR};
 
 std::string writeSuite(const std::string& name, const std::string& text) {
-    const fs::path dir = fs::temp_directory_path() / "lookup_suite_options";
-    fs::create_directories(dir);
+    static const fs::path dir = lookup::test::freshDir("lookup_suite_options");
     const fs::path path = dir / (name + ".ini");
     std::ofstream(path) << text;
     return path.string();
@@ -153,4 +154,26 @@ TEST(SuiteSummary, AggregatesRunsAndListsFailures) {
     // A run that never fixed makes the worst first fix "never", not a smaller number.
     good.rows[2].first_fix_frame = -1;
     EXPECT_LT(summarizeConditions(o, {good})[0].first_fix_frame_max, 0);
+}
+
+TEST(SuiteApp, BadFlagsAndSuiteFileTyposAreRefusedNamingThem) {
+    const std::string good = writeSuite("app", "[suite]\n[condition.a]\npreset = mine-b-mini\n");
+    const std::string typo =
+        writeSuite("app_typo", "[suite]\n[condition.a]\npreset = mine-b-mini\nspeed = 3\n");
+    for (const auto& [args, names] : std::vector<std::pair<std::vector<std::string>, std::string>>{
+             {{"--suite", good, "--out", "o", "-j", "0"}, "--jobs must be >= 1"},
+             {{"--suite", good, "--out", "o", "--seeds", "3-1"}, "3-1"},
+             {{"--suite", typo, "--out", "o"}, typo + " [condition.a] speed"},
+             {{"--suite", good}, "--out"}}) {
+        SuiteApp app(kShare);
+        const auto r = lookup::test::runApp("lookup-suite", app, args);
+        EXPECT_EQ(r.code, 1) << names;
+        EXPECT_NE(r.err.find(names), std::string::npos) << r.err;
+        EXPECT_TRUE(app.results().empty());
+    }
+    SuiteApp app(kShare);
+    std::vector<const char*> argv{"lookup-suite", "--suite", good.c_str(), "--out", "o",
+                                  "--seeds",      "2,4"};
+    ASSERT_TRUE(app.initialize(int(argv.size()), argv.data()));
+    EXPECT_EQ(app.options().seeds, (std::vector<std::uint64_t>{2, 4}));
 }

@@ -6,6 +6,8 @@
 #include <sstream>
 
 #include "lookup/suite/suite.h"
+#include "lookup/suite/suite_app.h"
+#include "lookup/test/support.h"
 
 namespace fs = std::filesystem;
 using namespace lookup::suite;
@@ -14,9 +16,7 @@ using namespace lookup::suite;
 // the localiser (bad options). The failure is a row with its step and reason; the good row's
 // figures come from real survey, localisation and evaluation.
 TEST(SuiteRun, OneConditionThroughEveryStageAndAFailedOneThatDoesNotStopTheSuite) {
-    const fs::path dir = fs::temp_directory_path() / "lookup_suite_run";
-    fs::remove_all(dir);
-    fs::create_directories(dir);
+    const fs::path dir = lookup::test::freshDir("lookup_suite_run");
     std::ofstream(dir / "broken-localize.ini") << "[localizer]\nno_such_key = 1\n";
     std::ofstream(dir / "quick.ini") << R"([suite]
 name = quick
@@ -33,11 +33,16 @@ preset = mine-b-mini
 world.length_m = 30
 localize_ini = broken-localize.ini
 )";
-    auto suite = SuiteOptions::fromFile((dir / "quick.ini").string(), {LOOKUP_SOURCE_SHARE_DIR});
-    suite.threads_per_job = 1;
-    std::ostringstream log;
-    const auto results = runSuite(suite, (dir / "out").string(), 2, log);
-    ASSERT_EQ(results.size(), 2u) << log.str();
+    // Through lookup-suite's App: exit code 2, some job failed.
+    SuiteApp app({LOOKUP_SOURCE_SHARE_DIR});
+    const auto run = lookup::test::runApp(
+        "lookup-suite", app,
+        {"--suite", (dir / "quick.ini").string(), "--out", (dir / "out").string(), "-j", "2"});
+    EXPECT_EQ(run.code, 2) << run.err;
+    const SuiteOptions& suite = app.options();
+    const auto& results = app.results();
+    ASSERT_EQ(results.size(), 2u) << run.out << run.err;
+    EXPECT_NE(run.out.find("| short-mine | 1 |"), std::string::npos) << run.out;
     EXPECT_TRUE(results[0].ok) << results[0].reason;
     EXPECT_FALSE(results[1].ok);
     EXPECT_NE(results[1].reason.find("localise zigzag"), std::string::npos) << results[1].reason;

@@ -14,16 +14,13 @@
 #include "lookup/survey/ceiling_distance.h"
 #include "lookup/survey/survey.h"
 #include "lookup/survey/survey_app.h"
+#include "lookup/test/support.h"
 #include "survey_fixture.h"
 
 namespace fs = std::filesystem;
 using namespace lookup::survey;
 
 namespace {
-
-fs::path tempDir(const std::string& name) {
-    return lookup::test::freshTestDir("lookup_nogt_", name);
-}
 
 const mrpt::config::CConfigFile& shareIni() { return lookup::test::shareSurveyIni(); }
 
@@ -137,7 +134,7 @@ TEST(CeilingDistance, TooFewTriplesWarnAndUseTheConfiguredValue) {
 }
 
 TEST(CeilingDistance, SurveyReportsTheConfiguredValueWhenTooFewTriples) {
-    const auto dir = tempDir("fewpairs");
+    const auto dir = lookup::test::freshDir("lookup_nogt_fewpairs");
     const auto f = lookup::test::makeSurveyRawlog(dir.string(), "corridor", 4.0);
     SurveyInputs in;
     in.traverses.push_back({"corridor", f.rawlog, f.ground_truth, true, true});
@@ -158,7 +155,7 @@ TEST(CeilingDistance, SurveyReportsTheConfiguredValueWhenTooFewTriples) {
 }
 
 TEST(StartSearch, StartPoseOffByMetresStillPlacesTheOtherTraverse) {
-    const auto dir = tempDir("startoff");
+    const auto dir = lookup::test::freshDir("lookup_nogt_startoff");
     const auto a = lookup::test::makeSurveyRawlog(dir.string(), "a", 12.0);
     const auto b = lookup::test::makeSurveyRawlog(dir.string(), "b", 12.0);
     SurveyInputs in;
@@ -198,7 +195,7 @@ TEST(StartSearch, StartPoseOffByMetresStillPlacesTheOtherTraverse) {
 }
 
 TEST(DatasetIni, WithoutCeilingHeightWorksAndAStatedOneIsIgnored) {
-    const auto dir = tempDir("dataset");
+    const auto dir = lookup::test::freshDir("lookup_nogt_dataset");
     const auto f = lookup::test::makeSurveyRawlog(dir.string(), "corridor", 6.0);
     for (const std::string extra : {"", "ceiling_height_m = 7.5\n"}) {
         writeDataset(dir / "dataset.ini", "corridor.rawlog", extra);
@@ -218,7 +215,7 @@ TEST(DatasetIni, WithoutCeilingHeightWorksAndAStatedOneIsIgnored) {
 }
 
 TEST(DatasetIni, MalformedStartPoseRefusedNamingTheKey) {
-    const auto dir = tempDir("badstart");
+    const auto dir = lookup::test::freshDir("lookup_nogt_badstart");
     const auto f = lookup::test::makeSurveyRawlog(dir.string(), "corridor", 2.0);
     {
         std::ofstream d(dir / "dataset.ini");

@@ -10,6 +10,7 @@
 #include <regex>
 
 #include "lookup/database/reference_database.h"
+#include "lookup/test/support.h"
 #include "survey_fixture.h"
 
 namespace fs = std::filesystem;
@@ -21,11 +22,6 @@ struct Run {
     std::string out, err;
 };
 
-std::string slurp(const fs::path& p) {
-    std::ifstream in(p, std::ios::binary);
-    return {std::istreambuf_iterator<char>(in), {}};
-}
-
 Run survey(const fs::path& dir, const std::string& args, const std::string& env = "") {
     const std::string cmd = env + " timeout 120 " + std::string(LOOKUP_BINARY_DIR) +
                             "/bin/lookup-survey -q " + args + " >" + (dir / "out.txt").string() +
@@ -33,8 +29,8 @@ Run survey(const fs::path& dir, const std::string& args, const std::string& env 
     const int status = std::system(cmd.c_str());
     Run r;
     r.code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-    r.out = slurp(dir / "out.txt");
-    r.err = slurp(dir / "err.txt");
+    r.out = lookup::test::readText(dir / "out.txt");
+    r.err = lookup::test::readText(dir / "err.txt");
     return r;
 }
 
@@ -62,7 +58,7 @@ std::string shareIni() { return std::string(LOOKUP_SOURCE_SHARE_DIR) + "/survey.
 
 // share/lookup/survey.ini with `key = value` set in `[section]` (added when absent).
 std::string iniWith(const std::string& section, const std::string& key, const std::string& value) {
-    std::string text = slurp(shareIni());
+    std::string text = lookup::test::readText(shareIni());
     const std::regex line("\\n" + key + " *=[^\\n]*");
     const auto at = text.find("\n[" + section + "]") + 1;
     std::string head = text.substr(0, at), tail = text.substr(at);
@@ -129,7 +125,7 @@ TEST(SurveyCliFault, BadOptionsInEverySectionAreOneLineNamingFileSectionKey) {
 
 TEST(SurveyCliFault, BadPoseFilesAreBadInputNamingFileAndLine) {
     const auto& d = data();
-    const std::string rows = slurp(d.f.ground_truth);
+    const std::string rows = lookup::test::readText(d.f.ground_truth);
     const std::string first = rows.substr(0, rows.find('\n') + 1);
     const fs::path poses = d.dir / "poses.txt";
     // Second row bad: a word, inf, a time past the clock's range, 6 columns.
@@ -147,7 +143,7 @@ TEST(SurveyCliFault, BadPoseFilesAreBadInputNamingFileAndLine) {
 
 TEST(SurveyCliFault, DamagedRawlogsRefusedNamingTheFileNeverASignal) {
     const auto& d = data();
-    const std::string bytes = slurp(d.f.rawlog);
+    const std::string bytes = lookup::test::readText(d.f.rawlog);
     const fs::path bad = d.dir / "damaged.rawlog";
     // The damaged copy refers to the same external images.
     fs::remove_all(d.dir / "damaged_Images");

@@ -20,6 +20,7 @@
 
 #include "lookup/database/reference_database.h"
 #include "lookup/survey/survey.h"
+#include "lookup/test/support.h"
 #include "survey_fixture.h"
 
 namespace fs = std::filesystem;
@@ -28,10 +29,6 @@ using namespace lookup::survey;
 namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-
-fs::path tempDir(const std::string& name) {
-    return lookup::test::freshTestDir("lookup_survey_fault_", name);
-}
 
 const mrpt::config::CConfigFile& shareIni() { return lookup::test::shareSurveyIni(); }
 
@@ -70,7 +67,7 @@ void rewriteRawlog(const std::string& src, const std::string& dst,
 }  // namespace
 
 TEST(SurveyFault, NonFiniteLidarRangesLeaveReferencePosesAsAccurate) {
-    const auto dir = tempDir("lidar");
+    const auto dir = lookup::test::freshDir("lookup_survey_fault_lidar");
     const auto f = lookup::test::makeSurveyRawlog(dir.string(), "corridor", 12.0);
     const auto clean =
         Survey(shareOptions(), shareIni()).run(inputsFor(f.rawlog, f.ground_truth, dir / "clean"));
@@ -113,7 +110,7 @@ TEST(SurveyFault, NonFiniteLidarRangesLeaveReferencePosesAsAccurate) {
 }
 
 TEST(SurveyFault, NonFiniteOdometryRecordsSkippedAndCounted) {
-    const auto dir = tempDir("odometry");
+    const auto dir = lookup::test::freshDir("lookup_survey_fault_odometry");
     const auto f = lookup::test::makeSurveyRawlog(dir.string(), "corridor", 10.0);
     const std::string bad = (dir / "nan.rawlog").string();
     std::size_t odometry = 0;
@@ -141,7 +138,7 @@ TEST(SurveyFault, NonFiniteOdometryRecordsSkippedAndCounted) {
 }
 
 TEST(SurveyFault, UnusableIntrinsicsRefused) {
-    const auto dir = tempDir("intrinsics");
+    const auto dir = lookup::test::freshDir("lookup_survey_fault_intrinsics");
     const auto f = lookup::test::makeSurveyRawlog(dir.string(), "corridor", 4.0);
     const std::string some = (dir / "some.rawlog").string();
     std::size_t images = 0, broken = 0;
@@ -181,7 +178,7 @@ TEST(SurveyFault, UnusableIntrinsicsRefused) {
 }
 
 TEST(SurveyFault, GarbageEmptyAndWrongSizeImagesRefused) {
-    const auto dir = tempDir("images");
+    const auto dir = lookup::test::freshDir("lookup_survey_fault_images");
     const auto f = lookup::test::makeSurveyRawlog(dir.string(), "corridor", 4.0);
     const fs::path images = dir / "corridor_Images";
     for (int k = 0; k < f.frames; k += 3) {

@@ -20,16 +20,9 @@
 #include "lookup/common/pose_files.h"
 #include "lookup/common/rawlog_io.h"
 #include "lookup/survey/survey_options.h"
+#include "lookup/test/support.h"
 
 namespace lookup::test {
-
-/// An empty folder under the test temporary folder, named `prefix` + `name`.
-inline std::filesystem::path freshTestDir(const std::string& prefix, const std::string& name) {
-    auto dir = std::filesystem::temp_directory_path() / (prefix + name);
-    std::filesystem::remove_all(dir);
-    std::filesystem::create_directories(dir);
-    return dir;
-}
 
 /// share/lookup/survey.ini of the source tree, read once.
 inline const mrpt::config::CConfigFile& shareSurveyIni() {

@@ -9,16 +9,13 @@
 
 #include "lookup/database/reference_database.h"
 #include "lookup/survey/survey.h"
+#include "lookup/test/support.h"
 #include "survey_fixture.h"
 
 namespace fs = std::filesystem;
 using namespace lookup::survey;
 
 namespace {
-
-fs::path tempDir(const std::string& name) {
-    return lookup::test::freshTestDir("lookup_survey_", name);
-}
 
 const mrpt::config::CConfigFile& shareIni() { return lookup::test::shareSurveyIni(); }
 
@@ -48,7 +45,7 @@ bool noStagingLeft(const fs::path& dir) {
 }  // namespace
 
 TEST(SurveyRun, PoseFileGivesCameraPosesEqualToTruthComposedWithMount) {
-    const auto dir = tempDir("posefile");
+    const auto dir = lookup::test::freshDir("lookup_survey_posefile");
     const auto f = lookup::test::makeSurveyRawlog(dir.string(), "corridor", 10.0);
     auto in = inputsFor(f, dir / "db");
     in.poses_file = f.ground_truth;
@@ -103,7 +100,7 @@ TEST(SurveyRun, DeskewedScansAreCountedInTheReport) {
 }
 
 TEST(SurveyRun, PosesFromEachTraverseGroundTruth) {
-    const auto dir = tempDir("posesgt");
+    const auto dir = lookup::test::freshDir("lookup_survey_posesgt");
     const auto f = lookup::test::makeSurveyRawlog(dir.string(), "corridor", 4.0);
     auto in = inputsFor(f, dir / "db");
     in.poses_file = kPosesFromGroundTruth;
@@ -131,7 +128,7 @@ TEST(SurveyRun, PosesFromEachTraverseGroundTruth) {
 }
 
 TEST(SurveyRun, LaserPathPosesCloseToTruth) {
-    const auto dir = tempDir("laser");
+    const auto dir = lookup::test::freshDir("lookup_survey_laser");
     const auto f = lookup::test::makeSurveyRawlog(dir.string(), "corridor", 12.0);
     const auto result = Survey(shareOptions(), shareIni()).run(inputsFor(f, dir / "db"));
     ASSERT_TRUE(result.ok()) << result.reason;
@@ -160,7 +157,7 @@ TEST(SurveyRun, LaserPathPosesCloseToTruth) {
 }
 
 TEST(SurveyRun, MissingLidarNamesLabelsPresent) {
-    const auto dir = tempDir("nolidar");
+    const auto dir = lookup::test::freshDir("lookup_survey_nolidar");
     const auto f = lookup::test::makeSurveyRawlog(dir.string(), "corridor", 2.0, false);
     const auto result = Survey(shareOptions(), shareIni()).run(inputsFor(f, dir / "db"));
     ASSERT_FALSE(result.ok());
@@ -174,7 +171,7 @@ TEST(SurveyRun, MissingLidarNamesLabelsPresent) {
 }
 
 TEST(SurveyRun, MissingImageNamesFileAndRecord) {
-    const auto dir = tempDir("noimage");
+    const auto dir = lookup::test::freshDir("lookup_survey_noimage");
     const auto f = lookup::test::makeSurveyRawlog(dir.string(), "corridor", 2.0);
     fs::remove(dir / "corridor_Images" / "CEILING_CAM_5.png");
     auto in = inputsFor(f, dir / "db");
@@ -188,7 +185,7 @@ TEST(SurveyRun, MissingImageNamesFileAndRecord) {
 }
 
 TEST(SurveyRun, NonMonotonicTimeStampsNamed) {
-    const auto dir = tempDir("nonmono");
+    const auto dir = lookup::test::freshDir("lookup_survey_nonmono");
     const std::string path = (dir / "bad.rawlog").string();
     {
         lookup::common::RawlogWriter w(path);
@@ -212,7 +209,7 @@ TEST(SurveyRun, NonMonotonicTimeStampsNamed) {
 }
 
 TEST(SurveyRun, MismatchedPoseFileTimesNamed) {
-    const auto dir = tempDir("mismatch");
+    const auto dir = lookup::test::freshDir("lookup_survey_mismatch");
     const auto f = lookup::test::makeSurveyRawlog(dir.string(), "corridor", 2.0);
     auto track = lookup::common::readPoseFile(f.ground_truth);
     for (auto& p : track) p.time_s += 500;
@@ -228,7 +225,7 @@ TEST(SurveyRun, MismatchedPoseFileTimesNamed) {
 }
 
 TEST(SurveyRun, UnreadableMapNamed) {
-    const auto dir = tempDir("badmap");
+    const auto dir = lookup::test::freshDir("lookup_survey_badmap");
     const auto f = lookup::test::makeSurveyRawlog(dir.string(), "corridor", 2.0);
     const std::string map = (dir / "broken.gridmap.gz").string();
     std::ofstream(map) << "not a map";
@@ -240,7 +237,7 @@ TEST(SurveyRun, UnreadableMapNamed) {
 }
 
 TEST(SurveyRun, FailedSurveyKeepsExistingDatabase) {
-    const auto dir = tempDir("keep");
+    const auto dir = lookup::test::freshDir("lookup_survey_keep");
     const auto f = lookup::test::makeSurveyRawlog(dir.string(), "corridor", 3.0);
     auto in = inputsFor(f, dir / "db");
     in.poses_file = f.ground_truth;

@@ -84,23 +84,23 @@ void pathIndices(const ReferenceDescriptors& refs, long lo, long hi, double arc_
 
 const char* toString(CoarseStatus status) {
     switch (status) {
-        case CoarseStatus::kTracking:
+        case CoarseStatus::Tracking:
             return "tracking";
-        case CoarseStatus::kGlobal:
+        case CoarseStatus::Global:
             return "global";
-        case CoarseStatus::kNotEnoughFrames:
+        case CoarseStatus::NotEnoughFrames:
             return "not_enough_frames";
-        case CoarseStatus::kLost:
+        case CoarseStatus::Lost:
             return "lost";
-        case CoarseStatus::kInvalidInput:
+        case CoarseStatus::InvalidInput:
             return "invalid_input";
-        case CoarseStatus::kExternal:
+        case CoarseStatus::External:
             return "external";
-        case CoarseStatus::kNotSearched:
+        case CoarseStatus::NotSearched:
             return "not_searched";
-        case CoarseStatus::kOdometry:
+        case CoarseStatus::Odometry:
             return "odometry";
-        case CoarseStatus::kUnconfirmed:
+        case CoarseStatus::Unconfirmed:
             return "unconfirmed";
     }
     return "unknown";
@@ -179,7 +179,7 @@ void CoarseLocalizer::rejectLastMatch() {
 CoarseResult CoarseLocalizer::locate(const CoarseQuery& query) {
     if (!query.forward_image) {
         CoarseResult r;
-        r.status = CoarseStatus::kInvalidInput;
+        r.status = CoarseStatus::InvalidInput;
         r.reason = "no forward image given";
         r.query_index = queries_++;
         r.query_time_s = query.time_s;
@@ -194,7 +194,7 @@ CoarseResult CoarseLocalizer::process(const mrpt::img::CImage& image, double tim
                                       const Descriptor* descriptor) {
     const auto t0 = Clock::now();
     CoarseResult invalid;
-    invalid.status = CoarseStatus::kInvalidInput;
+    invalid.status = CoarseStatus::InvalidInput;
     invalid.query_time_s = time_s;
     Descriptor d;
     try {
@@ -578,7 +578,7 @@ void CoarseLocalizer::auditTrack(CoarseResult& r) {
         std::ostringstream msg;
         msg << "track dropped: over " << cols << " frames " << 100 * g.probe_rank
             << " % of the places score better than the track";
-        r.status = CoarseStatus::kLost;
+        r.status = CoarseStatus::Lost;
         r.reason = msg.str();
         tracking_ = false;
         return;
@@ -625,7 +625,7 @@ void CoarseLocalizer::skipSearch(const std::optional<double>& travelled_m, doubl
         last_match_ = static_cast<std::size_t>(nearestArc(*references_, track_arc_m_));
     }
     tracking_ = coast;
-    r.status = CoarseStatus::kNotSearched;
+    r.status = CoarseStatus::NotSearched;
     r.reason = "search skipped: no match needed for this frame";
 }
 
@@ -668,7 +668,7 @@ void CoarseLocalizer::holdByOdometry(const FramePlan& plan, long predicted, cons
     coasted_m_ += plan.step_m;
     track_arc_m_ += plan.step_m;
     r.search_ms = msSince(plan.t0);
-    r.status = CoarseStatus::kOdometry;
+    r.status = CoarseStatus::Odometry;
     r.reference_index = static_cast<std::size_t>(predicted);
     r.reference_time_s = references_->time(r.reference_index);
     r.coarse_pose = references_->pose(r.reference_index);
@@ -722,24 +722,24 @@ void CoarseLocalizer::judgeMatch(const FramePlan& plan, const Search& s, bool gl
     const int cols = global ? global_cols : plan.track_cols;
     if (global && plan.full) ++unconfident_searches_;  // (reset below when it is trusted)
     if (!plan.full) {
-        r.status = CoarseStatus::kNotEnoughFrames;
+        r.status = CoarseStatus::NotEnoughFrames;
         r.reason = "only " + std::to_string(plan.n_cols) +
                    " of sequence_length = " + std::to_string(options_.sequence_length) +
                    " query frames seen";
         tracking_ = false;
     } else if (!std::isfinite(s.second_score)) {
-        r.status = CoarseStatus::kLost;
+        r.status = CoarseStatus::Lost;
         r.reason = "no competing candidate outside the exclusion window: confidence unknown";
         tracking_ = false;
     } else if (r.confidence < minConfidence(cols)) {
-        r.status = CoarseStatus::kLost;
+        r.status = CoarseStatus::Lost;
         r.reason = "confidence " + std::to_string(r.confidence) + " below " +
                    std::to_string(minConfidence(cols)) + " (min_confidence for " +
                    std::to_string(cols) + " frames: aliased or unknown place)";
         tracking_ = false;
     } else if (global && plan.odometry && options_.confirm_global &&
                !confirmGlobal(s.best, r.query_index, r.reason)) {
-        r.status = CoarseStatus::kUnconfirmed;
+        r.status = CoarseStatus::Unconfirmed;
         tracking_ = false;
     } else {
         trust(s.best, global, plan.odometry, audit, r);
@@ -748,7 +748,7 @@ void CoarseLocalizer::judgeMatch(const FramePlan& plan, const Search& s, bool gl
 
 void CoarseLocalizer::trust(std::size_t best, bool global, bool odometry, bool audit,
                             CoarseResult& r) {
-    r.status = global ? CoarseStatus::kGlobal : CoarseStatus::kTracking;
+    r.status = global ? CoarseStatus::Global : CoarseStatus::Tracking;
     tracking_ = true;
     unconfident_searches_ = 0;
     coasted_m_ = 0;
@@ -773,7 +773,7 @@ CoarseResult CoarseLocalizer::processDescriptor(const Descriptor& descriptor, do
     r.query_time_s = time_s;
     const std::size_t expected = references_->descriptor(0).size();
     if (descriptor.size() != expected) {
-        r.status = CoarseStatus::kInvalidInput;
+        r.status = CoarseStatus::InvalidInput;
         r.reason = "descriptor has " + std::to_string(descriptor.size()) +
                    " values, the references have " + std::to_string(expected);
         return r;
@@ -819,7 +819,7 @@ CoarseResult CoarseLocalizer::processDescriptor(const Descriptor& descriptor, do
     if (global) s = searchGlobally(plan, global_cols, r);
     r.search_ms = msSince(plan.t0);
     if (!s.valid) {
-        r.status = CoarseStatus::kLost;
+        r.status = CoarseStatus::Lost;
         r.reason = "no sequence path fits inside the reference sequence";
         tracking_ = false;
         return r;

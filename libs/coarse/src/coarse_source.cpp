@@ -45,12 +45,12 @@ CoarseResult MatchFileSource::locate(const CoarseQuery& query) {
         best = it - 1;
     }
     if (std::abs(best->first - query.time_s) > max_time_gap_s_) {
-        r.status = CoarseStatus::kLost;
+        r.status = CoarseStatus::Lost;
         r.reason = "no row of " + path_ + " within " + std::to_string(max_time_gap_s_) +
                    " s of the query time";
         return r;
     }
-    r.status = CoarseStatus::kExternal;
+    r.status = CoarseStatus::External;
     r.reference_time_s = best->second;
     if (references_ && !references_->empty()) {
         r.reference_index = references_->nearestInTime(best->second);
@@ -77,11 +77,11 @@ CoarseResult PoseFileSource::locate(const CoarseQuery& query) {
         interpolator_.interpolate(mrpt::Clock::fromDouble(query.time_s), pose, valid);
     }
     if (!valid) {
-        r.status = CoarseStatus::kLost;
+        r.status = CoarseStatus::Lost;
         r.reason = "query time outside the pose track of " + path_ + " or in a gap";
         return r;
     }
-    r.status = CoarseStatus::kExternal;
+    r.status = CoarseStatus::External;
     r.coarse_pose = pose;
     if (references_ && references_->hasPoses()) {
         r.reference_index = references_->nearestInSpace(pose);

@@ -154,20 +154,20 @@ void commitCsv(std::ofstream& csv, const std::string& tmp, const std::string& pa
 
 /// Counts one frame's result in the run's figures (search times summed; see summarise).
 void countResult(const CoarseResult& r, CoarseRunSummary& s) {
-    if (r.status == CoarseStatus::kTracking || r.status == CoarseStatus::kOdometry) {
+    if (r.status == CoarseStatus::Tracking || r.status == CoarseStatus::Odometry) {
         ++s.tracking_frames;
         s.mean_tracking_search_ms += r.search_ms;
-    } else if (r.status != CoarseStatus::kInvalidInput && r.status != CoarseStatus::kNotSearched) {
+    } else if (r.status != CoarseStatus::InvalidInput && r.status != CoarseStatus::NotSearched) {
         ++s.global_frames;
         s.mean_global_search_ms += r.search_ms;
     }
     ++s.frames;
     if (r.usable()) ++s.usable;
-    if (r.status == CoarseStatus::kGlobal) ++s.global_searches;
-    if (r.status == CoarseStatus::kOdometry) ++s.odometry;
-    if (r.status == CoarseStatus::kUnconfirmed) ++s.unconfirmed;
-    if (r.status == CoarseStatus::kLost || r.status == CoarseStatus::kInvalidInput) ++s.lost;
-    if (r.status == CoarseStatus::kNotEnoughFrames) ++s.not_enough;
+    if (r.status == CoarseStatus::Global) ++s.global_searches;
+    if (r.status == CoarseStatus::Odometry) ++s.odometry;
+    if (r.status == CoarseStatus::Unconfirmed) ++s.unconfirmed;
+    if (r.status == CoarseStatus::Lost || r.status == CoarseStatus::InvalidInput) ++s.lost;
+    if (r.status == CoarseStatus::NotEnoughFrames) ++s.not_enough;
 }
 
 /// Per-frame times and errors of a run.
@@ -336,6 +336,8 @@ bool CoarseTool::initialize(int argc, const char* const* argv) {
     }
     return true;
 }
+
+int CoarseTool::run() { return run(std::cout, std::cerr); }
 
 int CoarseTool::run(std::ostream& out, std::ostream& err) {
     try {

@@ -11,13 +11,13 @@ namespace {
 int trust(const CoarseResult& r) {
     if (!r.hasMatch()) return 0;
     switch (r.status) {
-        case CoarseStatus::kTracking:
-        case CoarseStatus::kGlobal:
-        case CoarseStatus::kExternal:
+        case CoarseStatus::Tracking:
+        case CoarseStatus::Global:
+        case CoarseStatus::External:
             return 4;
-        case CoarseStatus::kOdometry:
+        case CoarseStatus::Odometry:
             return 3;
-        case CoarseStatus::kUnconfirmed:
+        case CoarseStatus::Unconfirmed:
             return 2;
         default:
             return 1;

@@ -367,8 +367,8 @@ std::optional<Localizer::CoarseFix> Localizer::coarseFix() const {
     if (!last_coarse_) return std::nullopt;
     using coarse::CoarseStatus;
     const auto status = last_coarse_->status;
-    if (status != CoarseStatus::kTracking && status != CoarseStatus::kOdometry &&
-        status != CoarseStatus::kGlobal && status != CoarseStatus::kExternal) {
+    if (status != CoarseStatus::Tracking && status != CoarseStatus::Odometry &&
+        status != CoarseStatus::Global && status != CoarseStatus::External) {
         return std::nullopt;
     }
     return fixFromMatch(*last_coarse_);
@@ -389,9 +389,9 @@ std::vector<Localizer::CoarseFix> Localizer::startupSeeds() const {
         for (auto& other : coarse_->otherMatches()) guesses.push_back(std::move(other));
     }
     for (const auto& c : guesses) {
-        const bool seed = c.hasMatch() && (c.status == coarse::CoarseStatus::kNotEnoughFrames ||
-                                           c.status == coarse::CoarseStatus::kUnconfirmed ||
-                                           c.status == coarse::CoarseStatus::kLost);
+        const bool seed = c.hasMatch() && (c.status == coarse::CoarseStatus::NotEnoughFrames ||
+                                           c.status == coarse::CoarseStatus::Unconfirmed ||
+                                           c.status == coarse::CoarseStatus::Lost);
         if (!seed ||
             c.query_index + 1 < static_cast<std::size_t>(options_.startup_acquisition_frames)) {
             continue;
@@ -472,7 +472,7 @@ std::vector<std::size_t> Localizer::acquisitionCandidates(const mrpt::poses::CPo
     return out;
 }
 
-const refine::Reference& Localizer::referenceView(std::size_t index) {
+const refine::ReferenceImage& Localizer::referenceView(std::size_t index) {
     auto it = views_.find(index);
     if (it != views_.end()) {
         view_order_.erase(std::find(view_order_.begin(), view_order_.end(), index));
@@ -480,7 +480,7 @@ const refine::Reference& Localizer::referenceView(std::size_t index) {
         return it->second;
     }
     const auto& ref = db_.reference(index);
-    refine::Reference view;
+    refine::ReferenceImage view;
     view.id = static_cast<std::int64_t>(index);
     view.timestamp = mrpt::Clock::fromDouble(ref.time_s);
     view.image = db_.ceilingImage(index).clone();
@@ -506,7 +506,7 @@ std::shared_ptr<const refine::RefineResult> Localizer::refineAgainst(
     const mrpt::obs::CObservationImage& query, const std::vector<std::size_t>& refs,
     const mrpt::poses::CPose2D& hint, FrameResult& out, bool probe) {
     mrpt::system::CTicTac timer;
-    std::vector<refine::Reference> views;
+    std::vector<refine::ReferenceImage> views;
     for (std::size_t i : refs) views.push_back(referenceView(i));
     out.times.select_ms += 1e3 * timer.Tac();
 

@@ -114,7 +114,7 @@ mrpt::obs::CObservationImage Rectifier::rectify(const mrpt::obs::CObservationIma
     return out;
 }
 
-void Rectifier::rectify(Reference& reference) const {
+void Rectifier::rectify(ReferenceImage& reference) const {
     // A camera that cannot describe its image stays: the Refiner refuses it, saying why.
     if (!common::cameraProblem(reference.camera, reference.image.cols, reference.image.rows)
              .empty()) {

@@ -9,12 +9,12 @@
 
 namespace lookup::refine {
 
-void Reference::prepare(const MatcherOptions& matcher) {
+void ReferenceImage::prepare(const MatcherOptions& matcher) {
     pyramid = std::make_shared<const ImagePyramid>(
         ImagePyramid::build(image, matcher.pyramid_levels, matcher));
 }
 
-void Reference::prepareSamplePoints(const SamplerOptions& options) {
+void ReferenceImage::prepareSamplePoints(const SamplerOptions& options) {
     // A heat map the Refiner would refuse gets no cache: the Refiner then checks it per query
     // and names it in its reason. (The selection itself refuses a non-finite map with no
     // points.)
@@ -27,9 +27,10 @@ void Reference::prepareSamplePoints(const SamplerOptions& options) {
     sample_points = std::make_shared<const SamplePoints>(SamplePoints{options, std::move(points)});
 }
 
-Reference Reference::fromObservation(std::int64_t id, const mrpt::obs::CObservationImage& obs,
-                                     const mrpt::poses::CPose3D& vehicle_in_map) {
-    Reference r;
+ReferenceImage ReferenceImage::fromObservation(std::int64_t id,
+                                               const mrpt::obs::CObservationImage& obs,
+                                               const mrpt::poses::CPose3D& vehicle_in_map) {
+    ReferenceImage r;
     r.id = id;
     r.timestamp = obs.timestamp;
     r.camera = obs.cameraParams;

@@ -90,15 +90,15 @@ std::vector<cv::Point2d> rectify(const std::vector<cv::Point2f>& px,
 
 /// The references the hint asks for whose intrinsics, image and heat map are usable.
 struct UsableReferences {
-    std::vector<const Reference*> refs;
+    std::vector<const ReferenceImage*> refs;
     std::vector<Pinhole> cameras;  ///< of each of `refs`
     std::string skipped;           ///< why the others were left out
 };
 
-UsableReferences usableReferences(const std::vector<Reference>& references, const CoarseHint& hint,
-                                  const SamplerOptions& sampler) {
+UsableReferences usableReferences(const std::vector<ReferenceImage>& references,
+                                  const CoarseHint& hint, const SamplerOptions& sampler) {
     UsableReferences out;
-    for (const Reference& r : references) {
+    for (const ReferenceImage& r : references) {
         if (!hint.reference_ids.empty() &&
             std::find(hint.reference_ids.begin(), hint.reference_ids.end(), r.id) ==
                 hint.reference_ids.end()) {
@@ -143,7 +143,7 @@ struct Prediction {
     std::vector<cv::Point2f> offsets;  ///< one per sample point, or none (search around 0)
 };
 
-Prediction predict(const Reference& ref, const Pinhole& ref_cam,
+Prediction predict(const ReferenceImage& ref, const Pinhole& ref_cam,
                    const std::vector<cv::Point2f>& points, const QueryView& q,
                    const MatcherOptions& matcher) {
     Prediction p;
@@ -183,8 +183,8 @@ std::vector<PointMatch> matchSad(const ImagePyramid& ref, const QueryView& q,
 
 /// Every (n / probe_points)-th sample point, then the rest: points run row by row, so the
 /// probe spreads over the image. Returns why the probe failed, else matches them all.
-std::optional<std::string> matchWithProbe(const Reference& ref, const ImagePyramid& ref_pyramid,
-                                          const QueryView& q,
+std::optional<std::string> matchWithProbe(const ReferenceImage& ref,
+                                          const ImagePyramid& ref_pyramid, const QueryView& q,
                                           const std::vector<cv::Point2f>& points,
                                           const Prediction& p, const CoarseHint& hint,
                                           const MatcherOptions& o,
@@ -220,12 +220,12 @@ std::optional<std::string> matchWithProbe(const Reference& ref, const ImagePyram
 /// on and is tilted about as they were (their mean z and tilt, not the hint's: a coarse pose
 /// is planar, z = 0 and level, while surveyed references carry the floor's bumps; the
 /// difference would scale the query's view of the ceiling by up to 5 %).
-EstimatorInput estimatorInput(const std::vector<const Reference*>& refs, const QueryView& q) {
+EstimatorInput estimatorInput(const std::vector<const ReferenceImage*>& refs, const QueryView& q) {
     EstimatorInput input;
     input.query_camera = q.camera;
     input.query_camera_on_vehicle = q.on_vehicle;
     input.ceiling_height_m = q.ceiling_height_m;
-    for (const Reference* r : refs) {
+    for (const ReferenceImage* r : refs) {
         input.vehicle_z += r->vehicle_in_map.z() / double(refs.size());
         input.prior_pitch_rad += r->vehicle_in_map.pitch() / double(refs.size());
         input.prior_roll_rad += r->vehicle_in_map.roll() / double(refs.size());
@@ -236,7 +236,7 @@ EstimatorInput estimatorInput(const std::vector<const Reference*>& refs, const Q
 /// Counts the reference's testable sample points and inliers into `res` and gives its inliers,
 /// rectified, to the estimator. Points whose window falls outside the query cannot be tested
 /// and stay out of N_th's share.
-void addInliers(const ReferenceOutcome& outcome, const Reference& ref, const Pinhole& ref_cam,
+void addInliers(const ReferenceOutcome& outcome, const ReferenceImage& ref, const Pinhole& ref_cam,
                 const QueryView& q, RefineResult& res, EstimatorInput& input) {
     std::vector<cv::Point2f> ref_px, query_px;
     for (const auto& m : outcome.matches) {
@@ -257,13 +257,13 @@ void addInliers(const ReferenceOutcome& outcome, const Reference& ref, const Pin
 
 /// |refined - coarse| in x, y, or to the nearest reference without a coarse pose.
 double offsetFromHint(const mrpt::poses::CPose3D& refined, const CoarseHint& hint,
-                      const std::vector<const Reference*>& refs) {
+                      const std::vector<const ReferenceImage*>& refs) {
     if (hint.vehicle_pose) {
         return std::hypot(refined.x() - hint.vehicle_pose->x(),
                           refined.y() - hint.vehicle_pose->y());
     }
     double offset = std::numeric_limits<double>::max();
-    for (const Reference* r : refs) {
+    for (const ReferenceImage* r : refs) {
         offset = std::min(offset, std::hypot(refined.x() - r->vehicle_in_map.x(),
                                              refined.y() - r->vehicle_in_map.y()));
     }
@@ -273,7 +273,7 @@ double offsetFromHint(const mrpt::poses::CPose3D& refined, const CoarseHint& hin
 /// The pose reported when the refinement gives none: the coarse pose, else the first usable
 /// reference's, with the acceptance policy's fallback covariance.
 RefineResult fallBack(RefineResult res, RefineStatus status, std::string reason,
-                      const CoarseHint& hint, const std::vector<const Reference*>& refs,
+                      const CoarseHint& hint, const std::vector<const ReferenceImage*>& refs,
                       const AcceptancePolicy& acceptance, Clock::time_point t_start) {
     res.status = status;
     res.reason = std::move(reason);
@@ -296,7 +296,7 @@ using Failure = std::pair<RefineStatus, std::string>;
 
 /// Why the query or the references cannot be refined at all; else completes `q` (camera,
 /// ceiling height prior, camera pose at the coarse pose).
-std::optional<Failure> unusableInput(const cv::Mat& image, const std::vector<Reference>& given,
+std::optional<Failure> unusableInput(const cv::Mat& image, const std::vector<ReferenceImage>& given,
                                      const UsableReferences& usable, const CoarseHint& hint,
                                      const EstimatorOptions& estimator, QueryView& q) {
     std::string bad_query;
@@ -334,7 +334,7 @@ MatcherOptions preprocessingFor(const RefinerOptions& o) {
 
 /// Sample points of `ref` matched into the query (SAD with the probe, or a baseline matcher)
 /// and the reference's homography. Returns why the probe failed.
-std::optional<std::string> matchReference(const Reference& ref, const Pinhole& ref_cam,
+std::optional<std::string> matchReference(const ReferenceImage& ref, const Pinhole& ref_cam,
                                           const QueryView& q, const CoarseHint& hint,
                                           const RefinerOptions& o, ReferenceOutcome& outcome,
                                           StageTimes& times, std::string& matcher_notes) {
@@ -389,7 +389,8 @@ std::optional<std::string> matchReference(const Reference& ref, const Pinhole& r
 
 /// The joint estimate over every reference's inliers, then the acceptance policy.
 RefineResult estimateAndAccept(RefineResult res, const EstimatorInput& input,
-                               const CoarseHint& hint, const std::vector<const Reference*>& refs,
+                               const CoarseHint& hint,
+                               const std::vector<const ReferenceImage*>& refs,
                                const std::string& matcher_notes, const RefinerOptions& o,
                                const AcceptancePolicy& acceptance, Clock::time_point t_start) {
     const auto t0 = Clock::now();
@@ -430,7 +431,7 @@ Refiner::Refiner(RefinerOptions options)
 }
 
 RefineResult Refiner::refine(const mrpt::obs::CObservationImage& query, const CoarseHint& hint,
-                             const std::vector<Reference>& references) const {
+                             const std::vector<ReferenceImage>& references) const {
     cv::Mat image;
     std::string why;
     try {
@@ -450,7 +451,7 @@ RefineResult Refiner::refine(const mrpt::obs::CObservationImage& query, const Co
 
 RefineResult Refiner::refine(const cv::Mat& query_image, const mrpt::img::TCamera& query_camera,
                              const mrpt::poses::CPose3D& camera_on_vehicle, const CoarseHint& hint,
-                             const std::vector<Reference>& references) const {
+                             const std::vector<ReferenceImage>& references) const {
     const auto t_start = Clock::now();
     RefineResult res;
     const UsableReferences usable = usableReferences(references, hint, options_.sampler);

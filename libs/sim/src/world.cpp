@@ -26,22 +26,21 @@ constexpr double kLevelCell = 0.5;   // plan-view sampling of level() [m]
 constexpr double kGradedPiece = 2.0;
 
 // Feature streams of the texture: each gets its own seed offset.
-enum Stream : uint32_t {
-    kLayout = 11,
-    kBump = 23,
-    kFloor = 31,
-    kRock = 41,
-    kCrack = 53,
-    kShotcrete = 61,
-    kMesh = 71,
-    kBolt = 83,
-    kWall = 97,
-    kSign = 101,
-    kSide = 113,
-    kDuctRib = 127,
-    kWallRelief = 131,
-    kNiche = 137
-};
+constexpr uint32_t kLayout = 11;
+constexpr uint32_t kBump = 23;
+constexpr uint32_t kFloor = 31;
+constexpr uint32_t kRock = 41;
+constexpr uint32_t kCrack = 53;
+constexpr uint32_t kShotcrete = 61;
+constexpr uint32_t kMesh = 71;
+constexpr uint32_t kBolt = 83;
+constexpr uint32_t kWall = 97;
+constexpr uint32_t kSign = 101;
+constexpr uint32_t kSide = 113;
+constexpr uint32_t kDuctRib = 127;
+constexpr uint32_t kWallRelief = 131;
+constexpr uint32_t kNiche = 137;
+
 // Wall relief: fractal noise from 4 m down to ~0.5 m (4 octaves, /2.03 each, gain 0.7: rock
 // is rough at every scale), mapped through a tanh so that it stays within +-wall_roughness_m
 // with a standard deviation of about half of it.

@@ -59,14 +59,14 @@ std::optional<double> estimateAt(const refine::Refiner& refiner, const refine::R
     const auto& images = *t.ceiling;
     std::optional<double> h;
     try {
-        std::vector<refine::Reference> refs;
+        std::vector<refine::ReferenceImage> refs;
         // Measured on rectified images, as the localiser matches (pinhole geometry).
         const auto rectified = [&](std::size_t k) {
             const auto& obs = *images[f[k].index];
             return rectifier ? rectifier->rectify(obs) : obs;
         };
-        refs.push_back(refine::Reference::fromObservation(0, rectified(a), f[a].pose));
-        refs.push_back(refine::Reference::fromObservation(1, rectified(b), f[b].pose));
+        refs.push_back(refine::ReferenceImage::fromObservation(0, rectified(a), f[a].pose));
+        refs.push_back(refine::ReferenceImage::fromObservation(1, rectified(b), f[b].pose));
         refine::CoarseHint hint;
         hint.vehicle_pose = f[j].pose;
         hint.ceiling_height_m = prior_m;

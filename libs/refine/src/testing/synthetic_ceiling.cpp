@@ -64,10 +64,10 @@ cv::Mat SyntheticCeiling::render(const mrpt::img::TCamera& camera,
     return out;
 }
 
-Reference SyntheticCeiling::reference(std::int64_t id, const mrpt::img::TCamera& camera,
-                                      const mrpt::poses::CPose3D& camera_on_vehicle,
-                                      const mrpt::poses::CPose3D& vehicle_in_map) const {
-    Reference r;
+ReferenceImage SyntheticCeiling::reference(std::int64_t id, const mrpt::img::TCamera& camera,
+                                           const mrpt::poses::CPose3D& camera_on_vehicle,
+                                           const mrpt::poses::CPose3D& vehicle_in_map) const {
+    ReferenceImage r;
     r.id = id;
     r.camera = camera;
     r.camera_on_vehicle = camera_on_vehicle;

@@ -20,18 +20,18 @@
 namespace lookup::coarse {
 
 enum class CoarseStatus {
-    kTracking,         ///< confident match found in the window around the previous match
-    kGlobal,           ///< confident match found by a search over the whole reference
-    kNotEnoughFrames,  ///< fewer than sequence_length frames seen: match from a shorter
-                       ///< sequence, not trusted
-    kLost,             ///< best match not confident (aliasing, unknown place, kidnapping)
-    kInvalidInput,     ///< the query frame could not be used (see reason)
-    kExternal,         ///< supplied by an external source (file), no confidence measure
-    kNotSearched,      ///< frame added to the sequence, search skipped (CoarseQuery::search)
-    kOdometry,         ///< tracking, window match not confident: reference predicted by the
-                       ///< distance travelled since the last confident match
-    kUnconfirmed,      ///< confident global match waiting for a later one to agree with it
-                       ///< (CoarseOptions::confirm_global): not trusted yet
+    Tracking,         ///< confident match found in the window around the previous match
+    Global,           ///< confident match found by a search over the whole reference
+    NotEnoughFrames,  ///< fewer than sequence_length frames seen: match from a shorter
+                      ///< sequence, not trusted
+    Lost,             ///< best match not confident (aliasing, unknown place, kidnapping)
+    InvalidInput,     ///< the query frame could not be used (see reason)
+    External,         ///< supplied by an external source (file), no confidence measure
+    NotSearched,      ///< frame added to the sequence, search skipped (CoarseQuery::search)
+    Odometry,         ///< tracking, window match not confident: reference predicted by the
+                      ///< distance travelled since the last confident match
+    Unconfirmed,      ///< confident global match waiting for a later one to agree with it
+                      ///< (CoarseOptions::confirm_global): not trusted yet
 };
 
 /// "tracking", "global", "not_enough_frames", "lost", "invalid_input", "external",
@@ -56,7 +56,7 @@ struct CoarseQuery {
 };
 
 struct CoarseResult {
-    CoarseStatus status = CoarseStatus::kLost;
+    CoarseStatus status = CoarseStatus::Lost;
     std::string reason;  ///< why the status is not tracking/global/external (empty otherwise)
 
     std::size_t query_index = 0;  ///< 0-based count of queries seen by the source
@@ -81,8 +81,8 @@ struct CoarseResult {
     /// A match that LookUP may refine: tracking, odometry, global or external.
     bool usable() const {
         return hasMatch() &&
-               (status == CoarseStatus::kTracking || status == CoarseStatus::kOdometry ||
-                status == CoarseStatus::kGlobal || status == CoarseStatus::kExternal);
+               (status == CoarseStatus::Tracking || status == CoarseStatus::Odometry ||
+                status == CoarseStatus::Global || status == CoarseStatus::External);
     }
 };
 
@@ -110,7 +110,7 @@ class CoarseSource {
 
 /// Reference time stamps from a text file of `query_time reference_time` rows (seconds;
 /// '#' comments and blank lines skipped; rows in increasing query time). A query gets the row
-/// nearest in query time, or kLost when none is within `max_time_gap_s`. With `references`,
+/// nearest in query time, or Lost when none is within `max_time_gap_s`. With `references`,
 /// the matched reference index (nearest in time) and its pose are filled in too.
 class MatchFileSource : public CoarseSource {
   public:

@@ -8,6 +8,8 @@
 #include <string>
 #include <vector>
 
+#include "lookup/common/app.h"
+
 namespace lookup::coarse {
 
 /// Figures of one run (what the program prints at the end).
@@ -39,19 +41,20 @@ struct CoarseRunSummary {
     double share_over_10m = 0;  ///< fraction of evaluated frames with error > 10 m
 };
 
-class CoarseTool {
+class CoarseTool : public common::App {
   public:
     /// Parses the command line (TCLAP). Returns false when the program should stop at once
     /// (--help, --version, or a command-line error, reported to stderr); see exitCode().
-    bool initialize(int argc, const char* const* argv);
+    bool initialize(int argc, const char* const* argv) override;
     bool initialize(const std::vector<std::string>& args);
 
-    /// Runs; returns the exit code (common::ExitCode: 1 options, 2 bad input data, 3 write
+    /// Runs; returns the exit code (common::kExit*: 1 options, 2 bad input data, 3 write
     /// error). Errors (bad rawlogs, options, ...) are printed to `err` on one line naming the
     /// file and record (MRPT's dump only with --verbose), never thrown.
     int run(std::ostream& out, std::ostream& err);
+    /// run(std::cout, std::cerr).
+    int run() override;
 
-    int exitCode() const { return exit_code_; }
     const CoarseRunSummary& summary() const { return summary_; }
 
   private:
@@ -63,7 +66,6 @@ class CoarseTool {
     int replicate_ = 1;
     bool quiet_ = false;
     bool verbose_ = false;
-    int exit_code_ = 0;
     CoarseRunSummary summary_;
 };
 

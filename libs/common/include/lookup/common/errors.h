@@ -9,14 +9,12 @@
 
 namespace lookup::common {
 
-/// Exit codes of every LookUP program.
-enum ExitCode : int {
-    kExitOk = 0,          ///< success
-    kExitUsage = 1,       ///< bad command line or options (.ini)
-    kExitBadInput = 2,    ///< bad input data (rawlog, image, pose file, database)
-    kExitWriteError = 3,  ///< an output could not be written (full disk, permissions)
-    kExitInternal = 4     ///< internal error (a bug, out of memory)
-};
+/// Exit codes of every LookUP program (process exit statuses, so plain ints).
+inline constexpr int kExitOk = 0;          ///< success
+inline constexpr int kExitUsage = 1;       ///< bad command line or options (.ini)
+inline constexpr int kExitBadInput = 2;    ///< bad input data (rawlog, image, pose file, database)
+inline constexpr int kExitWriteError = 3;  ///< an output could not be written (full disk, ...)
+inline constexpr int kExitInternal = 4;    ///< internal error (a bug, out of memory)
 
 /// The exit-code table for --help texts.
 inline constexpr const char* kExitCodesHelp =

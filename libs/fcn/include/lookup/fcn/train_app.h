@@ -1,11 +1,12 @@
 #pragma once
-// lookup-train as a library call (the app is a thin main): labels -> training -> held-out
-// evaluation -> model file -> heat maps in the database -> train_report.json and
+// lookup-train as a library call and its App (the program is a thin main): labels -> training ->
+// held-out evaluation -> model file -> heat maps in the database -> train_report.json and
 // train_curve.png.
 
 #include <string>
 #include <vector>
 
+#include "lookup/common/app.h"
 #include "lookup/fcn/heat_maps.h"
 #include "lookup/fcn/labels.h"
 #include "lookup/fcn/options.h"
@@ -54,5 +55,31 @@ HeatMapsWritten writeHeatMapsWithModel(const std::string& db_dir, const std::str
 /// Writes `report` (and the options) as JSON to `path`.
 void writeTrainReport(const TrainReport& report, const TrainRequest& request,
                       const TrainOptions& options, const std::string& path);
+
+/// lookup-train, the program:
+///   lookup-train --db DB --train QUERY.rawlog[,...] [--ini FILE] [--out-model FILE]
+///                [--out DIR] [--init-model FILE] [--no-heatmaps] [--quiet]
+///   lookup-train --db DB --heatmaps-only MODEL.pt
+///   lookup-train --db DB --figure FILE.png [--figure-ref N]
+/// Options from --ini, else share/lookup/train.ini, else the built-in defaults. Errors of the
+/// run (the database, the rawlogs, the model) escape run() for common::runApp to report.
+class TrainApp : public common::App {
+  public:
+    bool initialize(int argc, const char* const* argv) override;
+    int run() override;
+
+    const TrainRequest& request() const { return request_; }
+    const TrainOptions& options() const { return options_; }
+
+  private:
+    int drawFigure() const;
+    int writeHeatMapsOnly() const;
+
+    TrainRequest request_;
+    TrainOptions options_;
+    std::string heat_maps_model_;  ///< --heatmaps-only
+    std::string figure_png_;       ///< --figure
+    int figure_ref_ = -1;          ///< --figure-ref; -1: the middle reference
+};
 
 }  // namespace lookup::fcn

@@ -1,8 +1,15 @@
 #pragma once
 // lookup-localize as a library class (thin main in apps/lookup-localize), so tests run it.
+//   lookup-localize --db DB (--rawlog QUERY.rawlog | --live SENSORS.ini) --out RUN_DIR
+//                   [--ini FILE] [--method NAME]
+//                   [--coarse-matches F | --coarse-poses F] [--sampling grid|heatmap|auto]
+//                   [--matcher sad|orb|ecc]
+//                   [--realtime] [--max-frames N] [--repeat N] [--kidnap-every N]
+//                   [--publish udp://HOST:PORT | tcp://HOST:PORT] [--persist-fix FILE]
 
 #include <string>
 
+#include "lookup/common/app.h"
 #include "lookup/localize/run_writer.h"
 #include "lookup/refine/options.h"
 
@@ -65,5 +72,29 @@ RunTiming runLocalization(const LocalizeRequest& request);
 /// Runs the localiser on live sensors (always real time: late frames are dropped). Throws
 /// naming the file and section for a sensor that cannot be created or initialised.
 RunTiming runLiveLocalization(const LiveRequest& request);
+
+/// The first SIGINT / SIGTERM (Ctrl-C, systemctl stop) calls requestStop, so the run ends as at
+/// its end (the fix persisted, the run folder complete); a second one kills at once.
+void stopOnSignals();
+
+/// lookup-localize: the command line into a LocalizeRequest (or a LiveRequest with --live),
+/// then runLocalization / runLiveLocalization and the one-line timing summary on stdout.
+/// Errors of the run itself (the --ini file, the database, the rawlog) escape run() for
+/// common::runApp to report.
+class LocalizeApp : public common::App {
+  public:
+    bool initialize(int argc, const char* const* argv) override;
+    int run() override;
+
+    const LocalizeRequest& request() const { return request_; }
+    bool live() const { return !sensors_ini_.empty(); }
+    const RunTiming& timing() const { return timing_; }
+
+  private:
+    LocalizeRequest request_;
+    std::string sensors_ini_;  ///< --live
+    double duration_s_ = 0;    ///< --duration
+    RunTiming timing_;
+};
 
 }  // namespace lookup::localize

@@ -196,7 +196,7 @@ class Localizer {
     std::shared_ptr<const refine::RefineResult> refineAgainst(
         const mrpt::obs::CObservationImage& query, const std::vector<std::size_t>& refs,
         const mrpt::poses::CPose2D& hint, FrameResult& out, bool probe = false);
-    const refine::Reference& referenceView(std::size_t index);
+    const refine::ReferenceImage& referenceView(std::size_t index);
     struct GlobalOutcome {
         std::shared_ptr<const refine::RefineResult> result;  ///< the fix, or the ambiguous one
         bool ambiguous = false;
@@ -259,7 +259,7 @@ class Localizer {
     int unverified_coarse_frames_ = 0;  ///< frames in a row the coarse match gave no fix
 
     // Reference views with prepared pyramids, most recently used last (bounded).
-    std::map<std::size_t, refine::Reference> views_;
+    std::map<std::size_t, refine::ReferenceImage> views_;
     std::deque<std::size_t> view_order_;
 };
 

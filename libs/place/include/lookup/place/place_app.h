@@ -9,17 +9,17 @@
 
 #include <string>
 
+#include "lookup/common/app.h"
 #include "lookup/place/place_index.h"
 
 namespace lookup::place {
 
-class PlaceApp {
+class PlaceApp : public common::App {
   public:
     /// Parses the command line; false (help printed or an error) when the program should exit
     /// with exitCode().
-    bool initialize(int argc, const char* const* argv);
-    int run();
-    int exitCode() const { return exit_code_; }
+    bool initialize(int argc, const char* const* argv) override;
+    int run() override;
 
   private:
     int build();
@@ -29,7 +29,6 @@ class PlaceApp {
     int every_ = 1;
     bool quiet_ = false;
     PlaceIndexOptions options_;
-    int exit_code_ = 0;
 };
 
 /// Builds `<db>/place_index.bin` for the database in `db_dir` (the references are only read).

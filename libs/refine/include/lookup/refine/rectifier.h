@@ -51,10 +51,10 @@ class Rectifier {
     mrpt::obs::CObservationImage rectify(const mrpt::obs::CObservationImage& obs) const;
 
     /// Rectifies `reference.image` and its heat map (same maps) from `reference.camera`, and sets
-    /// `reference.camera` = target(). Call before Reference::prepare(): cached pyramids and
+    /// `reference.camera` = target(). Call before ReferenceImage::prepare(): cached pyramids and
     /// sample points are dropped. A reference whose camera cannot describe its image is left
     /// as it is (the Refiner refuses it, naming the reason).
-    void rectify(Reference& reference) const;
+    void rectify(ReferenceImage& reference) const;
 
     /// Source cameras whose maps are cached (shared by copies of this Rectifier).
     std::size_t cachedCameras() const;

@@ -66,12 +66,12 @@ class Refiner {
 
     /// `references` are the candidates; `hint.reference_ids` picks among them (all if empty).
     RefineResult refine(const mrpt::obs::CObservationImage& query, const CoarseHint& hint,
-                        const std::vector<Reference>& references) const;
+                        const std::vector<ReferenceImage>& references) const;
 
     /// Same with a grey query image given directly (`camera_on_vehicle` as cameraPose).
     RefineResult refine(const cv::Mat& query_image, const mrpt::img::TCamera& query_camera,
                         const mrpt::poses::CPose3D& camera_on_vehicle, const CoarseHint& hint,
-                        const std::vector<Reference>& references) const;
+                        const std::vector<ReferenceImage>& references) const;
 
     const RefinerOptions& options() const { return options_; }
     const AcceptancePolicy& acceptance() const { return acceptance_; }

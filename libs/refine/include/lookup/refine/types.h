@@ -6,7 +6,7 @@
 // database loads a reference once and the matcher then reads raw rows many times per second,
 // so a plain, always-loaded, contiguous buffer avoids CImage's lazy loading of external files
 // (not thread-safe) and its per-access checks. CImage wraps the same cv::Mat, so conversion is
-// free (Reference::fromObservation). The query stays an mrpt::obs::CObservationImage.
+// free (ReferenceImage::fromObservation). The query stays an mrpt::obs::CObservationImage.
 
 #include <mrpt/img/TCamera.h>
 #include <mrpt/obs/CObservationImage.h>
@@ -47,9 +47,10 @@ struct ImagePyramid {
     bool empty() const { return levels.empty() || levels[0].empty(); }
 };
 
-/// One surveyed reference image (paper Sec. III: "database of images with known camera
-/// poses").
-struct Reference {
+/// One surveyed reference image as the refiner sees it: image, camera and poses (paper
+/// Sec. III: "database of images with known camera poses"). The localiser makes it from a
+/// database record, lookup::database::Reference.
+struct ReferenceImage {
     std::int64_t id = -1;
     mrpt::Clock::time_point timestamp{};
     cv::Mat image;                           ///< CV_8UC1 ceiling image
@@ -80,8 +81,8 @@ struct Reference {
     mrpt::poses::CPose3D cameraInMap() const { return vehicle_in_map + camera_on_vehicle; }
 
     /// From a ceiling-camera observation (image converted to grey, loaded if external).
-    static Reference fromObservation(std::int64_t id, const mrpt::obs::CObservationImage& obs,
-                                     const mrpt::poses::CPose3D& vehicle_in_map);
+    static ReferenceImage fromObservation(std::int64_t id, const mrpt::obs::CObservationImage& obs,
+                                          const mrpt::poses::CPose3D& vehicle_in_map);
 };
 
 /// What the coarse stage tells the refiner (paper Sec. III-E: the matched reference time

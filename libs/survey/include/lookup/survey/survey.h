@@ -89,7 +89,7 @@ struct SurveyResult {
     SurveyStatus status = SurveyStatus::Failed;
     std::string reason;  ///< why it failed (file, record, reason), one line
     std::string detail;  ///< the full error text (MRPT call stack), for --verbose
-    int exit_code = 0;   ///< common::ExitCode of the failure
+    int exit_code = 0;   ///< common::kExit* of the failure
     std::string out_dir;
     std::string pose_source;  ///< "laser", "laser+map:<file>" or "file:<path>"
     std::size_t references = 0;

@@ -1,5 +1,5 @@
 #pragma once
-// lookup-survey's command line over Survey (a thin main calls initialize() then run()).
+// lookup-survey's command line over Survey (a thin main calls common::runApp).
 //
 //   lookup-survey --dataset DATASET/dataset.ini --out DB [--ini survey.ini] [--poses F] [--map F]
 //   lookup-survey --rawlogs A.rawlog[,B.rawlog...] [--ini survey.ini] --out DB [--poses F]
@@ -12,22 +12,22 @@
 
 #include <string>
 
+#include "lookup/common/app.h"
 #include "lookup/common/config.h"
 #include "lookup/place/place_index.h"
 #include "lookup/survey/survey.h"
 
 namespace lookup::survey {
 
-class SurveyApp {
+class SurveyApp : public common::App {
   public:
     /// Parses the command line and the .ini files. Returns false (after printing help or the
     /// error to stderr) when the program should exit; `exitCode()` then tells how.
-    bool initialize(int argc, const char* const* argv);
+    bool initialize(int argc, const char* const* argv) override;
     /// Runs the survey, prints the summary line on stdout (on success) or the failure on stderr.
-    /// Returns the process exit code (common::ExitCode); never throws.
-    int run();
+    /// Returns the process exit code (common::kExit*); never throws.
+    int run() override;
 
-    int exitCode() const { return exit_code_; }
     const SurveyResult& result() const { return result_; }
     const SurveyInputs& inputs() const { return inputs_; }
 
@@ -38,7 +38,6 @@ class SurveyApp {
     SurveyResult result_;
     place::PlaceIndexOptions place_options_;  ///< [place_index] of the --ini file
     bool build_place_index_ = true;
-    int exit_code_ = 0;
     void buildIndex();
     bool verbose_ = false;
 };

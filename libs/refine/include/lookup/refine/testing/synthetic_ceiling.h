@@ -37,9 +37,9 @@ struct SyntheticCeiling {
                    const mrpt::poses::CPose3D& camera_in_map) const;
 
     /// A reference rendered at `vehicle_in_map` with the given camera.
-    Reference reference(std::int64_t id, const mrpt::img::TCamera& camera,
-                        const mrpt::poses::CPose3D& camera_on_vehicle,
-                        const mrpt::poses::CPose3D& vehicle_in_map) const;
+    ReferenceImage reference(std::int64_t id, const mrpt::img::TCamera& camera,
+                             const mrpt::poses::CPose3D& camera_on_vehicle,
+                             const mrpt::poses::CPose3D& vehicle_in_map) const;
 };
 
 }  // namespace lookup::refine::synthetic
