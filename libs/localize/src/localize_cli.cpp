@@ -16,6 +16,17 @@ void onStopSignal(int signal) {
     std::signal(signal, SIG_DFL);
 }
 
+// What TCLAP cannot check: a frame count >= 0 and one source of frames.
+void checkFlags(int max_frames, const std::string& rawlog, const std::string& sensors_ini) {
+    if (max_frames < 0) {
+        throw common::ConfigError("--max-frames " + std::to_string(max_frames) +
+                                  ": must be >= 0 (0: every frame)");
+    }
+    if (rawlog.empty() == sensors_ini.empty()) {
+        throw common::ConfigError("give exactly one of --rawlog FILE or --live FILE.ini");
+    }
+}
+
 }  // namespace
 
 void stopOnSignals() {
@@ -95,17 +106,11 @@ bool LocalizeApp::initialize(int argc, const char* const* argv) {
     sensors_ini_ = live.getValue();
     duration_s_ = duration.getValue();
     try {
-        if (max_frames.getValue() < 0) {
-            throw common::ConfigError("--max-frames " + std::to_string(max_frames.getValue()) +
-                                      ": must be >= 0 (0: every frame)");
-        }
-        req.max_frames = static_cast<std::size_t>(max_frames.getValue());
-        if (req.rawlog.empty() == sensors_ini_.empty()) {
-            throw common::ConfigError("give exactly one of --rawlog FILE or --live FILE.ini");
-        }
+        checkFlags(max_frames.getValue(), req.rawlog, sensors_ini_);
     } catch (const common::ConfigError& e) {
         return refuse("lookup-localize", e, verbose.getValue());
     }
+    req.max_frames = static_cast<std::size_t>(max_frames.getValue());
     return true;
 }
 

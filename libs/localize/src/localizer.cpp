@@ -378,13 +378,11 @@ std::vector<Localizer::CoarseFix> Localizer::startupSeeds() const {
     std::vector<CoarseFix> seeds;
     if (options_.startup_acquisition_frames <= 0 || !last_coarse_ || !coarse_) return seeds;
     // Any best guess once enough frames are seen, from every traverse's sequence: the ceiling
-    // check, not the coarse confidence, decides (on the full presets it refused every aliased
-    // seed; on mine-a query2 the right traverse had the place 9 frames before it was the most
-    // confident one).
+    // check, not the coarse confidence, decides (a traverse that is not the most confident one
+    // may already hold the right place; docs/benchmarks.md, "Start-up acquisition").
     std::vector<coarse::CoarseResult> guesses{*last_coarse_};
     // Every sequence's guess only until the first fix: later, while LookUP re-acquires, they
-    // cost up to one acquisition per traverse on every forward frame (mine-a query4 137 -> 103
-    // frames/s) for little gain.
+    // would cost up to one acquisition per traverse on every forward frame for little gain.
     if (!last_fix_) {
         for (auto& other : coarse_->otherMatches()) guesses.push_back(std::move(other));
     }

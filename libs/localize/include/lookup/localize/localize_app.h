@@ -26,7 +26,7 @@ struct LocalizeRequest {
     std::string coarse_poses;    ///< optional: coarse poses (TUM / MRPT)
     std::string sampling;        ///< optional override: "grid", "heatmap" or "auto"
     std::string matcher;         ///< optional override of [refine.correspondence] method:
-                                 ///< "sad", "orb" or "ecc" (ORB / ECC baselines, issue 6)
+                                 ///< "sad", "orb" or "ecc" (ORB / ECC baselines)
     int realtime = -1;           ///< -1: from the ini; 0: as fast as possible; 1: recorded rate
     std::size_t max_frames = 0;  ///< stop after this many ceiling frames (0 = all)
     /// Replays the rawlog this many times, each pass's time stamps after the previous one's

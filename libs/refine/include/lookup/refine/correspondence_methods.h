@@ -1,6 +1,6 @@
 #pragma once
-// Baseline correspondence methods that can replace the SAD matcher inside the Refiner
-// (issue 6, deliverable 3): the off-the-shelf OpenCV ways of relating two ceiling images.
+// Baseline correspondence methods that can replace the SAD matcher inside the Refiner: the
+// off-the-shelf OpenCV ways of relating two ceiling images.
 //
 //   orb  cv::ORB features on both images, brute-force Hamming kNN with Lowe's ratio test;
 //        sparse, at the detector's corners (not at the sample points).

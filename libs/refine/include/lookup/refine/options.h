@@ -84,7 +84,7 @@ struct MatcherOptions : public common::TableOptions<MatcherOptions> {
     void check() const;
 };
 
-/// What relates a reference to the query (issue 6: baselines in place of the paper's SAD).
+/// What relates a reference to the query (the paper's SAD, or a baseline in its place).
 enum class CorrespondenceMethod {
     Sad,  ///< the paper's SAD matcher at the sample points (MatcherOptions)
     Orb,  ///< cv::ORB features + ratio test (correspondence_methods.h)

@@ -91,8 +91,7 @@ struct SurveyOptions : public common::TableOptions<SurveyOptions> {
     /// over it (scan_deskew.h). The time stamp refers to the first ray. 0 = instantaneous [ms].
     double lidar_sweep_ms = 0;
     /// Error of the ICP-SLAM map itself, added to every laser pose's covariance: MCL's particle
-    /// spread is relative to the map and alone is over-confident (measured on mine-b-mini and
-    /// mine-a-mini: reference poses 0.03-0.11 m off with MCL sigmas of a few cm) [m].
+    /// spread is relative to the map and alone is over-confident (docs/benchmarks.md) [m].
     double map_std_xy_m = 0.08;
     double map_std_yaw_deg = 0.3;  ///< ... in heading [deg]
 
