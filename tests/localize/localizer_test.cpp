@@ -209,7 +209,7 @@ TEST(Localize, RefinesCoarsePosesToCentimetresOnASyntheticCeiling) {
 }
 
 TEST(Localize, AnOdometryDropoutIsBridgedAtTheLastVelocityWithAGrowingEllipse) {
-    const auto dir = freshDir("odometry_dropout");
+    const auto dir = lookup::test::freshDir("lookup_localize_odometry_dropout");
     // Frames 8-15 (0.8 s at 3 m/s): no odometry (its readings are not finite, so skipped) and
     // a ceiling too flat to match, so only dead reckoning places the vehicle.
     const int frames = 24;

@@ -80,7 +80,7 @@ TEST(SurveyRun, PoseFileGivesCameraPosesEqualToTruthComposedWithMount) {
 }
 
 TEST(SurveyRun, DeskewedScansAreCountedInTheReport) {
-    const auto dir = tempDir("deskew_count");
+    const auto dir = lookup::test::freshDir("lookup_survey_deskew_count");
     const auto f = lookup::test::makeSurveyRawlog(dir.string(), "corridor", 6.0);
     auto in = inputsFor(f, dir / "db");
     in.poses_file = f.ground_truth;
