@@ -231,7 +231,12 @@ std::shared_ptr<const refine::RefineResult> Localizer::tryHypothesis(
 std::optional<FrameResult> Localizer::process(const mrpt::obs::CObservation::Ptr& obs) {
     rejection_.reset();
     if (!obs) return std::nullopt;
-    if ((rejection_ = check(*obs))) return std::nullopt;
+    rejection_ = check(*obs);
+    if (obs->sensorLabel == options_.ceiling_camera_label &&
+        (!rejection_ || rejection_->kind == "readout_exceeds_frame_period")) {
+        previous_ceiling_s_ = mrpt::Clock::toDouble(obs->timestamp);  // refused or not
+    }
+    if (rejection_) return std::nullopt;
     if (isLocalizerSensor(*obs, options_)) {
         last_stamp_[obs->sensorLabel] = mrpt::Clock::toDouble(obs->timestamp);
     }
@@ -269,6 +274,17 @@ std::optional<Rejection> Localizer::check(const mrpt::obs::CObservation& obs) co
                                              ", not a CObservationImage"};
     }
     if (obs.sensorLabel == options_.ceiling_camera_label) {
+        // A rolling shutter reads its rows within one frame period: a longer readout is a
+        // wrong setting (milliseconds taken for microseconds, another camera's value).
+        const double readout_ms = refiner_.options().rolling_shutter.readout_ms;
+        if (readout_ms > 0 && previous_ceiling_s_ &&
+            1e3 * (t - *previous_ceiling_s_) <= readout_ms) {
+            return Rejection{"readout_exceeds_frame_period",
+                             "frame " + number(1e3 * (t - *previous_ceiling_s_)) +
+                                 " ms after the previous one, within [refine.rolling_shutter] "
+                                 "readout_ms = " +
+                                 number(readout_ms)};
+        }
         return checkCeiling(*image);
     }
     if (!coarse_ || !coarse_uses_images_) return std::nullopt;  // forward images unused
@@ -303,6 +319,7 @@ void Localizer::restart() {
     open_places_.clear();
     disagreeing_fixes_ = 0;
     last_stamp_.clear();
+    previous_ceiling_s_.reset();
     if (coarse_) coarse_->restart();
 }
 
@@ -334,6 +351,17 @@ std::optional<mrpt::poses::CPose2D> Localizer::odometryAt(double t) const {
     const double a = (t - t0) / (t1 - t0);
     const mrpt::poses::CPose2D d = p1 - p0;
     return p0 + mrpt::poses::CPose2D(a * d.x(), a * d.y(), a * d.phi());
+}
+
+std::optional<refine::VehicleMotion> Localizer::velocityAt(double t) const {
+    // Over the last 0.1 s of odometry up to t: the frame's stamp is the newest observation.
+    if (odometry_.size() < 2) return std::nullopt;
+    const double t1 = std::min(t, odometry_.back().first), t0 = t1 - 0.1;
+    if (t0 < odometry_.front().first || t - t1 > 0.2) return std::nullopt;
+    const auto p0 = odometryAt(t0), p1 = odometryAt(t1);
+    if (!p0 || !p1) return std::nullopt;
+    const mrpt::poses::CPose2D d = *p1 - *p0;  // in the vehicle's frame at t0
+    return refine::VehicleMotion{d.x() / (t1 - t0), d.y() / (t1 - t0), d.phi() / (t1 - t0)};
 }
 
 std::optional<Localizer::Prediction> Localizer::predict(double t) const {
@@ -518,6 +546,9 @@ std::shared_ptr<const refine::RefineResult> Localizer::refineAgainst(
     refine::CoarseHint coarse_hint;
     coarse_hint.vehicle_pose = mrpt::poses::CPose3D(hint.x(), hint.y(), 0, hint.phi(), 0, 0);
     if (db_.info().ceiling_height_m > 0) coarse_hint.ceiling_height_m = db_.info().ceiling_height_m;
+    if (refiner_.options().rolling_shutter.readout_ms > 0) {
+        coarse_hint.vehicle_motion = velocityAt(mrpt::Clock::toDouble(query.timestamp));
+    }
     if (probe) {
         coarse_hint.probe_points = options_.acquisition_probe_points;
         coarse_hint.probe_min_matched = options_.acquisition_probe_min_matched;

@@ -182,6 +182,8 @@ class Localizer {
     std::optional<CoarseFix> fixFromMatch(const coarse::CoarseResult& match) const;
     std::optional<Prediction> predict(double time_s) const;
     std::optional<mrpt::poses::CPose2D> odometryAt(double time_s) const;
+    /// The vehicle's velocity from the odometry just before `time_s` (rolling shutter).
+    std::optional<refine::VehicleMotion> velocityAt(double time_s) const;
     std::vector<std::size_t> referencesNearTime(double time_s) const;
     std::vector<std::size_t> referencesNear(const mrpt::poses::CPose2D& pose) const;
     std::shared_ptr<const refine::RefineResult> acquire(
@@ -229,6 +231,8 @@ class Localizer {
 
     std::optional<Rejection> rejection_;
     std::map<std::string, double> last_stamp_;  ///< by sensor label: checks time order
+    /// The last ceiling frame's stamp, also when refused for the readout (the frame period).
+    std::optional<double> previous_ceiling_s_;
 
     std::optional<coarse::CoarseResult> last_coarse_;
     double coarse_ms_since_frame_ = 0;
