@@ -1,5 +1,6 @@
 #include "lookup/localize/localizer.h"
 
+#include <mrpt/math/wrap2pi.h>
 #include <mrpt/obs/CObservationOdometry.h>
 #include <mrpt/system/CTicTac.h>
 
@@ -504,6 +505,30 @@ std::vector<std::size_t> Localizer::acquisitionCandidates(const mrpt::poses::CPo
     return out;
 }
 
+refine::RowTiming Localizer::surveyRowTiming(std::size_t index, int rows) const {
+    refine::RowTiming t;
+    t.readout_s = 1e-3 * db_.info().ceiling_readout_ms;
+    t.rows = rows;
+    t.stamp_row = db_.info().ceiling_stamp_row == "middle" ? 0.5 * (rows - 1) : 0.0;
+    // The survey vehicle's velocity from the neighbouring references of its traverse.
+    const auto& ref = db_.reference(index);
+    const auto neighbour = [&](std::size_t j) {
+        if (j >= db_.size()) return &ref;
+        const auto& r = db_.reference(j);
+        return r.traverse == ref.traverse && std::abs(r.time_s - ref.time_s) < 1.0 ? &r : &ref;
+    };
+    const auto* a = index > 0 ? neighbour(index - 1) : &ref;
+    const auto* b = neighbour(index + 1);
+    const double dt = b->time_s - a->time_s;
+    if (!(dt > 0)) return t;  // a lone reference: no velocity, seen as a global shutter's
+    const double dx = (b->vehicle_pose.x() - a->vehicle_pose.x()) / dt;
+    const double dy = (b->vehicle_pose.y() - a->vehicle_pose.y()) / dt;
+    const double c = std::cos(ref.vehicle_pose.yaw()), s = std::sin(ref.vehicle_pose.yaw());
+    t.velocity = {c * dx + s * dy, -s * dx + c * dy,
+                  mrpt::math::wrapToPi(b->vehicle_pose.yaw() - a->vehicle_pose.yaw()) / dt};
+    return t;
+}
+
 const refine::Reference& Localizer::referenceView(std::size_t index) {
     auto it = views_.find(index);
     if (it != views_.end()) {
@@ -519,6 +544,7 @@ const refine::Reference& Localizer::referenceView(std::size_t index) {
     view.camera = ref.ceiling_camera;
     view.vehicle_in_map = ref.vehicle_pose;
     view.camera_on_vehicle = ref.ceiling_camera_mount;
+    if (db_.info().ceiling_readout_ms > 0) view.timing = surveyRowTiming(index, view.image.rows);
     // A grid run on a database with heat maps does not pay for decoding them.
     if (refiner_.options().sampler.mode != refine::SamplingMode::Grid) {
         view.heat_map = database::loadHeatMap(db_, index);

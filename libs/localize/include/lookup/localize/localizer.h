@@ -193,6 +193,9 @@ class Localizer {
         const mrpt::obs::CObservationImage& query, const std::vector<std::size_t>& refs,
         const mrpt::poses::CPose2D& hint, FrameResult& out, bool probe = false);
     const refine::Reference& referenceView(std::size_t index);
+    /// The rows of reference `index` (db.ini ceiling_readout_ms) with the survey vehicle's
+    /// velocity from its traverse's neighbouring references.
+    refine::RowTiming surveyRowTiming(std::size_t index, int rows) const;
     struct GlobalOutcome {
         std::shared_ptr<const refine::RefineResult> result;  ///< the fix, or the ambiguous one
         bool ambiguous = false;
