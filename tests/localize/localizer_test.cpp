@@ -669,3 +669,118 @@ TEST(Localize, RepeatedPassesRefineAsTheFirstOneDoes) {
     EXPECT_NEAR(refined[1], refined[0], 2);  // within a few points of pass 1
     EXPECT_NEAR(refined[2], refined[0], 2);
 }
+
+namespace {
+
+// The planar drive with each ceiling image read by a rolling shutter (`readout_s`, stamped at
+// the first row) while the vehicle drives at 3 m/s; localised with `ini` (its text).
+struct RollingRun {
+    localize::RunTiming timing;
+    double mean_error_m = 0;
+    std::size_t refined = 0;
+};
+
+RollingRun rollingShutterRun(const std::string& name, double readout_s, const std::string& ini) {
+    const auto dir = freshDir(name);
+    const Scene scene;
+    refine::RowTiming timing;
+    timing.readout_s = readout_s;
+    // planarRun: 0.3 m per 0.1 s along the map's x, the vehicle turned by 0.05 rad.
+    timing.velocity = {3.0 * std::cos(0.05), -3.0 * std::sin(0.05), 0.0};
+    auto req = planarRun(
+        dir, [&](int, mrpt::obs::CObservationImage& img, mrpt::obs::CObservationOdometry& odo) {
+            const mrpt::poses::CPose3D vehicle(odo.odometry);
+            img.image = mrpt::img::CImage(
+                scene.ceiling.renderRollingShutter(scene.camera, scene.mount, vehicle, timing),
+                mrpt::img::DEEP_COPY);
+        });
+    if (!ini.empty()) {
+        req.ini_file = (dir / "options.ini").string();
+        std::ofstream(req.ini_file) << ini;
+    }
+    RollingRun out;
+    out.timing = localize::runLocalization(req);
+    const auto run = eval::loadRun(req.out_dir);
+    for (const auto& f : run.frames) {
+        if (f.status != "refined") continue;
+        const int i = int(std::lround((f.time_s - kT0) / 0.1));
+        out.mean_error_m += std::hypot(f.x - (-5 + 0.3 * i), f.y - 0.4);
+        ++out.refined;
+    }
+    if (out.refined > 0) out.mean_error_m /= double(out.refined);
+    return out;
+}
+
+}  // namespace
+
+TEST(Localize, ARollingShutterQueryIsRefinedRowByRowWithTheOdometrysVelocity) {
+    // 60 ms readout at 3 m/s: 0.18 m between the first and the last row.
+    const auto without = rollingShutterRun("rolling_without", 0.060, "");
+    const auto with =
+        rollingShutterRun("rolling_with", 0.060, "[refine.rolling_shutter]\nreadout_ms = 60\n");
+    EXPECT_GE(with.refined, 18u);
+    EXPECT_LT(with.mean_error_m, 0.01);     // the first frame has no velocity yet: 5 mm of it
+    EXPECT_GT(without.mean_error_m, 0.05);  // the stamp's pose is the first row's
+    // A readout longer than the 100 ms frame period is a wrong setting: every frame after the
+    // first is refused, and counted.
+    const auto refused =
+        rollingShutterRun("rolling_refused", 0.060, "[refine.rolling_shutter]\nreadout_ms = 150\n");
+    EXPECT_EQ(refused.timing.skipped.at("readout_exceeds_frame_period"), 19u);
+}
+
+TEST(Localize, RollingShutterReferencesAreSeenFromTheSurveyVehiclesRowPoses) {
+    // The survey camera read its rows in 60 ms while the survey vehicle drove at 2.5 m/s
+    // (references 0.25 m and 0.1 s apart); the query camera is a global shutter.
+    const auto dir = freshDir("rolling_references");
+    const Scene scene;
+    auto req =
+        planarRun(dir, [](int, mrpt::obs::CObservationImage&, mrpt::obs::CObservationOdometry&) {});
+    refine::RowTiming timing;
+    timing.readout_s = 0.060;
+    timing.velocity = {2.5, 0.0, 0.0};
+    const auto writeDb = [&](const std::string& name, double stored_readout_ms) {
+        database::DatabaseWriter writer((dir / name).string());
+        for (int k = 0; k < 65; ++k) {
+            database::ReferenceInput in;
+            in.traverse = "survey";
+            in.vehicle_pose = mrpt::poses::CPose3D(-8 + 0.25 * k, 0, 0, 0, 0, 0);
+            in.vehicle_cov.setIdentity();
+            in.vehicle_cov *= 1e-4;
+            in.ceiling = scene.image(in.vehicle_pose, 100.0 + 0.1 * k);
+            in.ceiling->image =
+                mrpt::img::CImage(scene.ceiling.renderRollingShutter(scene.camera, scene.mount,
+                                                                     in.vehicle_pose, timing),
+                                  mrpt::img::DEEP_COPY);
+            in.travelled_m = 0.25 * k;
+            writer.add(in);
+        }
+        database::DatabaseInfo info;
+        info.name = "rolling";
+        info.ceiling_camera = scene.camera;
+        info.ceiling_height_m = kCeilingHeight;
+        info.pose_source = "test";
+        info.ceiling_readout_ms = stored_readout_ms;
+        writer.commit(info);
+        EXPECT_EQ(database::readDatabaseInfo((dir / name / "db.ini").string()).ceiling_readout_ms,
+                  stored_readout_ms);
+    };
+    const auto meanError = [&](const std::string& name) {
+        req.db_dir = (dir / name).string();
+        req.out_dir = (dir / ("run_" + name)).string();
+        localize::runLocalization(req);
+        double sum = 0;
+        std::size_t n = 0;
+        for (const auto& f : eval::loadRun(req.out_dir).frames) {
+            if (f.status != "refined") continue;
+            const int i = int(std::lround((f.time_s - kT0) / 0.1));
+            sum += std::hypot(f.x - (-5 + 0.3 * i), f.y - 0.4);
+            ++n;
+        }
+        EXPECT_GE(n, 18u);
+        return n > 0 ? sum / double(n) : 1e9;
+    };
+    writeDb("db_recorded", 60);
+    writeDb("db_unrecorded", 0);
+    EXPECT_LT(meanError("db_recorded"), 0.01);
+    EXPECT_GT(meanError("db_unrecorded"), 0.03);
+}

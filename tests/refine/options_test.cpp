@@ -100,3 +100,29 @@ TEST(RefinerOptions, IntegersAreRangeCheckedOnLoadNamingTheRange) {
     m = message("[r.sampler]\ndamping_ratio = nan\n");
     EXPECT_NE(m.find("damping_ratio: 'nan' is not finite"), std::string::npos) << m;
 }
+
+TEST(RefinerOptions, RollingShutterReadoutIsCheckedAndLoaded) {
+    RefinerOptions o;
+    EXPECT_EQ(o.rolling_shutter.readout_ms, 0.0);  // global shutter: today's results
+    o.rolling_shutter.readout_ms = -1;
+    EXPECT_THROW(o.check(), ConfigError);
+    o.rolling_shutter.readout_ms = 1000;  // no camera reads a frame that slowly
+    try {
+        o.check();
+        FAIL() << "expected ConfigError";
+    } catch (const ConfigError& e) {
+        EXPECT_NE(std::string(e.what()).find("refine.rolling_shutter.readout_ms"),
+                  std::string::npos)
+            << e.what();
+    }
+    mrpt::config::CConfigFileMemory mem;
+    mem.write("refine.rolling_shutter", "readout_ms", 30.0);
+    mem.write("refine.rolling_shutter", "stamp_row", "middle");
+    RefinerOptions loaded;
+    loaded.loadFromConfigFile(mem, "refine");
+    EXPECT_NO_THROW(loaded.check());
+    EXPECT_DOUBLE_EQ(loaded.rolling_shutter.readout_ms, 30.0);
+    EXPECT_DOUBLE_EQ(loaded.rolling_shutter.stampRow(240), 119.5);
+    mem.write("refine.rolling_shutter", "stamp_row", "last");
+    EXPECT_THROW(loaded.loadFromConfigFile(mem, "refine"), ConfigError);
+}

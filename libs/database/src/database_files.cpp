@@ -74,7 +74,7 @@ DatabaseInfo readDatabaseInfo(const std::string& path) {
         common::IniSection db(cfg, "database", path);
         db.rejectUnknownKeys({"format_version", "name", "reference_count", "ceiling_camera_label",
                               "forward_camera_label", "ceiling_height_m", "pose_source", "map",
-                              "source_rawlogs"});
+                              "source_rawlogs", "ceiling_readout_ms", "ceiling_stamp_row"});
         if (db.requireInt("format_version") != 1) {
             throw DatabaseError(db.where("format_version") + "unsupported version");
         }
@@ -88,6 +88,12 @@ DatabaseInfo readDatabaseInfo(const std::string& path) {
         info.pose_source = db.getString("pose_source", "");
         info.map_file = db.getString("map", "");
         info.source_rawlogs = split(db.getString("source_rawlogs", ""));
+        info.ceiling_readout_ms = db.getDouble("ceiling_readout_ms", 0.0, 0.0, 999.999);
+        info.ceiling_stamp_row = db.getString("ceiling_stamp_row", "first");
+        if (info.ceiling_stamp_row != "first" && info.ceiling_stamp_row != "middle") {
+            throw DatabaseError(db.where("ceiling_stamp_row") + "'" + info.ceiling_stamp_row +
+                                "' is not first or middle");
+        }
         common::IniSection heat(cfg, "heatmaps", path);
         info.heatmaps_dir = heat.getString("directory", "");
     } catch (const common::ConfigError& e) {
@@ -111,6 +117,10 @@ void writeDatabaseInfo(const std::string& path, const DatabaseInfo& info) {
     cfg.write("database", "pose_source", info.pose_source);
     cfg.write("database", "map", info.map_file);
     cfg.write("database", "source_rawlogs", join(info.source_rawlogs));
+    if (info.ceiling_readout_ms > 0) {
+        cfg.write("database", "ceiling_readout_ms", info.ceiling_readout_ms);
+        cfg.write("database", "ceiling_stamp_row", info.ceiling_stamp_row);
+    }
     info.ceiling_camera.saveToConfigFile("ceiling_camera", cfg);
     info.forward_camera.saveToConfigFile("forward_camera", cfg);
     std::ofstream out(path);

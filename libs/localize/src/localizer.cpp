@@ -1,5 +1,6 @@
 #include "lookup/localize/localizer.h"
 
+#include <mrpt/math/wrap2pi.h>
 #include <mrpt/obs/CObservationOdometry.h>
 #include <mrpt/system/CTicTac.h>
 
@@ -231,7 +232,12 @@ std::shared_ptr<const refine::RefineResult> Localizer::tryHypothesis(
 std::optional<FrameResult> Localizer::process(const mrpt::obs::CObservation::Ptr& obs) {
     rejection_.reset();
     if (!obs) return std::nullopt;
-    if ((rejection_ = check(*obs))) return std::nullopt;
+    rejection_ = check(*obs);
+    if (obs->sensorLabel == options_.ceiling_camera_label &&
+        (!rejection_ || rejection_->kind == "readout_exceeds_frame_period")) {
+        previous_ceiling_s_ = mrpt::Clock::toDouble(obs->timestamp);  // refused or not
+    }
+    if (rejection_) return std::nullopt;
     if (isLocalizerSensor(*obs, options_)) {
         last_stamp_[obs->sensorLabel] = mrpt::Clock::toDouble(obs->timestamp);
     }
@@ -269,6 +275,17 @@ std::optional<Rejection> Localizer::check(const mrpt::obs::CObservation& obs) co
                                              ", not a CObservationImage"};
     }
     if (obs.sensorLabel == options_.ceiling_camera_label) {
+        // A rolling shutter reads its rows within one frame period: a longer readout is a
+        // wrong setting (milliseconds taken for microseconds, another camera's value).
+        const double readout_ms = refiner_.options().rolling_shutter.readout_ms;
+        if (readout_ms > 0 && previous_ceiling_s_ &&
+            1e3 * (t - *previous_ceiling_s_) <= readout_ms) {
+            return Rejection{"readout_exceeds_frame_period",
+                             "frame " + number(1e3 * (t - *previous_ceiling_s_)) +
+                                 " ms after the previous one, within [refine.rolling_shutter] "
+                                 "readout_ms = " +
+                                 number(readout_ms)};
+        }
         return checkCeiling(*image);
     }
     if (!coarse_ || !coarse_uses_images_) return std::nullopt;  // forward images unused
@@ -303,6 +320,7 @@ void Localizer::restart() {
     open_places_.clear();
     disagreeing_fixes_ = 0;
     last_stamp_.clear();
+    previous_ceiling_s_.reset();
     if (coarse_) coarse_->restart();
 }
 
@@ -322,6 +340,17 @@ void Localizer::processOdometry(const mrpt::obs::CObservation& obs) {
 
 std::optional<common::OdometryTrack::Pose> Localizer::odometryAt(double t) const {
     return odometry_.at(t, options_.max_tracking_gap_s);
+}
+
+std::optional<refine::VehicleMotion> Localizer::velocityAt(double t) const {
+    // Over the last 0.1 s of odometry up to t: the frame's stamp is the newest observation.
+    if (odometry_.size() < 2) return std::nullopt;
+    const double t1 = std::min(t, odometry_.lastTime()), t0 = t1 - 0.1;
+    if (t - t1 > options_.odometry_timeout_s) return std::nullopt;
+    const auto p0 = odometry_.at(t0), p1 = odometry_.at(t1);
+    if (!p0 || !p1) return std::nullopt;
+    const mrpt::poses::CPose2D d = p1->pose - p0->pose;  // in the vehicle's frame at t0
+    return refine::VehicleMotion{d.x() / (t1 - t0), d.y() / (t1 - t0), d.phi() / (t1 - t0)};
 }
 
 std::optional<Localizer::Prediction> Localizer::predict(double t) const {
@@ -470,6 +499,30 @@ std::vector<std::size_t> Localizer::acquisitionCandidates(const mrpt::poses::CPo
     return out;
 }
 
+refine::RowTiming Localizer::surveyRowTiming(std::size_t index, int rows) const {
+    refine::RowTiming t;
+    t.readout_s = 1e-3 * db_.info().ceiling_readout_ms;
+    t.rows = rows;
+    t.stamp_row = db_.info().ceiling_stamp_row == "middle" ? 0.5 * (rows - 1) : 0.0;
+    // The survey vehicle's velocity from the neighbouring references of its traverse.
+    const auto& ref = db_.reference(index);
+    const auto neighbour = [&](std::size_t j) {
+        if (j >= db_.size()) return &ref;
+        const auto& r = db_.reference(j);
+        return r.traverse == ref.traverse && std::abs(r.time_s - ref.time_s) < 1.0 ? &r : &ref;
+    };
+    const auto* a = index > 0 ? neighbour(index - 1) : &ref;
+    const auto* b = neighbour(index + 1);
+    const double dt = b->time_s - a->time_s;
+    if (!(dt > 0)) return t;  // a lone reference: no velocity, seen as a global shutter's
+    const double dx = (b->vehicle_pose.x() - a->vehicle_pose.x()) / dt;
+    const double dy = (b->vehicle_pose.y() - a->vehicle_pose.y()) / dt;
+    const double c = std::cos(ref.vehicle_pose.yaw()), s = std::sin(ref.vehicle_pose.yaw());
+    t.velocity = {c * dx + s * dy, -s * dx + c * dy,
+                  mrpt::math::wrapToPi(b->vehicle_pose.yaw() - a->vehicle_pose.yaw()) / dt};
+    return t;
+}
+
 const refine::ReferenceImage& Localizer::referenceView(std::size_t index) {
     auto it = views_.find(index);
     if (it != views_.end()) {
@@ -485,6 +538,7 @@ const refine::ReferenceImage& Localizer::referenceView(std::size_t index) {
     view.camera = ref.ceiling_camera;
     view.vehicle_in_map = ref.vehicle_pose;
     view.camera_on_vehicle = ref.ceiling_camera_mount;
+    if (db_.info().ceiling_readout_ms > 0) view.timing = surveyRowTiming(index, view.image.rows);
     // A grid run on a database with heat maps does not pay for decoding them.
     if (refiner_.options().sampler.mode != refine::SamplingMode::Grid) {
         view.heat_map = database::loadHeatMap(db_, index);
@@ -512,6 +566,9 @@ std::shared_ptr<const refine::RefineResult> Localizer::refineAgainst(
     refine::CoarseHint coarse_hint;
     coarse_hint.vehicle_pose = mrpt::poses::CPose3D(hint.x(), hint.y(), 0, hint.phi(), 0, 0);
     if (db_.info().ceiling_height_m > 0) coarse_hint.ceiling_height_m = db_.info().ceiling_height_m;
+    if (refiner_.options().rolling_shutter.readout_ms > 0) {
+        coarse_hint.vehicle_motion = velocityAt(mrpt::Clock::toDouble(query.timestamp));
+    }
     if (probe) {
         coarse_hint.probe_points = options_.acquisition_probe_points;
         coarse_hint.probe_min_matched = options_.acquisition_probe_min_matched;

@@ -11,14 +11,35 @@ namespace {
 
 // Pixel residual of one correspondence. The reference ray meets the ceiling at
 // P(h) = origin + (h - origin.z) / dir.z * dir = A + h * B (fixed camera, so linear in h).
+// With a rolling shutter the query pixel was seen from the vehicle moved by `motion` (x, y,
+// yaw in the vehicle's frame at the frame's pose) to its row's exposure.
 struct ReprojectionCost {
     ReprojectionCost(const Eigen::Vector3d& A, const Eigen::Vector3d& B, const cv::Point2d& q,
                      const Pinhole& cam, const Eigen::Matrix3d& R_cv, const Eigen::Vector3d& t_cv,
-                     double vehicle_z, double sigma)
-        : A(A), B(B), q(q), cam(cam), R_cv(R_cv), t_cv(t_cv), z(vehicle_z), inv_sigma(1 / sigma) {}
+                     double vehicle_z, double sigma, const mrpt::poses::CPose2D& motion = {})
+        : A(A),
+          B(B),
+          q(q),
+          cam(cam),
+          R_cv(R_cv),
+          t_cv(t_cv),
+          z(vehicle_z),
+          inv_sigma(1 / sigma),
+          motion(motion.x(), motion.y(), motion.phi()),
+          moving(motion.x() != 0 || motion.y() != 0 || motion.phi() != 0) {}
 
     template <typename T>
-    bool operator()(const T* pose, const T* h, T* residual) const {
+    bool operator()(const T* frame_pose, const T* h, T* residual) const {
+        if (!moving) return project(frame_pose, h, residual);
+        const T c = cos(frame_pose[2]), s = sin(frame_pose[2]);
+        const T pose[5] = {frame_pose[0] + c * T(motion[0]) - s * T(motion[1]),
+                           frame_pose[1] + s * T(motion[0]) + c * T(motion[1]),
+                           frame_pose[2] + T(motion[2]), frame_pose[3], frame_pose[4]};
+        return project(pose, h, residual);
+    }
+
+    template <typename T>
+    bool project(const T* pose, const T* h, T* residual) const {
         // pose = x, y, yaw, pitch, roll; vehicle rotation Rz(yaw) Ry(pitch) Rx(roll) (MRPT).
         const T P[3] = {T(A[0]) + h[0] * B[0], T(A[1]) + h[0] * B[1], T(A[2]) + h[0] * B[2]};
         const T d[3] = {P[0] - pose[0], P[1] - pose[1], P[2] - T(z)};
@@ -48,6 +69,8 @@ struct ReprojectionCost {
     Eigen::Matrix3d R_cv;
     Eigen::Vector3d t_cv;
     double z, inv_sigma;
+    Eigen::Vector3d motion;
+    bool moving;
 };
 
 struct PriorCost {
@@ -65,6 +88,70 @@ Eigen::Matrix3d rotationOf(const mrpt::poses::CPose3D& p) {
     return p.getRotationMatrix().asEigen();
 }
 
+// Every usable correspondence: the reference ray's A + h B, the query pixel and the query
+// vehicle's motion to its row; and, for the closed-form start at the prior h, the ceiling
+// points from the references (map frame) against the same points from the query camera with
+// the vehicle at the origin, yaw 0.
+struct Correspondences {
+    std::vector<Eigen::Vector3d> As, Bs;
+    std::vector<cv::Point2d> qs;
+    std::vector<mrpt::poses::CPose2D> motions;
+    Eigen::Matrix2Xd src, dst;
+};
+
+double rowOf(const std::vector<double>& rows, const std::vector<cv::Point2d>& px, std::size_t i) {
+    return rows.size() == px.size() ? rows[i] : px[i].y;
+}
+
+Correspondences collect(const EstimatorInput& in, double h0) {
+    Correspondences c;
+    const mrpt::poses::CPose3D vehicle_at_origin(0, 0, in.vehicle_z, 0, in.prior_pitch_rad,
+                                                 in.prior_roll_rad);
+    const mrpt::poses::CPose3D query_cam_at_origin = vehicle_at_origin + in.query_camera_on_vehicle;
+    std::vector<Eigen::Vector2d> src, dst;
+    for (const auto& view : in.views) {
+        for (std::size_t i = 0; i < view.reference_px.size(); ++i) {
+            const auto& r = view.reference_px[i];
+            const mrpt::poses::CPose3D ref_cam =
+                view.timing.active()
+                    ? view.timing.cameraAtRow(view.camera_in_map, view.camera_on_vehicle,
+                                              rowOf(view.reference_row, view.reference_px, i))
+                    : view.camera_in_map;
+            const auto R = rotationOf(ref_cam);
+            const Eigen::Vector3d t(ref_cam.x(), ref_cam.y(), ref_cam.z());
+            const Eigen::Vector3d dir =
+                R * Eigen::Vector3d((r.x - view.camera.cx) / view.camera.fx,
+                                    (r.y - view.camera.cy) / view.camera.fy, 1.0);
+            if (std::abs(dir.z()) < 1e-9) continue;
+            mrpt::poses::CPose2D motion;
+            if (in.query_timing.active()) {
+                motion = in.query_timing.motionAtRow(rowOf(view.query_row, view.query_px, i));
+            }
+            const mrpt::poses::CPose3D query_cam =
+                in.query_timing.active()
+                    ? vehicle_at_origin + mrpt::poses::CPose3D(motion) + in.query_camera_on_vehicle
+                    : query_cam_at_origin;
+            const auto p_ref = backProjectToCeiling(view.camera, ref_cam, r, h0);
+            const auto p_qry =
+                backProjectToCeiling(in.query_camera, query_cam, view.query_px[i], h0);
+            if (!p_ref || !p_qry) continue;
+            c.As.push_back(t - t.z() / dir.z() * dir);
+            c.Bs.push_back(dir / dir.z());
+            c.qs.push_back(view.query_px[i]);
+            c.motions.push_back(motion);
+            src.emplace_back(p_qry->x, p_qry->y);
+            dst.emplace_back(p_ref->x, p_ref->y);
+        }
+    }
+    c.src.resize(2, Eigen::Index(src.size()));
+    c.dst.resize(2, Eigen::Index(dst.size()));
+    for (std::size_t i = 0; i < src.size(); ++i) {
+        c.src.col(Eigen::Index(i)) = src[i];
+        c.dst.col(Eigen::Index(i)) = dst[i];
+    }
+    return c;
+}
+
 }  // namespace
 
 PoseEstimate estimateQueryPose(const EstimatorInput& in, const EstimatorOptions& o) {
@@ -75,38 +162,8 @@ PoseEstimate estimateQueryPose(const EstimatorInput& in, const EstimatorOptions&
         return out;
     }
 
-    // Closed-form start at the prior h: ceiling points from the references (map frame) against
-    // the same points from the query camera with the vehicle at the origin, yaw 0.
-    const mrpt::poses::CPose3D query_cam_at_origin =
-        mrpt::poses::CPose3D(0, 0, in.vehicle_z, 0, in.prior_pitch_rad, in.prior_roll_rad) +
-        in.query_camera_on_vehicle;
-    std::vector<Eigen::Vector3d> As, Bs;
-    std::vector<cv::Point2d> qs;
-    std::vector<const ReferenceView*> owner;
-    Eigen::Matrix2Xd src(2, 0), dst(2, 0);
-    for (const auto& view : in.views) {
-        const auto R = rotationOf(view.camera_in_map);
-        const Eigen::Vector3d t(view.camera_in_map.x(), view.camera_in_map.y(),
-                                view.camera_in_map.z());
-        for (std::size_t i = 0; i < view.reference_px.size(); ++i) {
-            const auto& r = view.reference_px[i];
-            const Eigen::Vector3d dir =
-                R * Eigen::Vector3d((r.x - view.camera.cx) / view.camera.fx,
-                                    (r.y - view.camera.cy) / view.camera.fy, 1.0);
-            if (std::abs(dir.z()) < 1e-9) continue;
-            const auto p_ref = backProjectToCeiling(view.camera, view.camera_in_map, r, h0);
-            const auto p_qry =
-                backProjectToCeiling(in.query_camera, query_cam_at_origin, view.query_px[i], h0);
-            if (!p_ref || !p_qry) continue;
-            As.push_back(t - t.z() / dir.z() * dir);
-            Bs.push_back(dir / dir.z());
-            qs.push_back(view.query_px[i]);
-            src.conservativeResize(2, src.cols() + 1);
-            dst.conservativeResize(2, dst.cols() + 1);
-            src.col(src.cols() - 1) << p_qry->x, p_qry->y;
-            dst.col(dst.cols() - 1) << p_ref->x, p_ref->y;
-        }
-    }
+    const Correspondences corr = collect(in, h0);
+    const auto& qs = corr.qs;
     out.correspondences = int(qs.size());
     if (out.correspondences < o.min_inliers) {
         out.reason = "only " + std::to_string(out.correspondences) +
@@ -115,6 +172,7 @@ PoseEstimate estimateQueryPose(const EstimatorInput& in, const EstimatorOptions&
         return out;
     }
     // 2-D rigid fit dst = R(yaw) src + t (closed form, Umeyama without scale).
+    const Eigen::Matrix2Xd &src = corr.src, &dst = corr.dst;
     const Eigen::Vector2d src_mean = src.rowwise().mean(), dst_mean = dst.rowwise().mean();
     double dot = 0.0, cross = 0.0;
     for (Eigen::Index i = 0; i < src.cols(); ++i) {
@@ -133,9 +191,9 @@ PoseEstimate estimateQueryPose(const EstimatorInput& in, const EstimatorOptions&
                                in.query_camera_on_vehicle.z());
     const double huber = o.huber_loss_px / o.pixel_sigma_px;  // residuals are in sigmas
     for (std::size_t i = 0; i < qs.size(); ++i) {
-        auto* cost =
-            new ceres::AutoDiffCostFunction<ReprojectionCost, 2, 5, 1>(new ReprojectionCost(
-                As[i], Bs[i], qs[i], in.query_camera, R_cv, t_cv, in.vehicle_z, o.pixel_sigma_px));
+        auto* cost = new ceres::AutoDiffCostFunction<ReprojectionCost, 2, 5, 1>(
+            new ReprojectionCost(corr.As[i], corr.Bs[i], qs[i], in.query_camera, R_cv, t_cv,
+                                 in.vehicle_z, o.pixel_sigma_px, corr.motions[i]));
         problem.AddResidualBlock(cost, new ceres::HuberLoss(huber), pose, h);
     }
     const double tilt_sigma = o.tilt_sigma_deg * M_PI / 180.0;
@@ -187,7 +245,8 @@ PoseEstimate estimateQueryPose(const EstimatorInput& in, const EstimatorOptions&
 
     double sq = 0.0;
     for (std::size_t i = 0; i < qs.size(); ++i) {
-        ReprojectionCost f(As[i], Bs[i], qs[i], in.query_camera, R_cv, t_cv, in.vehicle_z, 1.0);
+        ReprojectionCost f(corr.As[i], corr.Bs[i], qs[i], in.query_camera, R_cv, t_cv, in.vehicle_z,
+                           1.0, corr.motions[i]);
         double r[2];
         f(pose, h, r);
         sq += r[0] * r[0] + r[1] * r[1];

@@ -1,5 +1,7 @@
 #include "lookup/refine/geometry.h"
 
+#include "lookup/refine/rolling_shutter.h"
+
 #include <cmath>
 
 namespace lookup::refine {
@@ -69,6 +71,24 @@ bool applyHomography(const cv::Matx33d& H, const cv::Point2d& p, cv::Point2d& ou
     if (!(std::abs(v[2]) > 1e-12)) return false;
     out = {v[0] / v[2], v[1] / v[2]};
     return std::isfinite(out.x) && std::isfinite(out.y);
+}
+
+mrpt::poses::CPose2D RowTiming::motionAtRow(double v) const {
+    const double dt = timeOfRow(v);
+    // Constant velocity on an arc: the chord points along the mean heading over dt.
+    const double dyaw = velocity.yaw_rate_radps * dt, mid = 0.5 * dyaw;
+    const double c = std::cos(mid), s = std::sin(mid);
+    return {(c * velocity.vx_mps - s * velocity.vy_mps) * dt,
+            (s * velocity.vx_mps + c * velocity.vy_mps) * dt, dyaw};
+}
+
+mrpt::poses::CPose3D RowTiming::cameraAtRow(const mrpt::poses::CPose3D& camera_in_map,
+                                            const mrpt::poses::CPose3D& camera_on_vehicle,
+                                            double v) const {
+    mrpt::poses::CPose3D vehicle_to_camera_inv = camera_on_vehicle;
+    vehicle_to_camera_inv.inverse();
+    const mrpt::poses::CPose3D vehicle = camera_in_map + vehicle_to_camera_inv;
+    return vehicle + mrpt::poses::CPose3D(motionAtRow(v)) + camera_on_vehicle;
 }
 
 }  // namespace lookup::refine

@@ -21,6 +21,9 @@ const common::EnumNames<SubpixelMethod> kSubpixelMethods = {
     {"parabola", SubpixelMethod::Parabola},
     {"equiangular", SubpixelMethod::Equiangular}};
 
+const common::EnumNames<StampRow> kStampRows = {{"first", StampRow::First},
+                                                {"middle", StampRow::Middle}};
+
 }  // namespace
 
 // The keys of each section, in file order; checks below.
@@ -82,6 +85,11 @@ void AcceptanceOptions::declareKeys(OptionsTable& t) {
     t.add("unknown_motion_yaw_rate_deg_s", unknown_motion_yaw_rate_deg_s, common::kPositive);
 }
 
+void RollingShutterOptions::declareKeys(OptionsTable& t) {
+    t.add("readout_ms", readout_ms);
+    t.add("stamp_row", stamp_row, kStampRows);
+}
+
 // ---------------------------------------------------------------- checks
 void SamplerOptions::check() const {
     OptionsCheck c("refine.sampler");
@@ -121,6 +129,14 @@ void AcceptanceOptions::check() const {
     c.throwIfFailed();
 }
 
+void RollingShutterOptions::check() const {
+    OptionsCheck c("refine.rolling_shutter");
+    checkRanges(c);
+    c.require(std::isfinite(readout_ms) && readout_ms >= 0.0 && readout_ms < 1000.0, "readout_ms",
+              "in [0, 1000) (shorter than a frame period)");
+    c.throwIfFailed();
+}
+
 // ---------------------------------------------------------------- all
 void RefinerOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& source,
                                         const std::string& prefix) {
@@ -130,6 +146,7 @@ void RefinerOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& sou
     estimator.loadFromConfigFile(source, prefix + ".estimator");
     acceptance.loadFromConfigFile(source, prefix + ".acceptance");
     correspondence.loadFromConfigFile(source, prefix + ".correspondence");
+    rolling_shutter.loadFromConfigFile(source, prefix + ".rolling_shutter");
 }
 
 void RefinerOptions::saveToConfigFile(mrpt::config::CConfigFileBase& target,
@@ -140,12 +157,13 @@ void RefinerOptions::saveToConfigFile(mrpt::config::CConfigFileBase& target,
     estimator.saveToConfigFile(target, prefix + ".estimator");
     acceptance.saveToConfigFile(target, prefix + ".acceptance");
     correspondence.saveToConfigFile(target, prefix + ".correspondence");
+    rolling_shutter.saveToConfigFile(target, prefix + ".rolling_shutter");
 }
 
 std::vector<std::string> RefinerOptions::sectionNames(const std::string& prefix) {
     std::vector<std::string> out;
-    for (const char* stage :
-         {"sampler", "matcher", "homography", "estimator", "acceptance", "correspondence"}) {
+    for (const char* stage : {"sampler", "matcher", "homography", "estimator", "acceptance",
+                              "correspondence", "rolling_shutter"}) {
         out.push_back(prefix + "." + stage);
     }
     return out;
@@ -158,6 +176,7 @@ void RefinerOptions::check() const {
     estimator.check();
     acceptance.check();
     correspondence.check();
+    rolling_shutter.check();
     OptionsCheck c("refine");
     c.require(sampler.border_margin_px >= matcher.patch_px / 2, "sampler.border_margin_px",
               ">= matcher.patch_px / 2 (patches must lie inside the reference image)");

@@ -133,6 +133,7 @@ struct QueryView {
     mrpt::poses::CPose3D on_vehicle;
     std::optional<mrpt::poses::CPose3D> camera_in_map;  ///< at the coarse pose, if any
     double ceiling_height_m = 0;                        ///< prior of h
+    RowTiming timing;                                   ///< its rolling shutter, if any
     ImagePyramid pyramid;
 };
 
@@ -225,6 +226,7 @@ EstimatorInput estimatorInput(const std::vector<const ReferenceImage*>& refs, co
     input.query_camera = q.camera;
     input.query_camera_on_vehicle = q.on_vehicle;
     input.ceiling_height_m = q.ceiling_height_m;
+    input.query_timing = q.timing;
     for (const ReferenceImage* r : refs) {
         input.vehicle_z += r->vehicle_in_map.z() / double(refs.size());
         input.prior_pitch_rad += r->vehicle_in_map.pitch() / double(refs.size());
@@ -252,6 +254,14 @@ void addInliers(const ReferenceOutcome& outcome, const ReferenceImage& ref, cons
     view.camera_in_map = ref.cameraInMap();
     view.reference_px = rectify(ref_px, ref.camera, ref_cam);
     view.query_px = rectify(query_px, *q.intrinsics, q.camera);
+    view.timing = ref.timing;
+    if (view.timing.rows == 0) view.timing.rows = ref.image.rows;
+    view.camera_on_vehicle = ref.camera_on_vehicle;
+    if (view.timing.active() || q.timing.active()) {
+        // Row times are the sensor's rows, before rectification.
+        for (const auto& p : ref_px) view.reference_row.push_back(p.y);
+        for (const auto& p : query_px) view.query_row.push_back(p.y);
+    }
     input.views.push_back(std::move(view));
 }
 
@@ -294,11 +304,23 @@ RefineResult fallBack(RefineResult res, RefineStatus status, std::string reason,
 
 using Failure = std::pair<RefineStatus, std::string>;
 
+/// The query's row times: with a readout configured and the vehicle's velocity in the hint.
+RowTiming queryTiming(const CoarseHint& hint, int rows, const RollingShutterOptions& o) {
+    RowTiming t;
+    if (o.readout_ms <= 0.0 || !hint.vehicle_motion) return t;
+    t.readout_s = 1e-3 * o.readout_ms;
+    t.rows = rows;
+    t.stamp_row = o.stampRow(rows);
+    t.velocity = *hint.vehicle_motion;
+    return t;
+}
+
 /// Why the query or the references cannot be refined at all; else completes `q` (camera,
 /// ceiling height prior, camera pose at the coarse pose).
 std::optional<Failure> unusableInput(const cv::Mat& image, const std::vector<ReferenceImage>& given,
                                      const UsableReferences& usable, const CoarseHint& hint,
-                                     const EstimatorOptions& estimator, QueryView& q) {
+                                     const EstimatorOptions& estimator,
+                                     const RollingShutterOptions& rolling_shutter, QueryView& q) {
     std::string bad_query;
     if (!pinholeFrom(*q.intrinsics, q.camera, &bad_query)) {
         return Failure{RefineStatus::InvalidQuery, "query camera: " + bad_query};
@@ -319,6 +341,12 @@ std::optional<Failure> unusableInput(const cv::Mat& image, const std::vector<Ref
         return Failure{RefineStatus::InvalidQuery, "ceiling height prior is not finite"};
     }
     if (hint.vehicle_pose) q.camera_in_map = *hint.vehicle_pose + q.on_vehicle;
+    q.timing = queryTiming(hint, image.rows, rolling_shutter);
+    if (q.camera_in_map && q.timing.active()) {
+        // The matcher's prediction from the middle row's pose: the rows' mean time.
+        q.camera_in_map =
+            q.timing.cameraAtRow(*q.camera_in_map, q.on_vehicle, 0.5 * (image.rows - 1));
+    }
     return std::nullopt;
 }
 
@@ -462,7 +490,8 @@ RefineResult Refiner::refine(const cv::Mat& query_image, const mrpt::img::TCamer
     QueryView q;
     q.intrinsics = &query_camera;
     q.on_vehicle = camera_on_vehicle;
-    if (auto why = unusableInput(query_image, references, usable, hint, options_.estimator, q)) {
+    if (auto why = unusableInput(query_image, references, usable, hint, options_.estimator,
+                                 options_.rolling_shutter, q)) {
         return fail(why->first, why->second);
     }
     auto t0 = Clock::now();

@@ -736,6 +736,8 @@ database::DatabaseInfo databaseInfo(const SurveyInputs& in, const SurveyOptions&
     info.name = in.name;
     info.ceiling_camera_label = o.ceiling_camera_label;
     info.forward_camera_label = o.forward_camera_label;
+    info.ceiling_readout_ms = o.ceiling_readout_ms;
+    info.ceiling_stamp_row = o.ceiling_stamp_row;
     for (const auto& spec : in.traverses) {
         info.source_rawlogs.push_back(fs::absolute(spec.rawlog).string());
     }

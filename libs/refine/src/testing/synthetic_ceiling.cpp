@@ -46,6 +46,47 @@ SyntheticCeiling SyntheticCeiling::make(double height_m, double size_m, double m
     return c;
 }
 
+namespace {
+
+// Texture pixel -> image pixel of a camera at `camera_in_map`: K R^T [e1 e2 (0, 0, h) - t] T.
+cv::Matx33d textureToPixel(const SyntheticCeiling& c, const mrpt::img::TCamera& camera,
+                           const mrpt::poses::CPose3D& camera_in_map) {
+    const auto R = camera_in_map.getRotationMatrix();
+    cv::Matx33d Rt;
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) Rt(i, j) = R(j, i);
+    const cv::Matx33d M(1, 0, -camera_in_map.x(), 0, 1, -camera_in_map.y(), 0, 0,
+                        c.height_m - camera_in_map.z());
+    const cv::Matx33d T(c.metres_per_px, 0, c.x0_m, 0, c.metres_per_px, c.y0_m, 0, 0, 1);
+    const cv::Matx33d K(camera.fx(), 0, camera.cx(), 0, camera.fy(), camera.cy(), 0, 0, 1);
+    return K * Rt * M * T;
+}
+
+}  // namespace
+
+cv::Mat SyntheticCeiling::renderRollingShutter(const mrpt::img::TCamera& camera,
+                                               const mrpt::poses::CPose3D& camera_on_vehicle,
+                                               const mrpt::poses::CPose3D& vehicle_in_map,
+                                               RowTiming timing) const {
+    const cv::Size size(int(camera.ncols), int(camera.nrows));
+    if (timing.rows == 0) timing.rows = size.height;
+    const mrpt::poses::CPose3D camera_in_map = vehicle_in_map + camera_on_vehicle;
+    cv::Mat map_x(size, CV_32F), map_y(size, CV_32F);
+    for (int v = 0; v < size.height; ++v) {
+        const cv::Matx33d to_texture =
+            textureToPixel(*this, camera, timing.cameraAtRow(camera_in_map, camera_on_vehicle, v))
+                .inv();
+        for (int u = 0; u < size.width; ++u) {
+            const cv::Vec3d t = to_texture * cv::Vec3d(u, v, 1.0);
+            map_x.at<float>(v, u) = float(t[0] / t[2]);
+            map_y.at<float>(v, u) = float(t[1] / t[2]);
+        }
+    }
+    cv::Mat out;
+    cv::remap(texture, out, map_x, map_y, cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar(0));
+    return out;
+}
+
 cv::Mat SyntheticCeiling::render(const mrpt::img::TCamera& camera,
                                  const mrpt::poses::CPose3D& camera_in_map) const {
     // texture px -> plane (x, y, 1) -> camera: K R^T [e1 e2 (0, 0, h) - t].

@@ -65,6 +65,11 @@ struct DatabaseInfo {
     mrpt::img::TCamera ceiling_camera;
     mrpt::img::TCamera forward_camera;  ///< intrinsics of the forward camera
     double ceiling_height_m = 0;  ///< ceiling height above the floor (prior for refinement) [m]
+    /// The survey ceiling camera's rolling shutter ([survey] ceiling_readout_ms): first row to
+    /// last row [ms], 0 = a global shutter; and the row its stamp (offset applied) refers to,
+    /// "first" or "middle". db.ini lists them only for a rolling shutter.
+    double ceiling_readout_ms = 0;
+    std::string ceiling_stamp_row = "first";
     std::vector<std::string> source_rawlogs;  ///< absolute paths of the survey rawlogs
     std::string pose_source;                  ///< "laser" (ICP-SLAM + MCL) or "file:<path>"
     std::string map_file;                     ///< map file name in the folder ("" if none)

@@ -188,6 +188,8 @@ class Localizer {
     std::optional<CoarseFix> fixFromMatch(const coarse::CoarseResult& match) const;
     std::optional<Prediction> predict(double time_s) const;
     std::optional<common::OdometryTrack::Pose> odometryAt(double time_s) const;
+    /// The vehicle's velocity from the odometry just before `time_s` (rolling shutter).
+    std::optional<refine::VehicleMotion> velocityAt(double time_s) const;
     std::vector<std::size_t> referencesNearTime(double time_s) const;
     std::vector<std::size_t> referencesNear(const mrpt::poses::CPose2D& pose) const;
     std::shared_ptr<const refine::RefineResult> acquire(
@@ -197,6 +199,9 @@ class Localizer {
         const mrpt::obs::CObservationImage& query, const std::vector<std::size_t>& refs,
         const mrpt::poses::CPose2D& hint, FrameResult& out, bool probe = false);
     const refine::ReferenceImage& referenceView(std::size_t index);
+    /// The rows of reference `index` (db.ini ceiling_readout_ms) with the survey vehicle's
+    /// velocity from its traverse's neighbouring references.
+    refine::RowTiming surveyRowTiming(std::size_t index, int rows) const;
     struct GlobalOutcome {
         std::shared_ptr<const refine::RefineResult> result;  ///< the fix, or the ambiguous one
         bool ambiguous = false;
@@ -235,6 +240,8 @@ class Localizer {
 
     std::optional<Rejection> rejection_;
     std::map<std::string, double> last_stamp_;  ///< by sensor label: checks time order
+    /// The last ceiling frame's stamp, also when refused for the readout (the frame period).
+    std::optional<double> previous_ceiling_s_;
 
     std::optional<coarse::CoarseResult> last_coarse_;
     double coarse_ms_since_frame_ = 0;

@@ -6,6 +6,8 @@
 // a Huber loss, a prior on h (so one reference suffices) and a prior on pitch/roll. With two
 // or more references at different surveyed positions h is observable from the images.
 // The start comes in closed form: a 2-D rigid alignment (Umeyama) of the back-projected points.
+// With a rolling shutter (RowTiming active) each pixel is seen from the camera moved to its
+// row's exposure: the reference's back-projection and the query's projection alike.
 
 #include <mrpt/math/CMatrixFixed.h>
 #include <mrpt/poses/CPose3D.h>
@@ -16,6 +18,7 @@
 
 #include "lookup/refine/geometry.h"
 #include "lookup/refine/options.h"
+#include "lookup/refine/rolling_shutter.h"
 
 namespace lookup::refine {
 
@@ -25,6 +28,11 @@ struct ReferenceView {
     mrpt::poses::CPose3D camera_in_map;     ///< surveyed
     std::vector<cv::Point2d> reference_px;  ///< rectified pixels
     std::vector<cv::Point2d> query_px;      ///< matching query pixels
+    /// Rows of each point as the sensors read them (before rectification), for the row
+    /// times; empty = the rectified pixels' y.
+    std::vector<double> reference_row, query_row;
+    RowTiming timing;                        ///< of the reference image (survey vehicle)
+    mrpt::poses::CPose3D camera_on_vehicle;  ///< reference camera mount (with `timing`)
 };
 
 struct EstimatorInput {
@@ -35,6 +43,7 @@ struct EstimatorInput {
     double prior_pitch_rad = 0.0;  ///< centre of the tilt prior
     double prior_roll_rad = 0.0;
     double ceiling_height_m = 5.0;  ///< centre of the h prior [m]
+    RowTiming query_timing;         ///< the query image's rows (velocity: the query vehicle's)
 };
 
 /// Covariance order of `covariance`: x, y, yaw, pitch, roll, h.

@@ -167,15 +167,40 @@ struct AcceptanceOptions : public common::TableOptions<AcceptanceOptions> {
     void check() const;
 };
 
+/// The row the query camera's stamp (after the localiser's [time_offsets]) refers to.
+enum class StampRow {
+    First,  ///< V4L2 / UVC drivers stamp at the start of the frame
+    Middle  ///< the central row (a camera offset set to the central row's time)
+};
+
+/// The query ceiling camera's rolling shutter (rolling_shutter.h), section
+/// `<prefix>.rolling_shutter`. With a readout and the vehicle's velocity in the hint, every
+/// query point is seen from the vehicle moved to its row's exposure.
+struct RollingShutterOptions : public common::TableOptions<RollingShutterOptions> {
+    double readout_ms = 0.0;  ///< first row to last row [ms]; 0 = global shutter
+    StampRow stamp_row = StampRow::First;
+
+    /// Row exposed at the stamp in an image of `rows` rows.
+    double stampRow(int rows) const {
+        return stamp_row == StampRow::Middle ? 0.5 * (rows - 1) : 0.0;
+    }
+    void declareKeys(common::OptionsTable& t);
+    /// readout_ms in [0, 1000); the localiser also refuses one not shorter than the frame
+    /// period it sees.
+    void check() const;
+};
+
 /// Everything the Refiner uses. Sections are `<prefix>.sampler`, `<prefix>.matcher`,
-/// `<prefix>.homography`, `<prefix>.estimator`, `<prefix>.acceptance`.
+/// `<prefix>.homography`, `<prefix>.estimator`, `<prefix>.acceptance`,
+/// `<prefix>.correspondence`, `<prefix>.rolling_shutter`.
 struct RefinerOptions : public mrpt::config::CLoadableOptions {
     SamplerOptions sampler;
     MatcherOptions matcher;
     HomographyOptions homography;
     EstimatorOptions estimator;
     AcceptanceOptions acceptance;
-    CorrespondenceOptions correspondence;  ///< `<prefix>.correspondence`: sad | orb | ecc
+    CorrespondenceOptions correspondence;   ///< `<prefix>.correspondence`: sad | orb | ecc
+    RollingShutterOptions rolling_shutter;  ///< `<prefix>.rolling_shutter`: the query camera
 
     /// `section` is the prefix (e.g. "refine" reads [refine.sampler] ...).
     void loadFromConfigFile(const mrpt::config::CConfigFileBase& source,

@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "lookup/refine/options.h"
+#include "lookup/refine/rolling_shutter.h"
 
 namespace lookup::refine {
 
@@ -58,6 +59,9 @@ struct ReferenceImage {
     mrpt::poses::CPose3D vehicle_in_map;     ///< surveyed vehicle (base) pose
     mrpt::poses::CPose3D camera_on_vehicle;  ///< as CObservationImage::cameraPose
     cv::Mat heat_map;  ///< optional CV_32FC1 sample-quality map, same size as `image`, >= 0
+    /// Its rolling shutter and the survey vehicle's velocity at its stamp (rows 0: the image's
+    /// height); readout 0 = a global shutter.
+    RowTiming timing;
 
     /// Optional cache built by prepare(); built on the fly per query when absent.
     std::shared_ptr<const ImagePyramid> pyramid;
@@ -111,6 +115,9 @@ struct CoarseHint {
     /// stops there (TooFewMatches). 0 = no probe.
     int probe_points = 0;
     int probe_min_matched = 0;
+    /// The query vehicle's velocity at the frame (odometry): with
+    /// RefinerOptions::rolling_shutter, each query point's row time moves it.
+    std::optional<VehicleMotion> vehicle_motion;
 };
 
 /// Why the matcher kept or dropped a point.

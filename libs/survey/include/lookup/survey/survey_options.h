@@ -57,6 +57,12 @@ struct SurveyOptions : public common::TableOptions<SurveyOptions> {
     /// the estimate (time_offset_estimate), the forward camera's is used as configured.
     double ceiling_time_offset_s = 0;
     double forward_time_offset_s = 0;
+    /// The ceiling camera's rolling shutter, first row to last row [ms] (0 = a global shutter),
+    /// and the row its stamp refers to once ceiling_time_offset_s is applied ("first" or
+    /// "middle"): stored in the database, where the localiser sees each reference's rows from
+    /// the survey vehicle's poses at their times.
+    double ceiling_readout_ms = 0;
+    std::string ceiling_stamp_row = "first";
     bool time_offset_estimate = true;     ///< estimate the ceiling camera's offset from the images
     double time_offset_max_s = 0.2;       ///< search range around the configured offset [s]
     double time_offset_baseline_m = 0.5;  ///< travel between the two images of a pair [m]

@@ -36,6 +36,13 @@ struct SyntheticCeiling {
     cv::Mat render(const mrpt::img::TCamera& camera,
                    const mrpt::poses::CPose3D& camera_in_map) const;
 
+    /// What a rolling-shutter `camera` on a vehicle at `vehicle_in_map` (at the stamp) sees:
+    /// each row from the camera at that row's time (`timing`; rows 0: the camera's).
+    cv::Mat renderRollingShutter(const mrpt::img::TCamera& camera,
+                                 const mrpt::poses::CPose3D& camera_on_vehicle,
+                                 const mrpt::poses::CPose3D& vehicle_in_map,
+                                 RowTiming timing) const;
+
     /// A reference rendered at `vehicle_in_map` with the given camera.
     ReferenceImage reference(std::int64_t id, const mrpt::img::TCamera& camera,
                              const mrpt::poses::CPose3D& camera_on_vehicle,
