@@ -681,7 +681,7 @@ struct RollingRun {
 };
 
 RollingRun rollingShutterRun(const std::string& name, double readout_s, const std::string& ini) {
-    const auto dir = freshDir(name);
+    const auto dir = lookup::test::freshDir("lookup_localize_" + name);
     const Scene scene;
     refine::RowTiming timing;
     timing.readout_s = readout_s;
@@ -731,7 +731,7 @@ TEST(Localize, ARollingShutterQueryIsRefinedRowByRowWithTheOdometrysVelocity) {
 TEST(Localize, RollingShutterReferencesAreSeenFromTheSurveyVehiclesRowPoses) {
     // The survey camera read its rows in 60 ms while the survey vehicle drove at 2.5 m/s
     // (references 0.25 m and 0.1 s apart); the query camera is a global shutter.
-    const auto dir = freshDir("rolling_references");
+    const auto dir = lookup::test::freshDir("lookup_localize_rolling_references");
     const Scene scene;
     auto req =
         planarRun(dir, [](int, mrpt::obs::CObservationImage&, mrpt::obs::CObservationOdometry&) {});
