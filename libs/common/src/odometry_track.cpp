@@ -35,10 +35,6 @@ mrpt::poses::CPose2D repeated(const mrpt::poses::CPose2D& p0, const mrpt::poses:
     return p0 + mrpt::poses::CPose2D(moved.x(), moved.y(), a * d.phi());
 }
 
-/// The velocity is taken over the last readings spanning at least this long: a single step's
-/// time-stamp jitter would dominate it [s].
-constexpr double kVelocitySpanS = 0.1;
-
 }  // namespace
 
 bool OdometryTrack::add(double time_s, const mrpt::poses::CPose2D& pose) {

@@ -308,9 +308,8 @@ void Localizer::restart() {
     last_coarse_.reset();
     coarse_ms_since_frame_ = 0;
     odometry_.clear();
-    last_odometry_time_ = -1;
     travelled_since_forward_ = 0;
-    last_forward_odometry_.reset();
+    forward_had_odometry_ = false;
     last_fix_.reset();
     fine_tracking_ = false;
     last_startup_seed_ = std::numeric_limits<std::size_t>::max();
@@ -328,11 +327,11 @@ void Localizer::processOdometry(const mrpt::obs::CObservation& obs) {
     const auto* odo = dynamic_cast<const mrpt::obs::CObservationOdometry*>(&obs);
     if (odo == nullptr) return;
     const double t = mrpt::Clock::toDouble(odo->timestamp);
-    if (t <= last_odometry_time_) return;  // check() refused it already; never corrupt the track
+    // check() refused a reading out of order already; never corrupt the track
+    if (!odometry_.empty() && t <= odometry_.lastTime()) return;
     if (!odometry_.empty()) {
         travelled_since_forward_ += (odo->odometry - odometry_.lastPose()).translation().norm();
     }
-    last_odometry_time_ = t;
     odometry_.add(t, odo->odometry);
     // Keep what a prediction can need: back to the last fix (bounded by the tracking gap).
     odometry_.forgetBefore(t - 2 * options_.max_tracking_gap_s - 1.0);
@@ -343,9 +342,10 @@ std::optional<common::OdometryTrack::Pose> Localizer::odometryAt(double t) const
 }
 
 std::optional<refine::VehicleMotion> Localizer::velocityAt(double t) const {
-    // Over the last 0.1 s of odometry up to t: the frame's stamp is the newest observation.
+    // Over the odometry's velocity span up to t: the frame's stamp is the newest observation.
     if (odometry_.size() < 2) return std::nullopt;
-    const double t1 = std::min(t, odometry_.lastTime()), t0 = t1 - 0.1;
+    const double t1 = std::min(t, odometry_.lastTime()),
+                 t0 = t1 - common::OdometryTrack::kVelocitySpanS;
     if (t - t1 > options_.odometry_timeout_s) return std::nullopt;
     const auto p0 = odometry_.at(t0), p1 = odometry_.at(t1);
     if (!p0 || !p1) return std::nullopt;
@@ -381,11 +381,11 @@ void Localizer::processForward(const mrpt::obs::CObservationImage& image) {
     q.audit = !fine_tracking_;
     // In an odometry dropout the coarse stage matches without odometry: a distance of zero
     // would hold it at the place where the readings stopped.
-    if (!odometry_.empty() && q.time_s - last_odometry_time_ > options_.odometry_timeout_s) {
-        last_forward_odometry_.reset();
+    if (!odometry_.empty() && q.time_s - odometry_.lastTime() > options_.odometry_timeout_s) {
+        forward_had_odometry_ = false;
     } else if (!odometry_.empty()) {
-        if (last_forward_odometry_) q.travelled_m = travelled_since_forward_;
-        last_forward_odometry_ = odometry_.lastPose();
+        if (forward_had_odometry_) q.travelled_m = travelled_since_forward_;
+        forward_had_odometry_ = true;
         travelled_since_forward_ = 0;
     }
     last_coarse_ = coarse_->locate(q);

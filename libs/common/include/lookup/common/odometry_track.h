@@ -13,6 +13,10 @@ namespace lookup::common {
 
 class OdometryTrack {
   public:
+    /// Velocities are taken over readings spanning at least this long: a single step's
+    /// time-stamp jitter would dominate them [s].
+    static constexpr double kVelocitySpanS = 0.1;
+
     struct Pose {
         mrpt::poses::CPose2D pose;
         double extrapolated_s = 0;  ///< time past the last reading (0: between readings)

@@ -246,9 +246,8 @@ class Localizer {
     std::optional<coarse::CoarseResult> last_coarse_;
     double coarse_ms_since_frame_ = 0;
     common::OdometryTrack odometry_;
-    double last_odometry_time_ = -1;
     double travelled_since_forward_ = 0;
-    std::optional<mrpt::poses::CPose2D> last_forward_odometry_;
+    bool forward_had_odometry_ = false;  ///< the previous forward frame had live odometry
 
     struct Fix {
         double time_s = 0;
