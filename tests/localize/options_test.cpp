@@ -2,7 +2,6 @@
 
 #include <mrpt/config/CConfigFile.h>
 #include <mrpt/config/CConfigFileMemory.h>
-#include <cstdlib>
 #include <filesystem>
 
 #include "../common/round_trip.h"
@@ -10,6 +9,7 @@
 #include "lookup/common/config.h"
 #include "lookup/localize/localizer_options.h"
 #include "lookup/refine/options.h"
+#include "lookup/test/support.h"
 
 using namespace lookup;
 
@@ -62,13 +62,11 @@ TEST(LocalizeIni, AcquisitionKeysRoundTripAndAreChecked) {
 // MRPT's TCLAP reports a parse error by returning false, not by exiting: every app must stop
 // with a non-zero status on an unknown flag instead of running with half-parsed options.
 TEST(AppCommandLines, UnknownFlagFailsAndHelpSucceeds) {
-    const std::string bin = std::string(LOOKUP_BINARY_DIR) + "/bin/";
+    const auto log = lookup::test::freshDir("options_app_command_lines") / "log.txt";
     for (const char* app :
          {"lookup-localize", "lookup-eval", "lookup-sim", "lookup-survey", "lookup-coarse"}) {
-        const std::string exe = bin + app;
-        if (!std::filesystem::exists(exe)) continue;  // not built in this configuration
-        EXPECT_NE(std::system((exe + " --no-such-flag >/dev/null 2>&1").c_str()), 0) << app;
-        EXPECT_EQ(std::system((exe + " --help >/dev/null 2>&1").c_str()), 0) << app;
+        EXPECT_NE(lookup::test::runProgram(app, {"--no-such-flag"}, log), 0) << app;
+        EXPECT_EQ(lookup::test::runProgram(app, {"--help"}, log), 0) << app;
     }
 }
 

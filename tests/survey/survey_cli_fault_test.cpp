@@ -3,11 +3,12 @@
 // database — never a signal, a hang or a database from damaged input without a word.
 #include <gtest/gtest.h>
 
-#include <cstdlib>
+#include <chrono>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <regex>
+#include <sstream>
 
 #include "lookup/database/reference_database.h"
 #include "lookup/test/support.h"
@@ -19,18 +20,25 @@ namespace {
 
 struct Run {
     int code = -1;  ///< exit code; >= 128: killed by a signal; 124: timed out
-    std::string out, err;
+    std::string log;  ///< stdout and stderr together
 };
 
+// lookup-survey -q with `args` (split at spaces) and `env` ("NAME=value" or ""), killed after
+// 120 s (a hang).
 Run survey(const fs::path& dir, const std::string& args, const std::string& env = "") {
-    const std::string cmd = env + " timeout 120 " + std::string(LOOKUP_BINARY_DIR) +
-                            "/bin/lookup-survey -q " + args + " >" + (dir / "out.txt").string() +
-                            " 2>" + (dir / "err.txt").string();
-    const int status = std::system(cmd.c_str());
+    std::vector<std::string> argv{"-q"};
+    std::istringstream words(args);
+    for (std::string w; words >> w;) argv.push_back(w);
+    lookup::test::ProgramRun how;
+    how.log = dir / "log.txt";
+    how.env = env;
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+    bool hung = false;
+    how.kill_when = [&] { return hung = std::chrono::steady_clock::now() > deadline; };
     Run r;
-    r.code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-    r.out = lookup::test::readText(dir / "out.txt");
-    r.err = lookup::test::readText(dir / "err.txt");
+    r.code = lookup::test::runProgram("lookup-survey", argv, how);
+    if (hung) r.code = 124;
+    r.log = lookup::test::readText(how.log);
     return r;
 }
 
@@ -100,11 +108,10 @@ TEST(SurveyCliFault, BadOptionsInEverySectionAreOneLineNamingFileSectionKey) {
         const auto r = survey(d.dir, "--rawlogs " + d.f.rawlog + " --poses ground-truth --ini " +
                                          ini + " --out " + (d.dir / "db").string());
         const std::string what = section + " " + key + " = " + value;
-        EXPECT_EQ(r.code, 1) << what << ": " << r.err;
-        EXPECT_EQ(r.out, "") << what;
-        EXPECT_EQ(lines(r.err), 1u) << what << ": " << r.err;
-        EXPECT_NE(r.err.find(ini + " [" + section + "]"), std::string::npos)
-            << what << ": " << r.err;
+        EXPECT_EQ(r.code, 1) << what << ": " << r.log;
+        EXPECT_EQ(lines(r.log), 1u) << what << ": " << r.log;
+        EXPECT_NE(r.log.find(ini + " [" + section + "]"), std::string::npos)
+            << what << ": " << r.log;
         EXPECT_FALSE(fs::exists(d.dir / "db")) << what;
     }
     // Not an .ini file at all.
@@ -114,13 +121,13 @@ TEST(SurveyCliFault, BadOptionsInEverySectionAreOneLineNamingFileSectionKey) {
         7);
     auto r = survey(d.dir, "--rawlogs " + d.f.rawlog + " --ini " + (d.dir / "binary.ini").string() +
                                " --out " + (d.dir / "db").string());
-    EXPECT_EQ(r.code, 1) << r.err;
-    EXPECT_NE(r.err.find("binary.ini: binary data"), std::string::npos) << r.err;
+    EXPECT_EQ(r.code, 1) << r.log;
+    EXPECT_NE(r.log.find("binary.ini: binary data"), std::string::npos) << r.log;
     r = survey(d.dir, "--no-such-flag");
-    EXPECT_EQ(r.code, 1) << r.err;
+    EXPECT_EQ(r.code, 1) << r.log;
     r = survey(d.dir, "--help");
     EXPECT_EQ(r.code, 0);
-    EXPECT_NE(r.out.find("Exit codes: 0 success, 1 usage"), std::string::npos) << r.out;
+    EXPECT_NE(r.log.find("Exit codes: 0 success, 1 usage"), std::string::npos) << r.log;
 }
 
 TEST(SurveyCliFault, BadPoseFilesAreBadInputNamingFileAndLine) {
@@ -134,9 +141,9 @@ TEST(SurveyCliFault, BadPoseFilesAreBadInputNamingFileAndLine) {
         std::ofstream(poses) << first << bad << "\n";
         const auto r = survey(d.dir, "--rawlogs " + d.f.rawlog + " --poses " + poses.string() +
                                          " --out " + (d.dir / "dbp").string());
-        EXPECT_EQ(r.code, 2) << bad << ": " << r.err;
-        EXPECT_EQ(lines(r.err), 1u) << r.err;
-        EXPECT_NE(r.err.find(poses.string() + ":2: "), std::string::npos) << r.err;
+        EXPECT_EQ(r.code, 2) << bad << ": " << r.log;
+        EXPECT_EQ(lines(r.log), 1u) << r.log;
+        EXPECT_NE(r.log.find(poses.string() + ":2: "), std::string::npos) << r.log;
         EXPECT_FALSE(fs::exists(d.dir / "dbp"));
     }
 }
@@ -160,15 +167,15 @@ TEST(SurveyCliFault, DamagedRawlogsRefusedNamingTheFileNeverASignal) {
         std::ofstream(bad, std::ios::binary) << b;
         const auto r = survey(d.dir, "--rawlogs " + bad.string() + " --poses ground-truth --out " +
                                          (d.dir / "dbd").string());
-        ASSERT_LT(r.code, 124) << "case " << k << ": signal or hang: " << r.err;
+        ASSERT_LT(r.code, 124) << "case " << k << ": signal or hang: " << r.log;
         if (r.code == 0) {
             ++accepted;
             continue;
         }
         ++refused;
-        EXPECT_EQ(r.code, 2) << "case " << k << ": " << r.err;
-        EXPECT_EQ(lines(r.err), 1u) << r.err;
-        EXPECT_NE(r.err.find("damaged.rawlog: record"), std::string::npos) << r.err;
+        EXPECT_EQ(r.code, 2) << "case " << k << ": " << r.log;
+        EXPECT_EQ(lines(r.log), 1u) << r.log;
+        EXPECT_NE(r.log.find("damaged.rawlog: record"), std::string::npos) << r.log;
     }
     EXPECT_GE(refused, 4);  // every truncation at least
     RecordProperty("damaged_accepted", accepted);
@@ -182,10 +189,10 @@ TEST(SurveyCliFault, KillBetweenTheRenamesIsRecoveredAtTheNextStart) {
     ASSERT_EQ(survey(d.dir, args).code, 0);
     for (const char* point : {"staging-created", "between-renames", "before-old-removed"}) {
         const auto killed = survey(d.dir, args, std::string("LOOKUP_TEST_KILL_AT=") + point);
-        EXPECT_EQ(killed.code, 128 + 9) << point << ": " << killed.err;
+        EXPECT_EQ(killed.code, 128 + 9) << point << ": " << killed.log;
         const auto again = survey(d.dir, args);
-        EXPECT_EQ(again.code, 0) << point << ": " << again.err;
-        EXPECT_NE(again.err.find("interrupted lookup-survey"), std::string::npos) << again.err;
+        EXPECT_EQ(again.code, 0) << point << ": " << again.log;
+        EXPECT_NE(again.log.find("interrupted lookup-survey"), std::string::npos) << again.log;
         EXPECT_NO_THROW(lookup::database::ReferenceDatabase::load(db.string())) << point;
         for (const auto& e : fs::directory_iterator(d.dir)) {
             const auto n = e.path().filename().string();

@@ -8,6 +8,7 @@
 #include <cmath>
 
 #include "lookup/common/pose_files.h"
+#include "lookup/refine/rolling_shutter.h"
 #include "lookup/refine/testing/synthetic_ceiling.h"
 #include "lookup/survey/time_offset.h"
 
@@ -44,7 +45,16 @@ mrpt::poses::CPose3D vehicleAt(double t, bool accelerate) {
     return mrpt::poses::CPose3D(s, y, 0, std::atan(dy), 0, 0);
 }
 
-Drive makeDrive(bool accelerate, double latency_s, bool textured) {
+// The vehicle's velocity in its own frame at t (central difference over 2 ms).
+refine::VehicleMotion velocityAt(double t, bool accelerate) {
+    const double h = 0.001;
+    const mrpt::poses::CPose3D d = vehicleAt(t + h, accelerate) - vehicleAt(t - h, accelerate);
+    return {d.x() / (2 * h), d.y() / (2 * h), d.yaw() / (2 * h)};
+}
+
+// Stamps `latency_s` late; a rolling shutter reading its rows in `readout_s` (0: global)
+// stamps its first row.
+Drive makeDrive(bool accelerate, double latency_s, bool textured, double readout_s = 0) {
     static const auto ceiling = synth::SyntheticCeiling::make(kCeiling_m, 30.0, 0.015, 7);
     auto flat = ceiling;
     flat.texture = cv::Mat(ceiling.texture.size(), CV_8UC1, cv::Scalar(128));
@@ -64,8 +74,13 @@ Drive makeDrive(bool accelerate, double latency_s, bool textured) {
         obs->timestamp = mrpt::Clock::fromDouble(kT0 + t + latency_s);
         obs->cameraParams = camera;
         obs->cameraPose = mount;
-        obs->image = mrpt::img::CImage(seen.render(camera, vehicleAt(t, accelerate) + mount),
-                                       mrpt::img::DEEP_COPY);
+        refine::RowTiming rows;
+        rows.readout_s = readout_s;
+        rows.velocity = velocityAt(t, accelerate);
+        const cv::Mat image =
+            readout_s > 0 ? seen.renderRollingShutter(camera, mount, vehicleAt(t, accelerate), rows)
+                          : seen.render(camera, vehicleAt(t, accelerate) + mount);
+        obs->image = mrpt::img::CImage(image, mrpt::img::DEEP_COPY);
         d.images.push_back(obs);
     }
     return d;
@@ -84,6 +99,21 @@ TEST(TimeOffset, EstimatesAKnownLatencyWhileAcceleratingAndBraking) {
     EXPECT_LT(e.sigma_s, o.time_offset_max_sigma_s);
     EXPECT_GT(e.pairs_used, std::size_t(o.time_offset_min_pairs));
     EXPECT_TRUE(e.warning.empty());
+}
+
+TEST(TimeOffset, ARollingShutterOffsetRefersToTheStampedRow) {
+    // The image motion is the middle row's: without the readout the fit finds the middle
+    // row's offset, half the readout after the first row's; with it, the stamped row's.
+    const Drive d = makeDrive(true, 0.040, true, 0.030);
+    SurveyOptions o;
+    const auto middle = estimate(d, o);
+    EXPECT_EQ(middle.source, "estimated") << middle.warning;
+    EXPECT_NEAR(middle.offset_s, -0.025, 0.004);
+    o.ceiling_readout_ms = 30;
+    o.ceiling_stamp_row = "first";
+    const auto first = estimate(d, o);
+    EXPECT_EQ(first.source, "estimated") << first.warning;
+    EXPECT_NEAR(first.offset_s, -0.040, 0.004);
 }
 
 TEST(TimeOffset, ConfiguredOffsetIsTheStartOfTheEstimate) {

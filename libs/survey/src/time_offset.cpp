@@ -374,6 +374,12 @@ std::string notEstimated(const TimeOffsetEstimate& e, const std::string& why) {
     return e.label + " time offset not estimated: " + why + buf;
 }
 
+// The image motion of a pair is that of the rows' mean exposure, the middle row's; with a
+// rolling shutter the stamp refers to ceiling_stamp_row, this much earlier [s].
+double middleRowLag(const SurveyOptions& o) {
+    return o.ceiling_stamp_row == "first" ? 0.5e-3 * o.ceiling_readout_ms : 0.0;
+}
+
 }  // namespace
 
 TimeOffsetEstimate estimateTimeOffset(const std::vector<CeilingTraverse>& traverses,
@@ -421,7 +427,7 @@ TimeOffsetEstimate estimateTimeOffset(const std::vector<CeilingTraverse>& traver
     }
     FitResult fit = fitOffset(pairs, o);
     fit.sigma = consistentSigma(pairs, fit, o);
-    e.fitted_s = e.configured_s + fit.dt;
+    e.fitted_s = e.configured_s + fit.dt - middleRowLag(o);
     e.sigma_s = fit.sigma;
     e.scale = fit.scale;
     e.rms_m = fit.rms;
