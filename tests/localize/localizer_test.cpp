@@ -245,6 +245,32 @@ TEST(Localize, AnOdometryDropoutIsBridgedAtTheLastVelocityWithAGrowingEllipse) {
     EXPECT_EQ(run.frames[16].status, "refined") << run.frames[16].reason;
 }
 
+// Odometry that under-reads by 20 % (a slipping wheel) against a ceiling that is right:
+// within [localizer] track_disagreement_m the track is kept; with a tighter setting three
+// fixes in a row off the prediction drop it.
+TEST(Localize, FixesThatKeepDisagreeingWithOdometryDropTheTrack) {
+    const auto under_read = [](int i, mrpt::obs::CObservationImage&,
+                               mrpt::obs::CObservationOdometry& odo) {
+        odo.odometry.x(-5 + 0.8 * 0.3 * i);
+    };
+    const auto drops = [&](const std::string& name, const std::string& ini_text) {
+        const auto dir = lookup::test::freshDir("lookup_localize_track_" + name);
+        auto req = planarRun(dir, under_read, 16);
+        req.ini_file = (dir / "localize.ini").string();
+        std::ofstream(req.ini_file) << ini_text;
+        localize::runLocalization(req);
+        std::size_t dropped = 0;
+        for (const auto& f : eval::loadRun(req.out_dir).frames) {
+            dropped += f.reason.find("from the odometry prediction") != std::string::npos;
+        }
+        return dropped;
+    };
+    EXPECT_EQ(drops("default", "[localizer]\n"), 0u);
+    EXPECT_GE(drops("tight", "[localizer]\ntrack_disagreement_m = 0.02\n"
+                             "track_disagreement_per_m = 0\n"),
+              1u);
+}
+
 TEST(Localize, RunsAreNamedAfterTheirSamplerAndMatcher) {
     refine::RefinerOptions o;
     o.sampler.mode = refine::SamplingMode::Auto;

@@ -37,20 +37,6 @@ const char* toString(FrameStatus s) {
 
 namespace {
 
-// Ceiling frames in a row without a refined fix around the coarse match before the coarse stage
-// is told the match is wrong (at 20 Hz: half a second; a few bad views are not enough).
-constexpr int kRejectCoarseAfterFrames = 10;
-// A refined fix this far from the coarse match contradicts it (the paper's exclusion radius).
-constexpr double kCoarseContradictedM = 10;
-// A tracked fix farther than this from the odometry prediction (plus a share of the distance
-// since the last fix) disagrees with it; so many in a row drop the track.
-constexpr double kTrackDisagreementM = 0.3;
-constexpr double kTrackDisagreementPerM = 0.1;
-constexpr int kDisagreeingFixesToDrop = 3;
-// The track check verifies only the index's places with at least this share of its best
-// place's feature inliers.
-constexpr double kRivalInlierShare = 0.5;
-
 mrpt::poses::CPose2D toPose2D(const mrpt::poses::CPose3D& p) {
     return mrpt::poses::CPose2D(p.x(), p.y(), p.yaw());
 }
@@ -730,7 +716,7 @@ std::optional<std::string> Localizer::trackContradicted(const mrpt::obs::CObserv
     for (const auto& place : found.places) {
         // A place with far fewer feature inliers than the index's best is not a rival; on an
         // aliased ceiling the rivals score alike and are verified.
-        if (place.inliers < kRivalInlierShare * found.places.front().inliers) break;
+        if (place.inliers < options_.place_check_rival_share * found.places.front().inliers) break;
         const auto& t = tracked.pose.mean;
         const double d = std::hypot(place.vehicle_pose.x() - t.x(), place.vehicle_pose.y() - t.y());
         if (d <= options_.acquisition_ambiguity_distance_m) continue;
@@ -758,14 +744,14 @@ std::optional<std::string> Localizer::trackDisagreesWithOdometry(
     // are normal; fixes that keep landing far from it follow something else than the vehicle.
     const double d = std::hypot(tracked.pose.mean.x() - prediction.pose.x(),
                                 tracked.pose.mean.y() - prediction.pose.y());
-    const double allowed = kTrackDisagreementM +
-                           kTrackDisagreementPerM * prediction.motion.travelled_m +
+    const double allowed = options_.track_disagreement_m +
+                           options_.track_disagreement_per_m * prediction.motion.travelled_m +
                            3 * refiner_.acceptance().extrapolationSigmaXy(prediction.motion);
     disagreeing_fixes_ = d > allowed ? disagreeing_fixes_ + 1 : 0;
-    if (disagreeing_fixes_ < kDisagreeingFixesToDrop) return std::nullopt;
+    if (disagreeing_fixes_ < options_.track_disagreeing_fixes) return std::nullopt;
     disagreeing_fixes_ = 0;
     return "fixes " + number(d) + " m from the odometry prediction " +
-           std::to_string(kDisagreeingFixesToDrop) + " frames in a row: track dropped";
+           std::to_string(options_.track_disagreeing_fixes) + " frames in a row: track dropped";
 }
 
 // Per ceiling frame: coarse -> locate (track, hypothesis, the ceiling's places, around the
@@ -879,12 +865,13 @@ void Localizer::auditCoarse(const std::shared_ptr<const refine::RefineResult>& r
     const bool contradicted =
         refined && coarse_fix &&
         std::hypot(result->pose.mean.x() - coarse_fix->pose.x(),
-                   result->pose.mean.y() - coarse_fix->pose.y()) > kCoarseContradictedM;
+                   result->pose.mean.y() - coarse_fix->pose.y()) > options_.coarse_exclusion_m;
     // Refined fixes are strong evidence (they passed the acceptance filters): two in a row
     // suffice; frames that merely fail around the coarse match need more.
     if (coarse_fix && ((!tracking && !refined) || contradicted)) {
-        unverified_coarse_frames_ += contradicted ? kRejectCoarseAfterFrames / 2 : 1;
-        if (unverified_coarse_frames_ >= kRejectCoarseAfterFrames && coarse_) {
+        unverified_coarse_frames_ +=
+            contradicted ? std::max(1, options_.coarse_reject_after_frames / 2) : 1;
+        if (unverified_coarse_frames_ >= options_.coarse_reject_after_frames && coarse_) {
             coarse_->rejectLastMatch();
             unverified_coarse_frames_ = 0;
         }

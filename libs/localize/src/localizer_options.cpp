@@ -23,6 +23,12 @@ void LocalizerOptions::declareKeys(common::OptionsTable& t) {
     t.add("place_search", place_search);
     t.add("place_candidates", place_candidates, 1, 100);
     t.add("place_check_every", place_check_every, 0, 100000000);
+    t.add("track_disagreement_m", track_disagreement_m, 0.0);
+    t.add("track_disagreement_per_m", track_disagreement_per_m, 0.0);
+    t.add("track_disagreeing_fixes", track_disagreeing_fixes, 1, 100000000);
+    t.add("place_check_rival_share", place_check_rival_share, 0.0, 1.0);
+    t.add("coarse_reject_after_frames", coarse_reject_after_frames, 1, 100000000);
+    t.add("coarse_exclusion_m", coarse_exclusion_m, common::kPositive);
     t.add("coarse_traverse", coarse_traverse);
     t.add("coarse_while_tracking", coarse_while_tracking);
     t.add("realtime", realtime);

@@ -62,6 +62,21 @@ struct LocalizerOptions : public common::TableOptions<LocalizerOptions> {
     /// track are verified: one that explains the frame about as well as the track makes the
     /// frame ambiguous and drops the track. 0 = never.
     int place_check_every = 10;
+    /// Integrity of a track: a tracked fix farther from the odometry prediction than
+    /// track_disagreement_m, plus track_disagreement_per_m per metre driven since the last fix,
+    /// plus three sigmas of the prediction's extrapolation, disagrees with it; so many fixes in
+    /// a row (track_disagreeing_fixes) drop the track.
+    double track_disagreement_m = 0.3;       ///< [m]
+    double track_disagreement_per_m = 0.1;   ///< [m/m]
+    int track_disagreeing_fixes = 3;
+    /// The place check verifies only the index's places with at least this share of its best
+    /// place's feature inliers.
+    double place_check_rival_share = 0.5;
+    /// The coarse stage is told its match is wrong after this many ceiling frames in a row
+    /// without a refined fix around it; a refined fix farther than coarse_exclusion_m from it
+    /// (the paper's exclusion radius) counts half of them at once.
+    int coarse_reject_after_frames = 10;
+    double coarse_exclusion_m = 10.0;  ///< [m]
     /// Survey traverse whose forward images feed the coarse matcher. "" = every traverse, each
     /// matched as its own sequence (laterally offset traverses would alias each other in one),
     /// the most confident match winning per frame.
