@@ -7,6 +7,7 @@
 
 #include "lookup/sim/sim_app.h"
 #include "lookup/test/support.h"
+#include "test_worlds.h"
 
 namespace fs = std::filesystem;
 using lookup::sim::ScenarioOptions;
@@ -14,23 +15,11 @@ using lookup::sim::SimApp;
 
 namespace {
 
-// One short traverse with small images: a dataset in about a second.
+// The tiny scenario's mapping traverse alone: a dataset in about a second.
 std::string writeTinyScenario(const fs::path& dir) {
-    ScenarioOptions s;
-    s.name = "tiny";
-    s.seed = 11;
-    s.world.length_m = 20;
-    s.world.drawpoint_spacing_m = 12;
-    s.world.grid_resolution_m = 0.1;
-    s.ceiling_camera.width_px = 64;
-    s.ceiling_camera.height_px = 48;
-    s.forward_camera.width_px = 32;
-    s.forward_camera.height_px = 24;
-    lookup::sim::TraverseOptions a;
-    a.name = "middle";
-    a.roles = "mapping,reference,query";
-    a.speed_kmh = 25;
-    s.traverses = {a};
+    ScenarioOptions s = lookup::sim::testing::tinyScenario();
+    s.traverses.resize(1);
+    s.traverses[0].roles = "mapping,reference,query";
     const std::string path = (dir / "tiny.ini").string();
     std::ofstream(path) << s.toIniText();
     return path;

@@ -21,6 +21,7 @@
 #include <iostream>
 #include <map>
 #include "lookup/test/support.h"
+#include "test_worlds.h"
 
 namespace {
 
@@ -28,31 +29,7 @@ namespace fs = std::filesystem;
 using lookup::sim::ScenarioOptions;
 using lookup::sim::SimulationResult;
 using lookup::sim::Simulator;
-
-/// A short two-traverse scenario with small images, quick enough for every CI run.
-ScenarioOptions tinyScenario() {
-    ScenarioOptions s;
-    s.name = "tiny";
-    s.seed = 11;
-    s.world.length_m = 25;
-    s.world.drawpoint_spacing_m = 12;
-    s.world.grid_resolution_m = 0.1;
-    s.ceiling_camera.width_px = 96;
-    s.ceiling_camera.height_px = 72;
-    s.forward_camera.width_px = 48;
-    s.forward_camera.height_px = 36;
-    lookup::sim::TraverseOptions a;
-    a.name = "middle";
-    a.roles = "mapping,reference";
-    a.speed_kmh = 25;
-    lookup::sim::TraverseOptions b = a;
-    b.name = "zigzag";
-    b.roles = "query";
-    b.zigzag_amplitude_m = 1.0;
-    b.zigzag_period_m = 10;
-    s.traverses = {a, b};
-    return s;
-}
+using lookup::sim::testing::tinyScenario;
 
 /// Every file under `root` by relative path; scenario.ini without its `threads` line, the one
 /// key that may differ between runs that must give the same data.

@@ -32,4 +32,30 @@ inline WorldOptions straightTunnel(bool plain) {
     return w;
 }
 
+/// A short two-traverse scenario (a mapping and reference "middle", a query "zigzag") with
+/// small images, quick enough for every CI run.
+inline ScenarioOptions tinyScenario() {
+    ScenarioOptions s;
+    s.name = "tiny";
+    s.seed = 11;
+    s.world.length_m = 25;
+    s.world.drawpoint_spacing_m = 12;
+    s.world.grid_resolution_m = 0.1;
+    s.ceiling_camera.width_px = 96;
+    s.ceiling_camera.height_px = 72;
+    s.forward_camera.width_px = 48;
+    s.forward_camera.height_px = 36;
+    TraverseOptions a;
+    a.name = "middle";
+    a.roles = "mapping,reference";
+    a.speed_kmh = 25;
+    TraverseOptions b = a;
+    b.name = "zigzag";
+    b.roles = "query";
+    b.zigzag_amplitude_m = 1.0;
+    b.zigzag_period_m = 10;
+    s.traverses = {a, b};
+    return s;
+}
+
 }  // namespace lookup::sim::testing
