@@ -59,6 +59,23 @@ TEST(LocalizeIni, AcquisitionKeysRoundTripAndAreChecked) {
     }
 }
 
+TEST(LocalizeIni, CoarseModeIsOneOfItsNames) {
+    mrpt::config::CConfigFileMemory mem;
+    mem.write("localizer", "coarse", "ceiling");
+    localize::LocalizerOptions o;
+    o.loadFromConfigFile(mem, "localizer");
+    EXPECT_EQ(o.coarse, localize::CoarseMode::Ceiling);
+    mem.write("localizer", "coarse", "forward");
+    try {
+        o.loadFromConfigFile(mem, "localizer");
+        FAIL() << "coarse = forward was accepted";
+    } catch (const common::ConfigError& e) {
+        const std::string what = e.what();
+        EXPECT_NE(what.find("coarse"), std::string::npos) << what;
+        EXPECT_NE(what.find("sequence"), std::string::npos) << what;  // the names allowed
+    }
+}
+
 // MRPT's TCLAP reports a parse error by returning false, not by exiting: every app must stop
 // with a non-zero status on an unknown flag instead of running with half-parsed options.
 TEST(AppCommandLines, UnknownFlagFailsAndHelpSucceeds) {
@@ -73,7 +90,7 @@ TEST(AppCommandLines, UnknownFlagFailsAndHelpSucceeds) {
 // Save then load gives the same options, for every struct lookup-localize reads.
 TEST(LocalizeIni, EveryOptionsStructRoundTrips) {
     localize::LocalizerOptions lo;
-    lo.coarse = "ceiling";
+    lo.coarse = localize::CoarseMode::Ceiling;
     lo.use_tracking = false;
     lo.max_latency_s = 1.0 / 3.0;
     lo.image_cache_capacity = 77;

@@ -24,7 +24,7 @@ struct CeilingOnly {
           index(place::PlaceIndex::load((dir / "db" / place::kPlaceIndexFile).string(), db,
                                         place::PlaceIndexOptions())) {
         localize::LocalizerOptions o;
-        o.coarse = "ceiling";
+        o.coarse = localize::CoarseMode::Ceiling;
         o.place_check_every = check_every;
         refine::RefinerOptions r;
         r.sampler.mode = refine::SamplingMode::Grid;

@@ -184,13 +184,15 @@ std::unique_ptr<place::PlaceIndex> loadPlaceIndex(const database::ReferenceDatab
                                                   const LocalizerOptions& o,
                                                   const place::PlaceIndexOptions& query,
                                                   bool coarse_from_files) {
-    if (o.coarse == "none" || !o.place_search) return nullptr;
+    if (o.coarse == CoarseMode::None || !o.place_search) return nullptr;
     const std::string path = db.directory() + "/" + place::kPlaceIndexFile;
     const std::string fallback = ": start-up and recovery from the forward camera only";
     if (!fs::exists(path)) {
         const std::string why =
             path + ": no place index (build it: lookup-place --db " + db.directory() + ")";
-        if (o.coarse == "ceiling") throw std::runtime_error(why + ", which coarse = ceiling needs");
+        if (o.coarse == CoarseMode::Ceiling) {
+            throw std::runtime_error(why + ", which coarse = ceiling needs");
+        }
         // With coarse results from a file the start-up comes from them: nothing to warn of.
         if (!coarse_from_files)
             std::cerr << "lookup-localize: warning: " << why << fallback << "\n";
@@ -199,7 +201,7 @@ std::unique_ptr<place::PlaceIndex> loadPlaceIndex(const database::ReferenceDatab
     try {
         return std::make_unique<place::PlaceIndex>(place::PlaceIndex::load(path, db, query));
     } catch (const place::PlaceIndexError& e) {
-        if (o.coarse == "ceiling") throw;
+        if (o.coarse == CoarseMode::Ceiling) throw;
         std::cerr << "lookup-localize: warning: " << e.what() << fallback << "\n";
         return nullptr;
     }
@@ -261,7 +263,7 @@ class Session {
             coarse = std::make_unique<coarse::MatchFileSource>(req.coarse_matches, 1.0);
         } else if (!req.coarse_poses.empty()) {
             coarse = std::make_unique<coarse::PoseFileSource>(req.coarse_poses, 1.0);
-        } else if (options_.coarse == "sequence") {
+        } else if (options_.coarse == CoarseMode::Sequence) {
             coarse = makeSequenceCoarseSource(*db_, coarse_options_, options_.coarse_traverse);
         }
         const bool coarse_from_files = !req.coarse_matches.empty() || !req.coarse_poses.empty();

@@ -4,6 +4,12 @@
 
 namespace lookup::localize {
 
+namespace {
+const common::EnumNames<CoarseMode> kCoarseModes = {{"sequence", CoarseMode::Sequence},
+                                                    {"ceiling", CoarseMode::Ceiling},
+                                                    {"none", CoarseMode::None}};
+}  // namespace
+
 void LocalizerOptions::declareKeys(common::OptionsTable& t) {
     t.add("ceiling_camera_label", ceiling_camera_label);
     t.add("forward_camera_label", forward_camera_label);
@@ -19,7 +25,7 @@ void LocalizerOptions::declareKeys(common::OptionsTable& t) {
     t.add("acquisition_probe_points", acquisition_probe_points, 0, 100000);
     t.add("acquisition_probe_min_matched", acquisition_probe_min_matched, 0, 100000);
     t.add("startup_acquisition_frames", startup_acquisition_frames, 0, 100000000);
-    t.add("coarse", coarse);
+    t.add("coarse", coarse, kCoarseModes);
     t.add("place_search", place_search);
     t.add("place_candidates", place_candidates, 1, 100);
     t.add("place_check_every", place_check_every, 0, 100000000);
@@ -46,8 +52,6 @@ void LocalizerOptions::check() const {
     common::OptionsCheck c("localizer");
     checkRanges(c);
     c.require(!ceiling_camera_label.empty(), "ceiling_camera_label", "non-empty");
-    c.require(coarse == "sequence" || coarse == "ceiling" || coarse == "none", "coarse",
-              "one of sequence, ceiling, none");
     c.require(acquisition_ambiguity_margin >= 0 && acquisition_ambiguity_margin < 1,
               "acquisition_ambiguity_margin", "in [0, 1)");
     c.require(acquisition_probe_min_matched <= acquisition_probe_points,

@@ -9,6 +9,13 @@
 
 namespace lookup::localize {
 
+/// Where a position comes from before the first fix and whenever lost ([localizer] coarse).
+enum class CoarseMode {
+    Sequence,  ///< the forward camera's sequence matcher, and the place index beside it
+    Ceiling,   ///< the ceiling place index alone: no forward camera needed
+    None       ///< only a start pose given or persisted
+};
+
 struct LocalizerOptions : public common::TableOptions<LocalizerOptions> {
     std::string ceiling_camera_label = "CEILING_CAM";  ///< query ceiling images
     std::string forward_camera_label = "FORWARD_CAM";  ///< query forward images (coarse stage)
@@ -52,7 +59,7 @@ struct LocalizerOptions : public common::TableOptions<LocalizerOptions> {
     /// forward camera's sequence matcher, and the ceiling place index beside it when
     /// place_search is on and the database has one), "ceiling" (the place index alone: no
     /// forward camera needed) or "none" (only a start pose given or persisted).
-    std::string coarse = "sequence";
+    CoarseMode coarse = CoarseMode::Sequence;
     /// Global acquisition from the ceiling place index (place_index.bin in the database).
     bool place_search = true;
     /// Distinct places of the index verified by the SAD refinement per global search; the
@@ -66,8 +73,8 @@ struct LocalizerOptions : public common::TableOptions<LocalizerOptions> {
     /// track_disagreement_m, plus track_disagreement_per_m per metre driven since the last fix,
     /// plus three sigmas of the prediction's extrapolation, disagrees with it; so many fixes in
     /// a row (track_disagreeing_fixes) drop the track.
-    double track_disagreement_m = 0.3;       ///< [m]
-    double track_disagreement_per_m = 0.1;   ///< [m/m]
+    double track_disagreement_m = 0.3;      ///< [m]
+    double track_disagreement_per_m = 0.1;  ///< [m/m]
     int track_disagreeing_fixes = 3;
     /// The place check verifies only the index's places with at least this share of its best
     /// place's feature inliers.
