@@ -78,8 +78,16 @@ struct SurveyTraverse {
     double y_m = 0;  ///< lateral position of the traverse
 };
 
+// `survey_camera`: the survey's ceiling camera as a rolling shutter (readout_s > 0) with its
+// timing and velocity, recorded in db.ini as `recorded_readout_ms`.
+struct SurveyCamera {
+    refine::RowTiming timing;
+    double recorded_readout_ms = 0;
+};
+
 inline void writeDatabase(const Scene& scene, const std::string& dir,
-                          const std::vector<SurveyTraverse>& traverses) {
+                          const std::vector<SurveyTraverse>& traverses,
+                          const SurveyCamera& survey_camera = {}) {
     database::DatabaseWriter writer(dir);
     for (const auto& tr : traverses) {
         for (int k = 0; k < tr.references; ++k) {
@@ -89,6 +97,12 @@ inline void writeDatabase(const Scene& scene, const std::string& dir,
             in.vehicle_cov.setIdentity();
             in.vehicle_cov *= 1e-4;
             in.ceiling = scene.image(in.vehicle_pose, tr.t0 + 0.1 * k);
+            if (survey_camera.timing.readout_s > 0) {
+                in.ceiling->image = mrpt::img::CImage(
+                    scene.ceiling.renderRollingShutter(scene.camera, scene.mount, in.vehicle_pose,
+                                                       survey_camera.timing),
+                    mrpt::img::DEEP_COPY);
+            }
             if (tr.forward_seed > 0) {
                 in.forward = forwardView(tr.forward_seed, k, tr.t0 + 0.1 * k);
                 in.forward_vehicle_pose = in.vehicle_pose;
@@ -102,6 +116,7 @@ inline void writeDatabase(const Scene& scene, const std::string& dir,
     info.ceiling_camera = scene.camera;
     info.ceiling_height_m = kCeilingHeight;
     info.pose_source = "test";
+    info.ceiling_readout_ms = survey_camera.recorded_readout_ms;
     writer.commit(info);
 }
 

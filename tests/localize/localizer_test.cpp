@@ -765,28 +765,8 @@ TEST(Localize, RollingShutterReferencesAreSeenFromTheSurveyVehiclesRowPoses) {
     timing.readout_s = 0.060;
     timing.velocity = {2.5, 0.0, 0.0};
     const auto writeDb = [&](const std::string& name, double stored_readout_ms) {
-        database::DatabaseWriter writer((dir / name).string());
-        for (int k = 0; k < 65; ++k) {
-            database::ReferenceInput in;
-            in.traverse = "survey";
-            in.vehicle_pose = mrpt::poses::CPose3D(-8 + 0.25 * k, 0, 0, 0, 0, 0);
-            in.vehicle_cov.setIdentity();
-            in.vehicle_cov *= 1e-4;
-            in.ceiling = scene.image(in.vehicle_pose, 100.0 + 0.1 * k);
-            in.ceiling->image =
-                mrpt::img::CImage(scene.ceiling.renderRollingShutter(scene.camera, scene.mount,
-                                                                     in.vehicle_pose, timing),
-                                  mrpt::img::DEEP_COPY);
-            in.travelled_m = 0.25 * k;
-            writer.add(in);
-        }
-        database::DatabaseInfo info;
-        info.name = "rolling";
-        info.ceiling_camera = scene.camera;
-        info.ceiling_height_m = kCeilingHeight;
-        info.pose_source = "test";
-        info.ceiling_readout_ms = stored_readout_ms;
-        writer.commit(info);
+        writeDatabase(scene, (dir / name).string(), {{"survey", 65, 100.0}},
+                      {timing, stored_readout_ms});
         EXPECT_EQ(database::readDatabaseInfo((dir / name / "db.ini").string()).ceiling_readout_ms,
                   stored_readout_ms);
     };
