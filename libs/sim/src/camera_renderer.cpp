@@ -85,8 +85,8 @@ bool roofByFixedPoint(const TunnelWorld& world, const Vector3d& o, const Vector3
 }
 
 /// G(t) = z(t) - roof(t) along the ray, positive outside the tunnel; `q` gets the query at t.
-double heightOverRoof(const TunnelWorld& world, const Vector3d& o, const Vector3d& d, double t,
-                      WallQuery* q) {
+inline double heightOverRoof(const TunnelWorld& world, const Vector3d& o, const Vector3d& d,
+                             double t, WallQuery* q) {
     const Vector3d p = o + t * d;
     *q = world.query(p.x(), p.y());
     const double dw = -q->sdf;
@@ -414,8 +414,8 @@ double CameraRenderer::shadePixel(int index, const View& view, double* depth) co
     return albedo * (e + kAmbient);
 }
 
-double CameraRenderer::nearestCylinder(int index, const View& view, const Vector3d& d, double t_max,
-                                       Vector3d* normal, int* object) const {
+inline double CameraRenderer::nearestCylinder(int index, const View& view, const Vector3d& d,
+                                              double t_max, Vector3d* normal, int* object) const {
     double t_best = t_max;
     const float pu = pin_u_[index], pv = pin_v_[index];
     for (const ObjectInView& c : view.cylinders) {

@@ -420,7 +420,7 @@ void checkWorldShape(common::OptionsCheck& c, const WorldOptions& w) {
     c.require(w.junction_length_m > 0, "world.junction_length_m", "> 0");
 }
 
-/// Roof and floor relief (the rock and furniture between them are checkAppearance's).
+/// Roof and floor relief.
 void checkWorldRelief(common::OptionsCheck& c, const WorldOptions& w) {
     c.require(w.bump_amplitude_m >= 0 && w.bump_amplitude_m <= 0.5, "world.bump_amplitude_m",
               "in [0, 0.5]");
@@ -442,7 +442,7 @@ void checkWorldWalls(common::OptionsCheck& c, const WorldOptions& w) {
               "in [0.5, 10]");
 }
 
-/// The [world] section, its failures in the order of its keys.
+/// The [world] section.
 void checkWorld(common::OptionsCheck& c, const WorldOptions& w) {
     checkWorldShape(c, w);
     checkWorldRelief(c, w);
