@@ -164,6 +164,25 @@ TEST(Scenario, PhysicallyImpossibleSensorValuesAreRefusedNamingTheKey) {
     EXPECT_NE(refusal("negative.ini", text).find("odometry.rate_hz"), std::string::npos);
 }
 
+/// How many of the failures in `msg` (one line each, "scenario.FIELD must be ...") name `field`.
+int failuresNaming(const std::string& msg, const std::string& field) {
+    const std::string line = "scenario." + field + " must be";
+    int n = 0;
+    for (auto at = msg.find(line); at != std::string::npos; at = msg.find(line, at + 1)) ++n;
+    return n;
+}
+
+TEST(Scenario, EachBadKeyIsReportedOnce) {
+    // [world] and the traverse overrides share their checks: one failure per bad key, under
+    // its own section's name.
+    const std::string world = refusal("contrast.ini", withKeys("world", "rock_contrast = 5"));
+    EXPECT_EQ(failuresNaming(world, "world.rock_contrast"), 1) << world;
+    const std::string vehicle =
+        refusal("wheelbase.ini", withKeys("traverse_3.vehicle", "wheelbase_m = 0.1"));
+    EXPECT_EQ(failuresNaming(vehicle, "traverse_3.vehicle.wheelbase_m"), 1) << vehicle;
+    EXPECT_EQ(failuresNaming(vehicle, "vehicle.wheelbase_m"), 0) << vehicle;
+}
+
 TEST(Scenario, PerTraverseOverridesLoadRoundTripAndStayInTheirLane) {
     const std::string text =
         withKeys("traverse_3.ceiling_camera", "hfov_deg = 80\npose_z_m = 2.9\nexposure_ms = 8") +

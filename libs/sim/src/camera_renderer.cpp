@@ -61,6 +61,140 @@ double distanceToBox(const Vector3d& p, const Vector3d& lo, const Vector3d& hi) 
     return (p.cwiseMax(lo).cwiseMin(hi) - p).norm();
 }
 
+/// Looking up at the flat part of the roof: fixed-point iteration on the relief alone, from
+/// the roof level h; false where the point found is not on the roof clear of the arches.
+bool roofByFixedPoint(const TunnelWorld& world, const Vector3d& o, const Vector3d& d, double h,
+                      SurfaceHit* hit) {
+    double t = (h - o.z()) / d.z();
+    // A ramp tilts the roof under the ray and slows the iteration's convergence.
+    const int iterations = world.graded() ? 10 : 3;
+    for (int k = 0; k < iterations; ++k) {
+        const Vector3d p = o + t * d;
+        t = (world.roofHeight(p.x(), p.y(), 1e9) - o.z()) / d.z();
+    }
+    Vector3d p = o + t * d;
+    WallQuery q = world.query(p.x(), p.y());
+    if (-q.sdf > world.options().arch_radius_m + 0.05 &&
+        std::abs(world.roofHeight(p.x(), p.y(), -q.sdf) - p.z()) < 0.002) {
+        hit->t = t;
+        hit->kind = SurfaceKind::Roof;
+        hit->q = q;
+        return true;
+    }
+    return false;
+}
+
+/// G(t) = z(t) - roof(t) along the ray, positive outside the tunnel; `q` gets the query at t.
+inline double heightOverRoof(const TunnelWorld& world, const Vector3d& o, const Vector3d& d,
+                             double t, WallQuery* q) {
+    const Vector3d p = o + t * d;
+    *q = world.query(p.x(), p.y());
+    const double dw = -q->sdf;
+    return dw <= 0 ? 0.05 - dw : p.z() - world.roofHeight(p.x(), p.y(), dw);
+}
+
+/// Ray parameters [ta, tb] bracketing the roof: a point below the lowest roof, one above the
+/// highest.
+void bracketRoof(const TunnelWorld& world, const Vector3d& o, const Vector3d& d, double h,
+                 double* ta, double* tb) {
+    const WorldOptions& w = world.options();
+    // On a grade the roof over the ray's reach differs from the roof over the camera
+    // by up to the steepest grade times the ray's plan reach.
+    const double slack = world.graded() ? world.maxGrade() * std::hypot(d.x(), d.y()) *
+                                              (h + w.bump_amplitude_m + 1.0 - o.z()) / d.z()
+                                        : 0.0;
+    *ta = std::max(0.02, (h - w.arch_radius_m - w.bump_amplitude_m - 0.02 - slack - o.z()) / d.z());
+    *tb = (h + w.bump_amplitude_m + 0.02 + slack - o.z()) / d.z();
+}
+
+/// Arches: regula falsi (Illinois) on heightOverRoof between the brackets, both inside the
+/// tunnel; false where they do not bracket a crossing.
+bool archByRegulaFalsi(const TunnelWorld& world, const Vector3d& o, const Vector3d& d, double h,
+                       double fx, SurfaceHit* hit) {
+    double ta, tb;
+    bracketRoof(world, o, d, h, &ta, &tb);
+    WallQuery qa, qb;
+    double ga = heightOverRoof(world, o, d, ta, &qa), gb = heightOverRoof(world, o, d, tb, &qb);
+    if (!(ga < 0 && -qa.sdf > 0 && gb > 0)) return false;
+    int side = 0;
+    for (int k = 0; k < 14; ++k) {
+        const double tt = ta - ga * (tb - ta) / (gb - ga);
+        WallQuery qt;
+        const double gt = heightOverRoof(world, o, d, tt, &qt);
+        if (gt < 0) {
+            ta = tt;
+            ga = gt;
+            if (side == -1) gb *= 0.5;
+            side = -1;
+        } else {
+            tb = tt;
+            gb = gt;
+            qb = qt;
+            if (side == 1) ga *= 0.5;
+            side = 1;
+        }
+        if (tb - ta < std::max(0.002, 0.3 * tb / fx) || std::abs(gt) < 0.001) break;
+    }
+    hit->t = tb;
+    hit->q = qb;
+    hit->kind = -qb.sdf <= 0.01 ? SurfaceKind::Wall : SurfaceKind::Roof;
+    return true;
+}
+
+/// The fast path of a ceiling camera's upward ray (roof level h over the camera); false
+/// where it fails and the general marcher must trace the ray.
+bool traceRoofLookingUp(const TunnelWorld& world, const Vector3d& o, const Vector3d& d, double h,
+                        double fx, SurfaceHit* hit) {
+    return roofByFixedPoint(world, o, d, h, hit) || archByRegulaFalsi(world, o, d, h, fx, hit);
+}
+
+/// A tunnel lamp nearer than t_max on the ray: `depth` gets its distance.
+bool lampInFront(const TunnelWorld& world, const std::vector<int>& lamps, const Vector3d& o,
+                 const Vector3d& d, double t_max, double* depth) {
+    for (int li : lamps) {
+        double t;
+        const Lamp& l = world.lamps()[li];
+        if (intersectSphere(l.centre, l.radius, o, d, &t) && t < t_max) {
+            *depth = t;
+            return true;
+        }
+    }
+    return false;
+}
+
+/// Albedo and normal `n` of the static surface hit at p by ray direction d; `footprint` is
+/// the pixel's size at the hit, face on [m] (oblique views blur the texture over more).
+double surfaceAlbedo(const TunnelWorld& world, const SurfaceHit& hit, const Vector3d& p,
+                     const Vector3d& d, double footprint, Vector3d* n) {
+    if (hit.kind == SurfaceKind::Roof) {
+        Vector2d g = world.roofSlope(p.x(), p.y(), hit.q);
+        const double obl = std::max(std::abs(d.z()), 0.2);
+        const double albedo =
+            world.roofAlbedo(p.x(), p.y(), hit.q, footprint / obl, &g.x(), &g.y());
+        *n = Vector3d(g.x(), g.y(), -1).normalized();
+        return albedo;
+    }
+    if (hit.kind == SurfaceKind::Wall) {
+        const Vector2d a = world.awayFromWall(p.x(), p.y(), hit.q);
+        *n = Vector3d(a.x(), a.y(), 0);
+        const double obl = std::max(std::abs(n->dot(d)), 0.2);
+        return world.wallAlbedo(hit.q, p.z(), footprint / obl);
+    }
+    *n = Vector3d(0, 0, 1);
+    return world.floorAlbedo(p.x(), p.y(), footprint / std::max(std::abs(d.z()), 0.2));
+}
+
+/// Adds to `e` the irradiance at p (normal n) from the tunnel lamps in view, one by one (the
+/// order of the sum is part of the generated bytes).
+void addLampLight(const TunnelWorld& world, const std::vector<int>& lamps, const Vector3d& p,
+                  const Vector3d& n, double* e) {
+    for (int li : lamps) {
+        const Vector3d to = world.lamps()[li].centre - p;
+        const double dist2 = to.squaredNorm();
+        *e += kLampPower * std::max(0.0, n.dot(to) / std::sqrt(dist2)) / (dist2 + 0.3);
+    }
+}
+
 /// Dust: the scene attenuated along the ray, the haze lit by the vehicle light added.
 void addHaze(cv::Mat& radiance, const std::vector<float>& depth, const CameraOptions& opt,
              const std::vector<double>& beam) {
@@ -243,149 +377,58 @@ void CameraRenderer::buildLensMasks() {
 }
 
 double CameraRenderer::shadePixel(int index, const View& view, double* depth) const {
-    const Eigen::Matrix3d& R = view.R;
     const Vector3d& o = view.o;
-    const std::vector<ObjectInView>& cylinders = view.cylinders;
-    const std::vector<int>& lamps = view.lamps;
-    const WorldOptions& w = world_.options();
-    const Vector3d& ray = rays_[index];
-    const Vector3d d = R * ray;
-    const double cos_axis = ray.z();
+    const Vector3d d = view.R * rays_[index];
     const double fx = camera_.fx();
+    // On a grade the roof stands on the level under the camera (the fast path's brackets
+    // then fail where the ramp bends the roof, and the general marcher takes over).
+    const WorldOptions& w = world_.options();
+    const double h =
+        world_.graded() ? w.ceiling_height_m + world_.level(o.x(), o.y()) : w.ceiling_height_m;
 
     // Static surfaces. Looking up, the roof is found by fixed-point iteration on the relief;
     // the general marcher handles the arches, walls and steep rays.
     SurfaceHit hit;
-    bool done = false;
-    // On a grade the roof stands on the level under the camera (the fast path's brackets
-    // then fail where the ramp bends the roof, and the general marcher takes over).
-    const double h =
-        world_.graded() ? w.ceiling_height_m + world_.level(o.x(), o.y()) : w.ceiling_height_m;
-    if (kind_ == Kind::Ceiling && d.z() > 0.3) {
-        // Flat part: fixed-point iteration on the relief alone.
-        double t = (h - o.z()) / d.z();
-        // A ramp tilts the roof under the ray and slows the iteration's convergence.
-        const int iterations = world_.graded() ? 10 : 3;
-        for (int k = 0; k < iterations; ++k) {
-            const Vector3d p = o + t * d;
-            t = (world_.roofHeight(p.x(), p.y(), 1e9) - o.z()) / d.z();
-        }
-        Vector3d p = o + t * d;
-        WallQuery q = world_.query(p.x(), p.y());
-        if (-q.sdf > w.arch_radius_m + 0.05 &&
-            std::abs(world_.roofHeight(p.x(), p.y(), -q.sdf) - p.z()) < 0.002) {
-            hit.t = t;
-            hit.kind = SurfaceKind::Roof;
-            hit.q = q;
-            done = true;
-        } else {
-            // Arches: regula falsi (Illinois) on G(t) = z(t) - roof(t) between a point below the
-            // lowest roof and one above the highest, both inside the tunnel.
-            auto G = [&](double tt, WallQuery* qq) {
-                const Vector3d pp = o + tt * d;
-                *qq = world_.query(pp.x(), pp.y());
-                const double dw = -qq->sdf;
-                return dw <= 0 ? 0.05 - dw : pp.z() - world_.roofHeight(pp.x(), pp.y(), dw);
-            };
-            // On a grade the roof over the ray's reach differs from the roof over the camera
-            // by up to the steepest grade times the ray's plan reach.
-            const double slack = world_.graded()
-                                     ? world_.maxGrade() * std::hypot(d.x(), d.y()) *
-                                           (h + w.bump_amplitude_m + 1.0 - o.z()) / d.z()
-                                     : 0.0;
-            double ta = std::max(
-                0.02, (h - w.arch_radius_m - w.bump_amplitude_m - 0.02 - slack - o.z()) / d.z());
-            double tb = (h + w.bump_amplitude_m + 0.02 + slack - o.z()) / d.z();
-            WallQuery qa, qb;
-            double ga = G(ta, &qa), gb = G(tb, &qb);
-            if (ga < 0 && -qa.sdf > 0 && gb > 0) {
-                int side = 0;
-                for (int k = 0; k < 14; ++k) {
-                    const double tt = ta - ga * (tb - ta) / (gb - ga);
-                    WallQuery qt;
-                    const double gt = G(tt, &qt);
-                    if (gt < 0) {
-                        ta = tt;
-                        ga = gt;
-                        if (side == -1) gb *= 0.5;
-                        side = -1;
-                    } else {
-                        tb = tt;
-                        gb = gt;
-                        qb = qt;
-                        if (side == 1) ga *= 0.5;
-                        side = 1;
-                    }
-                    if (tb - ta < std::max(0.002, 0.3 * tb / fx) || std::abs(gt) < 0.001) break;
-                }
-                hit.t = tb;
-                hit.q = qb;
-                hit.kind = -qb.sdf <= 0.01 ? SurfaceKind::Wall : SurfaceKind::Roof;
-                done = true;
-            }
-        }
+    const bool up = kind_ == Kind::Ceiling && d.z() > 0.3;
+    if (!up || !traceRoofLookingUp(world_, o, d, h, fx, &hit)) {
+        hit = world_.traceStatic(o, d, 0.02, opt_.max_range_m, 1.0 / fx);
     }
-    if (!done) hit = world_.traceStatic(o, d, 0.02, opt_.max_range_m, 1.0 / fx);
 
     // Furniture in front of it.
-    double t_best = hit.t;
-    Vector3d n_obj;
+    Vector3d n = Vector3d::Zero();  // the furniture's normal, else the static surface's
     int obj = -1;
-    const float pu = pin_u_[index], pv = pin_v_[index];
-    for (const ObjectInView& c : cylinders) {
-        if (pu < c.u0 || pu > c.u1 || pv < c.v0 || pv > c.v1) continue;
-        double t;
-        Vector3d n;
-        if (intersectCylinder(world_.cylinders()[c.index], o, d, &t, &n) && t < t_best) {
-            t_best = t;
-            n_obj = n;
-            obj = c.index;
-        }
-    }
-    for (int li : lamps) {
-        double t;
-        const Lamp& l = world_.lamps()[li];
-        if (intersectSphere(l.centre, l.radius, o, d, &t) && t < t_best) {
-            *depth = t;
-            return 6.0;  // saturates
-        }
-    }
-    *depth = t_best;
-    if (!std::isfinite(t_best) || t_best > opt_.max_range_m) return 0.0;
+    const double t = nearestCylinder(index, view, d, hit.t, &n, &obj);
+    if (lampInFront(world_, view.lamps, o, d, t, depth)) return 6.0;  // saturates
+    *depth = t;
+    if (!std::isfinite(t) || t > opt_.max_range_m) return 0.0;
 
-    const Vector3d p = o + t_best * d;
-    Vector3d n;
-    double albedo;
-    const double fp = t_best / (fx * std::max(cos_axis, 0.2));  // pixel footprint [m]
-    if (obj >= 0) {
-        n = n_obj;
-        albedo = world_.objectAlbedo(world_.cylinders()[obj], p);
-    } else if (hit.kind == SurfaceKind::Roof) {
-        Vector2d g = world_.roofSlope(p.x(), p.y(), hit.q);
-        const double obl = std::max(std::abs(d.z()), 0.2);
-        albedo = world_.roofAlbedo(p.x(), p.y(), hit.q, fp / obl, &g.x(), &g.y());
-        n = Vector3d(g.x(), g.y(), -1).normalized();
-    } else if (hit.kind == SurfaceKind::Wall) {
-        const Vector2d a = world_.awayFromWall(p.x(), p.y(), hit.q);
-        n = Vector3d(a.x(), a.y(), 0);
-        const double obl = std::max(std::abs(n.dot(d)), 0.2);
-        albedo = world_.wallAlbedo(hit.q, p.z(), fp / obl);
-    } else {
-        n = Vector3d(0, 0, 1);
-        albedo = world_.floorAlbedo(p.x(), p.y(), fp / std::max(std::abs(d.z()), 0.2));
-    }
+    const Vector3d p = o + t * d;
+    const double footprint = t / (fx * std::max(rays_[index].z(), 0.2));  // [m]
+    const double albedo = obj >= 0 ? world_.objectAlbedo(world_.cylinders()[obj], p)
+                                   : surfaceAlbedo(world_, hit, p, d, footprint, &n);
 
     // Vehicle light at the camera, along its optical axis.
     const double r0 = kind_ == Kind::Ceiling ? std::max(h - o.z(), 0.5) : 6.0;
-    const double beam = beam_[index];
-    double e =
-        opt_.light_gain * beam * std::max(0.0, -n.dot(d)) * r0 * r0 / (t_best * t_best + 0.05);
-    for (int li : lamps) {
-        const Vector3d to = world_.lamps()[li].centre - p;
-        const double dist2 = to.squaredNorm();
-        e += kLampPower * std::max(0.0, n.dot(to) / std::sqrt(dist2)) / (dist2 + 0.3);
-    }
+    double e = opt_.light_gain * beam_[index] * std::max(0.0, -n.dot(d)) * r0 * r0 / (t * t + 0.05);
+    addLampLight(world_, view.lamps, p, n, &e);
     return albedo * (e + kAmbient);
+}
+
+inline double CameraRenderer::nearestCylinder(int index, const View& view, const Vector3d& d,
+                                              double t_max, Vector3d* normal, int* object) const {
+    double t_best = t_max;
+    const float pu = pin_u_[index], pv = pin_v_[index];
+    for (const ObjectInView& c : view.cylinders) {
+        if (pu < c.u0 || pu > c.u1 || pv < c.v0 || pv > c.v1) continue;
+        double t;
+        Vector3d n;
+        if (intersectCylinder(world_.cylinders()[c.index], view.o, d, &t, &n) && t < t_best) {
+            t_best = t;
+            *normal = n;
+            *object = c.index;
+        }
+    }
+    return t_best;
 }
 
 void CameraRenderer::renderRows(const std::vector<View>& views, int first, int step, float* out,

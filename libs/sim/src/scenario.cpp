@@ -387,15 +387,81 @@ void checkAppearance(common::OptionsCheck& c, const WorldOptions& w, const std::
     c.require(w.sign_spacing_m == 0 || w.sign_spacing_m >= 5, p + ".sign_spacing_m", "0 or >= 5");
 }
 
+/// The [scenario] section's own keys.
+void checkScenarioKeys(common::OptionsCheck& c, const ScenarioOptions& sc) {
+    c.require(!sc.name.empty(), "name", "non-empty");
+    c.require(sc.threads >= 0, "threads", ">= 0");
+    c.require(sc.start_time_s >= 0, "start_time_s", ">= 0");
+    c.require(sc.traverse_gap_s >= 0, "traverse_gap_s", ">= 0");
+}
+
+/// The tunnels' plan and cross-section: layout, size, bends, draw points and junctions.
+void checkWorldShape(common::OptionsCheck& c, const WorldOptions& w) {
+    c.require(w.layout == "single" || w.layout == "twin", "world.layout", "single or twin");
+    c.require(w.length_m >= 10 && w.length_m <= 20000, "world.length_m", "in [10, 20000]");
+    c.require(w.width_m >= 2 && w.width_m <= 20, "world.width_m", "in [2, 20]");
+    c.require(w.ceiling_height_m >= 2 && w.ceiling_height_m <= 20, "world.ceiling_height_m",
+              "in [2, 20]");
+    c.require(w.arch_radius_m >= 0 && w.arch_radius_m < w.width_m / 2 &&
+                  w.arch_radius_m < w.ceiling_height_m - 1,
+              "world.arch_radius_m", "in [0, min(width/2, ceiling_height - 1))");
+    c.require(w.segment_length_m >= 5, "world.segment_length_m", ">= 5");
+    c.require(w.bend_max_deg >= 0 && w.bend_max_deg <= 45, "world.bend_max_deg", "in [0, 45]");
+    c.require(w.twin_separation_m >= w.width_m + 2, "world.twin_separation_m", ">= width_m + 2");
+    c.require(w.drawpoint_spacing_m == 0 || w.drawpoint_spacing_m >= 5, "world.drawpoint_spacing_m",
+              "0 or >= 5");
+    c.require(w.drawpoint_length_m > 0, "world.drawpoint_length_m", "> 0");
+    c.require(w.drawpoint_width_m > 1 && w.drawpoint_width_m <= w.width_m,
+              "world.drawpoint_width_m", "in (1, width_m]");
+    c.require(w.drawpoint_angle_deg >= 20 && w.drawpoint_angle_deg <= 90,
+              "world.drawpoint_angle_deg", "in [20, 90]");
+    c.require(w.junction_spacing_m == 0 || w.junction_spacing_m >= 20, "world.junction_spacing_m",
+              "0 or >= 20");
+    c.require(w.junction_length_m > 0, "world.junction_length_m", "> 0");
+}
+
+/// Roof and floor relief.
+void checkWorldRelief(common::OptionsCheck& c, const WorldOptions& w) {
+    c.require(w.bump_amplitude_m >= 0 && w.bump_amplitude_m <= 0.5, "world.bump_amplitude_m",
+              "in [0, 0.5]");
+    c.require(w.bump_wavelength_m > 0.2, "world.bump_wavelength_m", "> 0.2");
+    c.require(w.floor_roughness_m >= 0 && w.floor_roughness_m <= 0.3, "world.floor_roughness_m",
+              "in [0, 0.3]");
+}
+
+/// The map grid, the wall relief and the niches.
+void checkWorldWalls(common::OptionsCheck& c, const WorldOptions& w) {
+    c.require(w.grid_resolution_m >= 0.02 && w.grid_resolution_m <= 0.5, "world.grid_resolution_m",
+              "in [0.02, 0.5]");
+    c.require(w.wall_roughness_m >= 0 && w.wall_roughness_m <= 0.5, "world.wall_roughness_m",
+              "in [0, 0.5]");
+    c.require(w.niche_spacing_m == 0 || w.niche_spacing_m >= 5, "world.niche_spacing_m",
+              "0 or >= 5");
+    c.require(w.niche_depth_m > 0 && w.niche_depth_m <= 10, "world.niche_depth_m", "in (0, 10]");
+    c.require(w.niche_width_m >= 0.5 && w.niche_width_m <= 10, "world.niche_width_m",
+              "in [0.5, 10]");
+}
+
+/// The [world] section.
+void checkWorld(common::OptionsCheck& c, const WorldOptions& w) {
+    checkWorldShape(c, w);
+    checkWorldRelief(c, w);
+    checkAppearance(c, w, "world");
+    checkWorldWalls(c, w);
+    checkGrade(c, w);
+}
+
+void checkVehicle(common::OptionsCheck& c, const VehicleOptions& v, const std::string& p) {
+    c.require(v.wheelbase_m > 0.5, p + ".wheelbase_m", "> 0.5");
+    c.require(v.track_m > 0.5, p + ".track_m", "> 0.5");
+}
+
 void checkOverrides(common::OptionsCheck& c, const ScenarioOptions& sc, std::size_t i) {
     const TraverseOptions& t = sc.traverses[i];
     const std::string p = traverseSection(i) + ".";
     const double h = sc.world.ceiling_height_m;
     if (t.world) checkAppearance(c, *t.world, p + "world");
-    if (t.vehicle) {
-        c.require(t.vehicle->wheelbase_m > 0.5, p + "vehicle.wheelbase_m", "> 0.5");
-        c.require(t.vehicle->track_m > 0.5, p + "vehicle.track_m", "> 0.5");
-    }
+    if (t.vehicle) checkVehicle(c, *t.vehicle, p + "vehicle");
     auto camera = [&](const std::optional<CameraOptions>& cam, const CameraOptions& base,
                       const std::string& name) {
         if (!cam) return;
@@ -415,6 +481,59 @@ void checkOverrides(common::OptionsCheck& c, const ScenarioOptions& sc, std::siz
         c.require(t.odometry->label == sc.odometry.label, p + "odometry.label",
                   "the scenario's label");
     }
+}
+
+/// A traverse's name: a file stem, unique among the traverses before it.
+void checkTraverseName(common::OptionsCheck& c, const std::vector<TraverseOptions>& traverses,
+                       std::size_t i, const std::string& p) {
+    const TraverseOptions& t = traverses[i];
+    c.require(!t.name.empty() && t.name.find_first_of("/\\ .") == std::string::npos, p + ".name",
+              "a non-empty file stem without '/', '\\', ' ' or '.'");
+    for (std::size_t j = 0; j < i; ++j) {
+        c.require(traverses[j].name != t.name, p + ".name",
+                  "unique (repeats traverse_" + std::to_string(j) + ")");
+    }
+}
+
+/// `roles`: a non-empty comma list of mapping, reference, query.
+void checkRoles(common::OptionsCheck& c, const std::string& roles_list, const std::string& p) {
+    std::stringstream roles(roles_list);
+    std::string role;
+    bool any = false;
+    while (std::getline(roles, role, ',')) {
+        role.erase(0, role.find_first_not_of(" \t"));
+        role.erase(role.find_last_not_of(" \t") + 1);
+        any = true;
+        c.require(role == "mapping" || role == "reference" || role == "query", p + ".roles",
+                  "a comma list of mapping, reference, query (got '" + role + "')");
+    }
+    c.require(any, p + ".roles", "non-empty");
+}
+
+/// Where in the tunnel a traverse drives and how fast.
+void checkDriving(common::OptionsCheck& c, const TraverseOptions& t, const std::string& p,
+                  const WorldOptions& w) {
+    c.require(std::abs(t.lateral_offset_m) + t.zigzag_amplitude_m < w.width_m / 2 - 0.8,
+              p + ".lateral_offset_m", "|offset| + zigzag_amplitude_m < width_m / 2 - 0.8");
+    c.require(t.zigzag_amplitude_m >= 0, p + ".zigzag_amplitude_m", ">= 0");
+    c.require(t.zigzag_period_m >= 5, p + ".zigzag_period_m", ">= 5");
+    c.require(t.speed_kmh > 0.5 && t.speed_kmh <= 60, p + ".speed_kmh", "in (0.5, 60]");
+    c.require(t.speed_variation >= 0 && t.speed_variation < 0.8, p + ".speed_variation",
+              "in [0, 0.8)");
+    c.require(t.accel_mps2 > 0.05 && t.accel_mps2 <= 10, p + ".accel_mps2", "in (0.05, 10]");
+    c.require(t.start_m >= 0, p + ".start_m", ">= 0");
+    c.require(t.end_m == -1 || t.end_m > t.start_m + 5, p + ".end_m", "-1 or > start_m + 5");
+}
+
+/// The [traverse_i] section and its overrides.
+void checkTraverse(common::OptionsCheck& c, const ScenarioOptions& sc, std::size_t i) {
+    const TraverseOptions& t = sc.traverses[i];
+    const std::string p = traverseSection(i);
+    checkTraverseName(c, sc.traverses, i, p);
+    checkRoles(c, t.roles, p);
+    checkDriving(c, t, p, sc.world);
+    checkPlan(c, t, p);
+    checkOverrides(c, sc, i);
 }
 
 }  // namespace
@@ -656,107 +775,17 @@ void ScenarioOptions::saveToConfigFile(mrpt::config::CConfigFileBase& target,
 
 void ScenarioOptions::check() const {
     common::OptionsCheck c("scenario");
-    c.require(!name.empty(), "name", "non-empty");
-    c.require(threads >= 0, "threads", ">= 0");
-    c.require(start_time_s >= 0, "start_time_s", ">= 0");
-    c.require(traverse_gap_s >= 0, "traverse_gap_s", ">= 0");
-    const WorldOptions& w = world;
-    c.require(w.layout == "single" || w.layout == "twin", "world.layout", "single or twin");
-    c.require(w.length_m >= 10 && w.length_m <= 20000, "world.length_m", "in [10, 20000]");
-    c.require(w.width_m >= 2 && w.width_m <= 20, "world.width_m", "in [2, 20]");
-    c.require(w.ceiling_height_m >= 2 && w.ceiling_height_m <= 20, "world.ceiling_height_m",
-              "in [2, 20]");
-    c.require(w.arch_radius_m >= 0 && w.arch_radius_m < w.width_m / 2 &&
-                  w.arch_radius_m < w.ceiling_height_m - 1,
-              "world.arch_radius_m", "in [0, min(width/2, ceiling_height - 1))");
-    c.require(w.segment_length_m >= 5, "world.segment_length_m", ">= 5");
-    c.require(w.bend_max_deg >= 0 && w.bend_max_deg <= 45, "world.bend_max_deg", "in [0, 45]");
-    c.require(w.twin_separation_m >= w.width_m + 2, "world.twin_separation_m", ">= width_m + 2");
-    c.require(w.drawpoint_spacing_m == 0 || w.drawpoint_spacing_m >= 5, "world.drawpoint_spacing_m",
-              "0 or >= 5");
-    c.require(w.drawpoint_length_m > 0, "world.drawpoint_length_m", "> 0");
-    c.require(w.drawpoint_width_m > 1 && w.drawpoint_width_m <= w.width_m,
-              "world.drawpoint_width_m", "in (1, width_m]");
-    c.require(w.drawpoint_angle_deg >= 20 && w.drawpoint_angle_deg <= 90,
-              "world.drawpoint_angle_deg", "in [20, 90]");
-    c.require(w.junction_spacing_m == 0 || w.junction_spacing_m >= 20, "world.junction_spacing_m",
-              "0 or >= 20");
-    c.require(w.junction_length_m > 0, "world.junction_length_m", "> 0");
-    c.require(w.bump_amplitude_m >= 0 && w.bump_amplitude_m <= 0.5, "world.bump_amplitude_m",
-              "in [0, 0.5]");
-    c.require(w.bump_wavelength_m > 0.2, "world.bump_wavelength_m", "> 0.2");
-    c.require(w.floor_roughness_m >= 0 && w.floor_roughness_m <= 0.3, "world.floor_roughness_m",
-              "in [0, 0.3]");
-    c.require(w.rock_contrast >= 0 && w.rock_contrast <= 2, "world.rock_contrast", "in [0, 2]");
-    c.require(w.bolt_spacing_m == 0 || w.bolt_spacing_m >= 0.3, "world.bolt_spacing_m",
-              "0 or >= 0.3");
-    c.require(w.bolt_plate_m > 0 && w.bolt_plate_m < 0.5, "world.bolt_plate_m", "in (0, 0.5)");
-    c.require(w.mesh_fraction >= 0 && w.mesh_fraction <= 1, "world.mesh_fraction", "in [0, 1]");
-    c.require(w.mesh_pitch_m >= 0.02, "world.mesh_pitch_m", ">= 0.02");
-    c.require(w.shotcrete_fraction >= 0 && w.shotcrete_fraction <= 1, "world.shotcrete_fraction",
-              "in [0, 1]");
-    c.require(w.texture_image_size_m > 0, "world.texture_image_size_m", "> 0");
-    c.require(w.duct_radius_m >= 0 && w.duct_radius_m < 1.5, "world.duct_radius_m", "in [0, 1.5)");
-    c.require(w.pipe_radius_m >= 0 && w.pipe_radius_m < 0.5, "world.pipe_radius_m", "in [0, 0.5)");
-    c.require(w.duct_drop_m > w.duct_radius_m, "world.duct_drop_m", "> duct_radius_m");
-    c.require(w.pipe_drop_m > w.pipe_radius_m, "world.pipe_drop_m", "> pipe_radius_m");
-    c.require(w.cable_span_m == 0 || w.cable_span_m >= 0.5, "world.cable_span_m", "0 or >= 0.5");
-    c.require(w.cable_sag_m >= 0 && w.cable_sag_m < 1, "world.cable_sag_m", "in [0, 1)");
-    c.require(w.light_spacing_m == 0 || w.light_spacing_m >= 2, "world.light_spacing_m",
-              "0 or >= 2");
-    c.require(w.sign_spacing_m == 0 || w.sign_spacing_m >= 5, "world.sign_spacing_m", "0 or >= 5");
-    c.require(w.grid_resolution_m >= 0.02 && w.grid_resolution_m <= 0.5, "world.grid_resolution_m",
-              "in [0.02, 0.5]");
-    c.require(w.wall_roughness_m >= 0 && w.wall_roughness_m <= 0.5, "world.wall_roughness_m",
-              "in [0, 0.5]");
-    c.require(w.niche_spacing_m == 0 || w.niche_spacing_m >= 5, "world.niche_spacing_m",
-              "0 or >= 5");
-    c.require(w.niche_depth_m > 0 && w.niche_depth_m <= 10, "world.niche_depth_m", "in (0, 10]");
-    c.require(w.niche_width_m >= 0.5 && w.niche_width_m <= 10, "world.niche_width_m",
-              "in [0.5, 10]");
-    checkGrade(c, w);
-    c.require(vehicle.wheelbase_m > 0.5, "vehicle.wheelbase_m", "> 0.5");
-    c.require(vehicle.track_m > 0.5, "vehicle.track_m", "> 0.5");
+    checkScenarioKeys(c, *this);
+    checkWorld(c, world);
+    checkVehicle(c, vehicle, "vehicle");
     checkCamera(c, ceiling_camera, "ceiling_camera");
     checkCamera(c, forward_camera, "forward_camera");
-    checkCameraMount(c, ceiling_camera, "ceiling_camera", w.ceiling_height_m);
-    checkCameraMount(c, forward_camera, "forward_camera", w.ceiling_height_m);
-    checkLidar(c, lidar, "lidar", w);
+    checkCameraMount(c, ceiling_camera, "ceiling_camera", world.ceiling_height_m);
+    checkCameraMount(c, forward_camera, "forward_camera", world.ceiling_height_m);
+    checkLidar(c, lidar, "lidar", world);
     checkOdometry(c, odometry, "odometry");
     c.require(!traverses.empty(), "traverse_count", ">= 1");
-    for (std::size_t i = 0; i < traverses.size(); ++i) {
-        const TraverseOptions& t = traverses[i];
-        const std::string p = traverseSection(i);
-        c.require(!t.name.empty() && t.name.find_first_of("/\\ .") == std::string::npos,
-                  p + ".name", "a non-empty file stem without '/', '\\', ' ' or '.'");
-        for (std::size_t j = 0; j < i; ++j) {
-            c.require(traverses[j].name != t.name, p + ".name",
-                      "unique (repeats traverse_" + std::to_string(j) + ")");
-        }
-        std::stringstream roles(t.roles);
-        std::string role;
-        bool any = false;
-        while (std::getline(roles, role, ',')) {
-            role.erase(0, role.find_first_not_of(" \t"));
-            role.erase(role.find_last_not_of(" \t") + 1);
-            any = true;
-            c.require(role == "mapping" || role == "reference" || role == "query", p + ".roles",
-                      "a comma list of mapping, reference, query (got '" + role + "')");
-        }
-        c.require(any, p + ".roles", "non-empty");
-        c.require(std::abs(t.lateral_offset_m) + t.zigzag_amplitude_m < w.width_m / 2 - 0.8,
-                  p + ".lateral_offset_m", "|offset| + zigzag_amplitude_m < width_m / 2 - 0.8");
-        c.require(t.zigzag_amplitude_m >= 0, p + ".zigzag_amplitude_m", ">= 0");
-        c.require(t.zigzag_period_m >= 5, p + ".zigzag_period_m", ">= 5");
-        c.require(t.speed_kmh > 0.5 && t.speed_kmh <= 60, p + ".speed_kmh", "in (0.5, 60]");
-        c.require(t.speed_variation >= 0 && t.speed_variation < 0.8, p + ".speed_variation",
-                  "in [0, 0.8)");
-        c.require(t.accel_mps2 > 0.05 && t.accel_mps2 <= 10, p + ".accel_mps2", "in (0.05, 10]");
-        c.require(t.start_m >= 0, p + ".start_m", ">= 0");
-        c.require(t.end_m == -1 || t.end_m > t.start_m + 5, p + ".end_m", "-1 or > start_m + 5");
-        checkPlan(c, t, p);
-        checkOverrides(c, *this, i);
-    }
+    for (std::size_t i = 0; i < traverses.size(); ++i) checkTraverse(c, *this, i);
     c.throwIfFailed();
 }
 

@@ -71,6 +71,43 @@ std::vector<Vector2d> resample(const std::vector<Vector2d>& pts, double step) {
     return out;
 }
 
+/// A main tunnel: straight pieces of random length joined by small bends, heading pulled back
+/// towards +x. The draws are sequential, so a shorter tunnel is the same tunnel cut short.
+std::vector<Vector2d> mainLine(const WorldOptions& opt, uint32_t seed, uint32_t stream) {
+    std::vector<Vector2d> pts{Vector2d(0, 0)};
+    double heading = 0, s = 0;
+    for (uint32_t k = 0; s < opt.length_m - 1e-6; ++k) {
+        double len = opt.segment_length_m * (0.6 + 0.8 * unit(hash3(seed, stream, 2 * k)));
+        len = std::min(len, opt.length_m - s);
+        pts.push_back(pts.back() + len * Vector2d(std::cos(heading), std::sin(heading)));
+        s += len;
+        const double bend =
+            (2 * unit(hash3(seed, stream, 2 * k + 1)) - 1) * opt.bend_max_deg * kPi / 180;
+        heading = 0.6 * heading + bend;
+    }
+    return pts;
+}
+
+/// Point and direction at arc length s of a polyline.
+Vector2d pointAt(const std::vector<Vector2d>& pts, double s, Vector2d* dir) {
+    for (std::size_t i = 1; i < pts.size(); ++i) {
+        const double len = (pts[i] - pts[i - 1]).norm();
+        if (s <= len || i + 1 == pts.size()) {
+            *dir = (pts[i] - pts[i - 1]) / len;
+            return Vector2d(pts[i - 1] + *dir * std::min(s, len));
+        }
+        s -= len;
+    }
+    *dir = Vector2d(1, 0);
+    return pts.front();
+}
+
+double polylineLength(const std::vector<Vector2d>& pts) {
+    double length = 0;
+    for (std::size_t i = 1; i < pts.size(); ++i) length += (pts[i] - pts[i - 1]).norm();
+    return length;
+}
+
 }  // namespace
 
 TunnelWorld::TunnelWorld(const WorldOptions& options, uint64_t seed)
@@ -106,107 +143,104 @@ void TunnelWorld::addSegment(const Vector2d& a, const Vector2d& b, double half_w
 }
 
 void TunnelWorld::buildLayout() {
-    const double hw = opt_.width_m / 2;
-    // A main tunnel: straight pieces of random length joined by small bends, heading pulled back
-    // towards +x. The draws are sequential, so a shorter tunnel is the same tunnel cut short.
-    auto mainLine = [&](uint32_t stream) {
-        std::vector<Vector2d> pts{Vector2d(0, 0)};
-        double heading = 0, s = 0;
-        for (uint32_t k = 0; s < opt_.length_m - 1e-6; ++k) {
-            double len = opt_.segment_length_m * (0.6 + 0.8 * unit(hash3(seed_, stream, 2 * k)));
-            len = std::min(len, opt_.length_m - s);
-            pts.push_back(pts.back() + len * Vector2d(std::cos(heading), std::sin(heading)));
-            s += len;
-            const double bend =
-                (2 * unit(hash3(seed_, stream, 2 * k + 1)) - 1) * opt_.bend_max_deg * kPi / 180;
-            heading = 0.6 * heading + bend;
-        }
-        return pts;
-    };
-    // Point and direction at arc length s of a polyline.
-    auto at = [](const std::vector<Vector2d>& pts, double s, Vector2d* dir) {
-        for (std::size_t i = 1; i < pts.size(); ++i) {
-            const double len = (pts[i] - pts[i - 1]).norm();
-            if (s <= len || i + 1 == pts.size()) {
-                *dir = (pts[i] - pts[i - 1]) / len;
-                return Vector2d(pts[i - 1] + *dir * std::min(s, len));
-            }
-            s -= len;
-        }
-        *dir = Vector2d(1, 0);
-        return pts.front();
-    };
     double s_side = 1e5;  // texture coordinates of side openings, far from the main ones
-    auto addLine = [&](const std::vector<Vector2d>& pts, double s0) {
-        for (std::size_t i = 1; i < pts.size(); ++i) {
-            addSegment(pts[i - 1], pts[i], hw, s0, true);
-            s0 += (pts[i] - pts[i - 1]).norm();
-        }
-    };
-    // Draw points (short side openings), crossing tunnels and niches along a main line.
-    auto addSides = [&](const std::vector<Vector2d>& pts, uint32_t stream, double flip) {
-        double length = 0;
-        for (std::size_t i = 1; i < pts.size(); ++i) length += (pts[i] - pts[i - 1]).norm();
-        std::vector<double> junctions;
-        if (opt_.junction_spacing_m > 0) {
-            for (double s = 0.5 * opt_.junction_spacing_m; s < length - 10;
-                 s += opt_.junction_spacing_m) {
-                Vector2d dir;
-                const Vector2d c = at(pts, s, &dir);
-                const Vector2d n = rot90(dir) * (hw + opt_.junction_length_m);
-                addSegment(c - n, c + n, hw, s_side, false);
-                s_side += 1000;
-                junctions.push_back(s);
-            }
-        }
-        std::vector<double> openings = junctions;  // where niches keep away from
-        if (opt_.drawpoint_spacing_m > 0) {
-            uint32_t k = 0;
-            for (double s = 0.5 * opt_.drawpoint_spacing_m; s < length - 5;
-                 s += opt_.drawpoint_spacing_m, ++k) {
-                bool near_junction = false;
-                for (double j : junctions) near_junction |= std::abs(j - s) < 10;
-                if (near_junction) continue;
-                Vector2d dir;
-                const Vector2d c = at(pts, s, &dir);
-                const double side = (unit(hash3(seed_, stream, k)) < 0.5 ? 1.0 : -1.0) * flip;
-                const double ang = side * opt_.drawpoint_angle_deg * kPi / 180;
-                const Vector2d d(std::cos(ang) * dir.x() - std::sin(ang) * dir.y(),
-                                 std::sin(ang) * dir.x() + std::cos(ang) * dir.y());
-                addSegment(c, c + d * (hw + opt_.drawpoint_length_m), opt_.drawpoint_width_m / 2,
-                           s_side, false);
-                s_side += 1000;
-                openings.push_back(s);
-            }
-        }
-        addNiches(pts, stream + 500, openings, &s_side);
-    };
+    const std::vector<Vector2d> raw_route =
+        opt_.layout == "twin" ? buildTwinTunnels(&s_side) : buildSingleTunnel(&s_side);
+    computeBounds();
+    buildBuckets();
+    buildBumps();
+    buildRelief();
+    buildLevels(raw_route);
+    buildRoute(raw_route);
+    buildFurniture(raw_route);
+}
 
-    std::vector<Vector2d> raw_route;
-    if (opt_.layout == "twin") {
-        // Mine A: two parallel tunnels joined by a crosscut near their far ends; the route goes
-        // out along the first, through the crosscut and back along the second.
-        const std::vector<Vector2d> t1 = mainLine(kLayout);
-        std::vector<Vector2d> t2 = t1;
-        for (auto& p : t2) p.y() += opt_.twin_separation_m;
-        addLine(t1, 0);
-        addLine(t2, 50000);
-        // Both tunnels continue a little past the crosscut (dead ends, as in a real level).
-        Vector2d dir = (t1.back() - t1[t1.size() - 2]).normalized();
-        addSegment(t1.back(), t1.back() + dir * 10, hw, s_side, false);
-        addSegment(t2.back(), t2.back() + dir * 10, hw, s_side + 1000, false);
-        s_side += 2000;
-        addSegment(t1.back(), t2.back(), hw, 90000, true);
-        addSides(t1, kLayout + 1000, -1.0);  // openings on the outer sides
-        addSides(t2, kLayout + 2000, 1.0);
-        raw_route = t1;
-        raw_route.insert(raw_route.end(), t2.rbegin(), t2.rend());
-    } else {
-        raw_route = mainLine(kLayout);
-        addLine(raw_route, 0);
-        addSides(raw_route, kLayout + 1000, 1.0);
+std::vector<Vector2d> TunnelWorld::buildSingleTunnel(double* s_side) {
+    std::vector<Vector2d> route = mainLine(opt_, seed_, kLayout);
+    addLine(route, 0);
+    addSides(route, kLayout + 1000, 1.0, s_side);
+    return route;
+}
+
+std::vector<Vector2d> TunnelWorld::buildTwinTunnels(double* s_side) {
+    // Mine A: two parallel tunnels joined by a crosscut near their far ends; the route goes
+    // out along the first, through the crosscut and back along the second.
+    const double hw = opt_.width_m / 2;
+    const std::vector<Vector2d> t1 = mainLine(opt_, seed_, kLayout);
+    std::vector<Vector2d> t2 = t1;
+    for (auto& p : t2) p.y() += opt_.twin_separation_m;
+    addLine(t1, 0);
+    addLine(t2, 50000);
+    // Both tunnels continue a little past the crosscut (dead ends, as in a real level).
+    Vector2d dir = (t1.back() - t1[t1.size() - 2]).normalized();
+    addSegment(t1.back(), t1.back() + dir * 10, hw, *s_side, false);
+    addSegment(t2.back(), t2.back() + dir * 10, hw, *s_side + 1000, false);
+    *s_side += 2000;
+    addSegment(t1.back(), t2.back(), hw, 90000, true);
+    addSides(t1, kLayout + 1000, -1.0, s_side);  // openings on the outer sides
+    addSides(t2, kLayout + 2000, 1.0, s_side);
+    std::vector<Vector2d> route = t1;
+    route.insert(route.end(), t2.rbegin(), t2.rend());
+    return route;
+}
+
+void TunnelWorld::addLine(const std::vector<Vector2d>& pts, double s0) {
+    for (std::size_t i = 1; i < pts.size(); ++i) {
+        addSegment(pts[i - 1], pts[i], opt_.width_m / 2, s0, true);
+        s0 += (pts[i] - pts[i - 1]).norm();
     }
+}
 
+void TunnelWorld::addSides(const std::vector<Vector2d>& pts, uint32_t stream, double flip,
+                           double* s_side) {
+    const double length = polylineLength(pts);
+    const std::vector<double> junctions = addJunctions(pts, length, s_side);
+    std::vector<double> openings = junctions;  // where niches keep away from
+    addDrawpoints(pts, length, stream, flip, junctions, &openings, s_side);
+    addNiches(pts, stream + 500, openings, s_side);
+}
+
+std::vector<double> TunnelWorld::addJunctions(const std::vector<Vector2d>& pts, double length,
+                                              double* s_side) {
+    std::vector<double> junctions;
+    if (opt_.junction_spacing_m <= 0) return junctions;
+    const double hw = opt_.width_m / 2;
+    for (double s = 0.5 * opt_.junction_spacing_m; s < length - 10; s += opt_.junction_spacing_m) {
+        Vector2d dir;
+        const Vector2d c = pointAt(pts, s, &dir);
+        const Vector2d n = rot90(dir) * (hw + opt_.junction_length_m);
+        addSegment(c - n, c + n, hw, *s_side, false);
+        *s_side += 1000;
+        junctions.push_back(s);
+    }
+    return junctions;
+}
+
+void TunnelWorld::addDrawpoints(const std::vector<Vector2d>& pts, double length, uint32_t stream,
+                                double flip, const std::vector<double>& junctions,
+                                std::vector<double>* openings, double* s_side) {
+    if (opt_.drawpoint_spacing_m <= 0) return;
+    const double hw = opt_.width_m / 2;
+    uint32_t k = 0;
+    for (double s = 0.5 * opt_.drawpoint_spacing_m; s < length - 5;
+         s += opt_.drawpoint_spacing_m, ++k) {
+        bool near_junction = false;
+        for (double j : junctions) near_junction |= std::abs(j - s) < 10;
+        if (near_junction) continue;
+        Vector2d dir;
+        const Vector2d c = pointAt(pts, s, &dir);
+        const double side = (unit(hash3(seed_, stream, k)) < 0.5 ? 1.0 : -1.0) * flip;
+        const double ang = side * opt_.drawpoint_angle_deg * kPi / 180;
+        const Vector2d d(std::cos(ang) * dir.x() - std::sin(ang) * dir.y(),
+                         std::sin(ang) * dir.x() + std::cos(ang) * dir.y());
+        addSegment(c, c + d * (hw + opt_.drawpoint_length_m), opt_.drawpoint_width_m / 2, *s_side,
+                   false);
+        *s_side += 1000;
+        openings->push_back(s);
+    }
+}
+
+void TunnelWorld::computeBounds() {
     lo_ = Vector2d(1e18, 1e18);
     hi_ = -lo_;
     for (const auto& s : segments_) {
@@ -215,12 +249,6 @@ void TunnelWorld::buildLayout() {
             hi_ = hi_.cwiseMax(p + Vector2d::Constant(s.half_width));
         }
     }
-    buildBuckets();
-    buildBumps();
-    buildRelief();
-    buildLevels(raw_route);
-    buildRoute(raw_route);
-    buildFurniture(raw_route);
 }
 
 void TunnelWorld::addNiches(const std::vector<Vector2d>& pts, uint32_t stream,

@@ -78,6 +78,11 @@ class CameraRenderer {
     void renderRows(const std::vector<View>& views, int first, int step, float* out,
                     float* depth) const;
     double shadePixel(int index, const View& view, double* depth) const;
+    /// Nearest furniture cylinder along pixel `index`'s ray (direction d in the map) nearer
+    /// than t_max: its distance, `normal` and `object` (index into the world's cylinders), or
+    /// t_max with both untouched.
+    double nearestCylinder(int index, const View& view, const Eigen::Vector3d& d, double t_max,
+                           Eigen::Vector3d* normal, int* object) const;
     void buildRays();
     void buildLensMasks();
     /// Radiance (and depth) to the delivered 8-bit image: haze, motion blur, lens drops and

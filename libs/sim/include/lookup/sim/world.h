@@ -132,6 +132,25 @@ class TunnelWorld {
 
   private:
     void buildLayout();
+    /// The tunnels of each layout (segments, side openings, niches); returns the raw route.
+    /// `s_side` is the next texture coordinate free for a side opening.
+    std::vector<Eigen::Vector2d> buildSingleTunnel(double* s_side);
+    std::vector<Eigen::Vector2d> buildTwinTunnels(double* s_side);
+    /// Segments along a main line, texture coordinate s0 at its start.
+    void addLine(const std::vector<Eigen::Vector2d>& pts, double s0);
+    /// Draw points (short side openings), crossing tunnels and niches along a main line.
+    void addSides(const std::vector<Eigen::Vector2d>& pts, uint32_t stream, double flip,
+                  double* s_side);
+    /// Crossing tunnels; returns their arc lengths along `pts` (of total `length`).
+    std::vector<double> addJunctions(const std::vector<Eigen::Vector2d>& pts, double length,
+                                     double* s_side);
+    /// Draw points away from the junctions, on a random side (times `flip`); their arc
+    /// lengths are appended to `openings`.
+    void addDrawpoints(const std::vector<Eigen::Vector2d>& pts, double length, uint32_t stream,
+                       double flip, const std::vector<double>& junctions,
+                       std::vector<double>* openings, double* s_side);
+    /// lo_, hi_: the segments' bounding box.
+    void computeBounds();
     void buildRoute(const std::vector<Eigen::Vector2d>& raw);
     void buildFurniture(const std::vector<Eigen::Vector2d>& raw);
     void buildBuckets();
