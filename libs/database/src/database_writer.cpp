@@ -101,6 +101,104 @@ std::string megabytes(const fs::path& dir) {
     return buf;
 }
 
+bool isFinite(const mrpt::poses::CPose3D& p) {
+    const auto v = p.asVectorVal();
+    return std::all_of(v.begin(), v.end(), [](double x) { return std::isfinite(x); });
+}
+
+bool isFinite(const mrpt::math::CMatrixDouble33& m) {
+    bool finite = true;
+    for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) finite &= std::isfinite(m(r, c));
+    return finite;
+}
+
+// Refuses a reference the database must not hold; `index` is the id it would get.
+void checkStorable(const ReferenceInput& in, const std::string& out_dir, std::size_t index) {
+    if (!in.ceiling) throw DatabaseError("DatabaseWriter::add: reference without ceiling image");
+    const std::string which = out_dir + ": reference " + std::to_string(index) + " (t=" +
+                              std::to_string(mrpt::Clock::toDouble(in.ceiling->timestamp)) + " s)";
+    // The last line of defence: whatever went wrong upstream, no NaN reaches the database.
+    if (!isFinite(in.vehicle_pose) || !isFinite(in.vehicle_cov) ||
+        !isFinite(in.ceiling->cameraPose) || (in.forward && !isFinite(in.forward_vehicle_pose))) {
+        throw DatabaseError(which + " has a non-finite pose or covariance; not stored");
+    }
+    // All-zero focal lengths: no calibration recorded (the localiser refuses the reference).
+    const auto& camera = in.ceiling->cameraParams;
+    const bool unset = camera.fx() == 0 && camera.fy() == 0;
+    if (const auto why = common::cameraProblem(camera); !unset && !why.empty()) {
+        throw DatabaseError(which + ": ceiling camera " + why + "; not stored");
+    }
+}
+
+// "<prefix><stem><ext>", the extension of the image's external file (PNG when in memory).
+std::string imageName(const char* prefix, const char* stem, const mrpt::obs::CObservationImage& o) {
+    const std::string external =
+        o.image.isExternallyStored() ? o.image.getExternalStorageFile() : "";
+    return std::string(prefix) + stem + extensionOf(external, ".png");
+}
+
+// The in-memory reference, without its image paths.
+Reference referenceOf(const ReferenceInput& in, uint32_t id) {
+    Reference ref;
+    ref.id = id;
+    ref.traverse = in.traverse;
+    ref.time_s = mrpt::Clock::toDouble(in.ceiling->timestamp);
+    ref.vehicle_pose = in.vehicle_pose;
+    ref.vehicle_cov = in.vehicle_cov;
+    ref.ceiling_camera_mount = in.ceiling->cameraPose;
+    ref.ceiling_camera_pose = in.vehicle_pose + in.ceiling->cameraPose;
+    ref.ceiling_camera = in.ceiling->cameraParams;
+    ref.sharpness = in.sharpness;
+    ref.mean_intensity = in.mean_intensity;
+    ref.travelled_m = in.travelled_m;
+    if (in.forward) {
+        ref.has_forward = true;
+        ref.forward_time_s = mrpt::Clock::toDouble(in.forward->timestamp);
+        ref.forward_camera_pose = in.forward_vehicle_pose + in.forward->cameraPose;
+    }
+    return ref;
+}
+
+// The vehicle pose as a standard MRPT record, for viewers.
+mrpt::obs::CObservationRobotPose poseRecord(const ReferenceInput& in) {
+    mrpt::obs::CObservationRobotPose pose;
+    pose.sensorLabel = kPoseLabel;
+    pose.timestamp = in.ceiling->timestamp;
+    pose.pose.mean = in.vehicle_pose;
+    // CPose3DPDFGaussian orders (x, y, z, yaw, pitch, roll); ours is (x, y, yaw).
+    const int map_index[3] = {0, 1, 3};
+    for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c)
+            pose.pose.cov(map_index[r], map_index[c]) = in.vehicle_cov(r, c);
+    return pose;
+}
+
+// The record ReferenceDatabase::load reads the reference back from.
+obs::CObservationLookupReference referenceRecord(const ReferenceInput& in, const Reference& ref,
+                                                 const std::string& ceiling_name,
+                                                 const std::string& forward_name) {
+    obs::CObservationLookupReference record;
+    record.sensorLabel = kReferenceLabel;
+    record.timestamp = in.ceiling->timestamp;
+    record.sensorPose = in.ceiling->cameraPose;
+    record.reference_id = ref.id;
+    record.traverse = in.traverse;
+    record.vehicle_pose = in.vehicle_pose;
+    record.vehicle_cov = in.vehicle_cov;
+    record.ceiling_camera_pose = ref.ceiling_camera_pose;
+    record.has_ceiling_camera = true;
+    record.ceiling_camera = ref.ceiling_camera;
+    record.forward_camera_pose = ref.forward_camera_pose;
+    record.ceiling_image_file = ceiling_name;
+    record.forward_image_file = forward_name;
+    record.forward_time_s = ref.forward_time_s;
+    record.sharpness = in.sharpness;
+    record.mean_intensity = in.mean_intensity;
+    record.travelled_m = in.travelled_m;
+    return record;
+}
+
 }  // namespace
 
 void testKillPoint(const char* point) {
@@ -175,102 +273,24 @@ DatabaseWriter::~DatabaseWriter() {
 }
 
 uint32_t DatabaseWriter::add(const ReferenceInput& in) {
-    if (!in.ceiling) throw DatabaseError("DatabaseWriter::add: reference without ceiling image");
-    // The last line of defence: whatever went wrong upstream, no NaN reaches the database.
-    const auto finite = [](const mrpt::poses::CPose3D& p) {
-        const auto v = p.asVectorVal();
-        return std::all_of(v.begin(), v.end(), [](double x) { return std::isfinite(x); });
-    };
-    bool cov_finite = true;
-    for (int r = 0; r < 3; ++r)
-        for (int c = 0; c < 3; ++c) cov_finite &= std::isfinite(in.vehicle_cov(r, c));
-    if (!finite(in.vehicle_pose) || !cov_finite || !finite(in.ceiling->cameraPose) ||
-        (in.forward && !finite(in.forward_vehicle_pose))) {
-        throw DatabaseError(out_dir_ + ": reference " + std::to_string(references_.size()) +
-                            " (t=" + std::to_string(mrpt::Clock::toDouble(in.ceiling->timestamp)) +
-                            " s) has a non-finite pose or covariance; not stored");
-    }
-    // All-zero focal lengths: no calibration recorded (the localiser refuses the reference).
-    const auto& camera = in.ceiling->cameraParams;
-    const bool unset = camera.fx() == 0 && camera.fy() == 0;
-    if (const auto why = common::cameraProblem(camera); !unset && !why.empty()) {
-        throw DatabaseError(out_dir_ + ": reference " + std::to_string(references_.size()) +
-                            " (t=" + std::to_string(mrpt::Clock::toDouble(in.ceiling->timestamp)) +
-                            " s): ceiling camera " + why + "; not stored");
-    }
+    checkStorable(in, out_dir_, references_.size());
     const auto id = static_cast<uint32_t>(references_.size());
     char stem[32];
     std::snprintf(stem, sizeof(stem), "%06u", id);
     const std::string images_dir = rawlog_->imagesDirectory();
 
-    Reference ref;
-    ref.id = id;
-    ref.traverse = in.traverse;
-    ref.time_s = mrpt::Clock::toDouble(in.ceiling->timestamp);
-    ref.vehicle_pose = in.vehicle_pose;
-    ref.vehicle_cov = in.vehicle_cov;
-    ref.ceiling_camera_mount = in.ceiling->cameraPose;
-    ref.ceiling_camera_pose = in.vehicle_pose + in.ceiling->cameraPose;
-    ref.ceiling_camera = in.ceiling->cameraParams;
-    ref.sharpness = in.sharpness;
-    ref.mean_intensity = in.mean_intensity;
-    ref.travelled_m = in.travelled_m;
-
-    const std::string ceiling_name = std::string("ceiling_") + stem +
-                                     extensionOf(in.ceiling->image.isExternallyStored()
-                                                     ? in.ceiling->image.getExternalStorageFile()
-                                                     : "",
-                                                 ".png");
-    auto ceiling = externalCopy(*in.ceiling, images_dir, ceiling_name);
+    Reference ref = referenceOf(in, id);
+    const std::string ceiling_name = imageName("ceiling_", stem, *in.ceiling);
+    writeRecord(*externalCopy(*in.ceiling, images_dir, ceiling_name));
     ref.ceiling_image_path = images_dir + "/" + ceiling_name;
-    writeRecord(*ceiling);
-
     std::string forward_name;
     if (in.forward) {
-        forward_name = std::string("forward_") + stem +
-                       extensionOf(in.forward->image.isExternallyStored()
-                                       ? in.forward->image.getExternalStorageFile()
-                                       : "",
-                                   ".png");
-        auto forward = externalCopy(*in.forward, images_dir, forward_name);
-        writeRecord(*forward);
-        ref.has_forward = true;
-        ref.forward_time_s = mrpt::Clock::toDouble(in.forward->timestamp);
+        forward_name = imageName("forward_", stem, *in.forward);
+        writeRecord(*externalCopy(*in.forward, images_dir, forward_name));
         ref.forward_image_path = images_dir + "/" + forward_name;
-        ref.forward_camera_pose = in.forward_vehicle_pose + in.forward->cameraPose;
     }
-
-    mrpt::obs::CObservationRobotPose pose;
-    pose.sensorLabel = kPoseLabel;
-    pose.timestamp = in.ceiling->timestamp;
-    pose.pose.mean = in.vehicle_pose;
-    // CPose3DPDFGaussian orders (x, y, z, yaw, pitch, roll); ours is (x, y, yaw).
-    const int map_index[3] = {0, 1, 3};
-    for (int r = 0; r < 3; ++r)
-        for (int c = 0; c < 3; ++c)
-            pose.pose.cov(map_index[r], map_index[c]) = in.vehicle_cov(r, c);
-    writeRecord(pose);
-
-    obs::CObservationLookupReference record;
-    record.sensorLabel = kReferenceLabel;
-    record.timestamp = in.ceiling->timestamp;
-    record.sensorPose = in.ceiling->cameraPose;
-    record.reference_id = id;
-    record.traverse = in.traverse;
-    record.vehicle_pose = in.vehicle_pose;
-    record.vehicle_cov = in.vehicle_cov;
-    record.ceiling_camera_pose = ref.ceiling_camera_pose;
-    record.has_ceiling_camera = true;
-    record.ceiling_camera = ref.ceiling_camera;
-    record.forward_camera_pose = ref.forward_camera_pose;
-    record.ceiling_image_file = ceiling_name;
-    record.forward_image_file = forward_name;
-    record.forward_time_s = ref.forward_time_s;
-    record.sharpness = in.sharpness;
-    record.mean_intensity = in.mean_intensity;
-    record.travelled_m = in.travelled_m;
-    writeRecord(record);
-
+    writeRecord(poseRecord(in));
+    writeRecord(referenceRecord(in, ref, ceiling_name, forward_name));
     references_.push_back(std::move(ref));
     return id;
 }

@@ -31,6 +31,123 @@ using KdTree =
     nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<double, PointCloud2D>,
                                         PointCloud2D, 2, std::size_t>;
 
+// The error for a missing database folder; a kill between lookup-survey's two renames leaves
+// the database at <dir>.old-*, which the message then names.
+DatabaseError missingFolderError(const std::string& dir, const std::string& absolute_dir) {
+    std::string aside;
+    std::error_code ec;
+    const fs::path target(absolute_dir);
+    for (const auto& e : fs::directory_iterator(target.parent_path(), ec)) {
+        const std::string name = e.path().filename().string();
+        if (name.rfind(target.filename().string() + ".old-", 0) == 0) aside = e.path().string();
+    }
+    return DatabaseError(dir + ": no such database folder" +
+                         (aside.empty() ? std::string()
+                                        : " (an interrupted lookup-survey left it at " + aside +
+                                              "; the next lookup-survey run with --out " + dir +
+                                              " restores it)"));
+}
+
+// The ceiling camera of a record (its own, or the database's), refused when malformed.
+// All-zero focal lengths mean stored without a calibration (the localiser refuses it).
+mrpt::img::TCamera ceilingCameraOf(const obs::CObservationLookupReference& rec,
+                                   const DatabaseInfo& info, const std::string& where) {
+    const auto camera = rec.has_ceiling_camera ? rec.ceiling_camera : info.ceiling_camera;
+    const bool unset = camera.fx() == 0 && camera.fy() == 0;
+    if (const auto why = common::cameraProblem(camera); !unset && !why.empty()) {
+        throw DatabaseError(where + "ceiling camera: " + why);
+    }
+    return camera;
+}
+
+// One reference from its record; `where` ("<rawlog>: record <n>: ") prefixes every error.
+Reference referenceFromRecord(const obs::CObservationLookupReference& rec,
+                              const DatabaseInfo& info, const std::string& images_dir,
+                              const std::string& where) {
+    Reference r;
+    r.id = rec.reference_id;
+    r.traverse = rec.traverse;
+    r.time_s = mrpt::Clock::toDouble(rec.timestamp);
+    r.vehicle_pose = rec.vehicle_pose;
+    r.vehicle_cov = rec.vehicle_cov;
+    r.ceiling_camera_pose = rec.ceiling_camera_pose;
+    r.ceiling_camera_mount = rec.sensorPose;
+    r.ceiling_camera = ceilingCameraOf(rec, info, where);
+    r.ceiling_image_path = images_dir + "/" + rec.ceiling_image_file;
+    if (!fs::is_regular_file(r.ceiling_image_path)) {
+        throw DatabaseError(where + "missing ceiling image " + r.ceiling_image_path);
+    }
+    r.has_forward = !rec.forward_image_file.empty();
+    if (r.has_forward) {
+        r.forward_time_s = rec.forward_time_s;
+        r.forward_image_path = images_dir + "/" + rec.forward_image_file;
+        r.forward_camera_pose = rec.forward_camera_pose;
+        if (!fs::is_regular_file(r.forward_image_path)) {
+            throw DatabaseError(where + "missing forward image " + r.forward_image_path);
+        }
+    }
+    r.sharpness = rec.sharpness;
+    r.mean_intensity = rec.mean_intensity;
+    r.travelled_m = rec.travelled_m;
+    return r;
+}
+
+// Every reference record of refs.rawlog, in id order, as many as db.ini announces.
+std::vector<Reference> readReferences(const std::string& rawlog_path, const DatabaseInfo& info) {
+    const std::string images_dir = common::imagesDirectoryFor(rawlog_path);
+    std::vector<Reference> refs;
+    try {
+        common::RawlogReader reader(rawlog_path);
+        mrpt::obs::CObservation::Ptr o;
+        while (reader.next(o)) {
+            auto rec = std::dynamic_pointer_cast<obs::CObservationLookupReference>(o);
+            if (!rec) continue;  // the image and pose records are for viewers
+            const std::string where =
+                rawlog_path + ": record " + std::to_string(reader.recordIndex()) + ": ";
+            if (rec->reference_id != refs.size()) {
+                throw DatabaseError(where + "reference id " + std::to_string(rec->reference_id) +
+                                    " out of sequence");
+            }
+            refs.push_back(referenceFromRecord(*rec, info, images_dir, where));
+        }
+    } catch (const common::RawlogError& e) {
+        throw DatabaseError(e.what());
+    }
+    if (refs.size() != info.reference_count) {
+        throw DatabaseError(rawlog_path + ": holds " + std::to_string(refs.size()) +
+                            " references but " + kDbIni + " says " +
+                            std::to_string(info.reference_count));
+    }
+    return refs;
+}
+
+PointCloud2D positionsOf(const std::vector<Reference>& refs) {
+    PointCloud2D cloud;
+    for (const auto& r : refs) cloud.points.push_back({r.vehicle_pose.x(), r.vehicle_pose.y()});
+    return cloud;
+}
+
+// Reference indices by time_s (stable: equal times keep id order).
+std::vector<std::size_t> timeOrder(const std::vector<Reference>& refs) {
+    std::vector<std::size_t> order(refs.size());
+    for (std::size_t i = 0; i < refs.size(); ++i) order[i] = i;
+    std::stable_sort(order.begin(), order.end(),
+                     [&](std::size_t a, std::size_t b) { return refs[a].time_s < refs[b].time_s; });
+    return order;
+}
+
+// The references with a forward image, by forward image time.
+std::vector<std::size_t> forwardOrder(const std::vector<Reference>& refs) {
+    std::vector<std::size_t> sequence;
+    for (std::size_t i = 0; i < refs.size(); ++i) {
+        if (refs[i].has_forward) sequence.push_back(i);
+    }
+    std::stable_sort(sequence.begin(), sequence.end(), [&](std::size_t a, std::size_t b) {
+        return refs[a].forward_time_s < refs[b].forward_time_s;
+    });
+    return sequence;
+}
+
 }  // namespace
 
 struct ReferenceDatabase::Impl {
@@ -53,102 +170,18 @@ ReferenceDatabase ReferenceDatabase::load(const std::string& dir, std::size_t ca
     obs::registerClasses();
     auto impl = std::make_unique<Impl>();
     impl->dir = fs::absolute(dir).lexically_normal().string();
-    if (!fs::is_directory(dir)) {
-        // A kill between lookup-survey's two renames leaves the database at <dir>.old-*.
-        std::string aside;
-        std::error_code ec;
-        const fs::path target(impl->dir);
-        for (const auto& e : fs::directory_iterator(target.parent_path(), ec)) {
-            const std::string name = e.path().filename().string();
-            if (name.rfind(target.filename().string() + ".old-", 0) == 0) aside = e.path().string();
-        }
-        throw DatabaseError(dir + ": no such database folder" +
-                            (aside.empty() ? std::string()
-                                           : " (an interrupted lookup-survey left it at " + aside +
-                                                 "; the next lookup-survey run with --out " + dir +
-                                                 " restores it)"));
-    }
+    if (!fs::is_directory(dir)) throw missingFolderError(dir, impl->dir);
     verifyManifest(impl->dir);
     impl->info = readDatabaseInfo(impl->dir + "/" + kDbIni);
     verifyHeatMaps(impl->dir, impl->info.heatmaps_dir);
+    impl->refs = readReferences(impl->dir + "/" + kRefsRawlog, impl->info);
 
-    const std::string rawlog_path = impl->dir + "/" + kRefsRawlog;
-    const std::string images_dir = common::imagesDirectoryFor(rawlog_path);
-    try {
-        common::RawlogReader reader(rawlog_path);
-        mrpt::obs::CObservation::Ptr o;
-        while (reader.next(o)) {
-            auto rec = std::dynamic_pointer_cast<obs::CObservationLookupReference>(o);
-            if (!rec) continue;  // the image and pose records are for viewers
-            const auto where = [&] {
-                return rawlog_path + ": record " + std::to_string(reader.recordIndex()) + ": ";
-            };
-            if (rec->reference_id != impl->refs.size()) {
-                throw DatabaseError(where() + "reference id " + std::to_string(rec->reference_id) +
-                                    " out of sequence");
-            }
-            Reference r;
-            r.id = rec->reference_id;
-            r.traverse = rec->traverse;
-            r.time_s = mrpt::Clock::toDouble(rec->timestamp);
-            r.vehicle_pose = rec->vehicle_pose;
-            r.vehicle_cov = rec->vehicle_cov;
-            r.ceiling_camera_pose = rec->ceiling_camera_pose;
-            r.ceiling_camera_mount = rec->sensorPose;
-            r.ceiling_camera =
-                rec->has_ceiling_camera ? rec->ceiling_camera : impl->info.ceiling_camera;
-            // All-zero focal lengths: stored without a calibration (the localiser refuses it).
-            const auto& camera = r.ceiling_camera;
-            const bool unset = camera.fx() == 0 && camera.fy() == 0;
-            if (const auto why = common::cameraProblem(camera); !unset && !why.empty()) {
-                throw DatabaseError(where() + "ceiling camera: " + why);
-            }
-            r.ceiling_image_path = images_dir + "/" + rec->ceiling_image_file;
-            if (!fs::is_regular_file(r.ceiling_image_path)) {
-                throw DatabaseError(where() + "missing ceiling image " + r.ceiling_image_path);
-            }
-            r.has_forward = !rec->forward_image_file.empty();
-            if (r.has_forward) {
-                r.forward_time_s = rec->forward_time_s;
-                r.forward_image_path = images_dir + "/" + rec->forward_image_file;
-                r.forward_camera_pose = rec->forward_camera_pose;
-                if (!fs::is_regular_file(r.forward_image_path)) {
-                    throw DatabaseError(where() + "missing forward image " + r.forward_image_path);
-                }
-            }
-            r.sharpness = rec->sharpness;
-            r.mean_intensity = rec->mean_intensity;
-            r.travelled_m = rec->travelled_m;
-            impl->refs.push_back(std::move(r));
-        }
-    } catch (const common::RawlogError& e) {
-        throw DatabaseError(e.what());
-    }
-    if (impl->refs.size() != impl->info.reference_count) {
-        throw DatabaseError(rawlog_path + ": holds " + std::to_string(impl->refs.size()) +
-                            " references but " + kDbIni + " says " +
-                            std::to_string(impl->info.reference_count));
-    }
-
-    for (const auto& r : impl->refs) {
-        impl->cloud.points.push_back({r.vehicle_pose.x(), r.vehicle_pose.y()});
-    }
+    impl->cloud = positionsOf(impl->refs);
     impl->tree =
         std::make_unique<KdTree>(2, impl->cloud, nanoflann::KDTreeSingleIndexAdaptorParams(10));
     impl->tree->buildIndex();
-
-    const auto& refs = impl->refs;
-    impl->by_time.resize(refs.size());
-    for (std::size_t i = 0; i < refs.size(); ++i) impl->by_time[i] = i;
-    std::stable_sort(impl->by_time.begin(), impl->by_time.end(),
-                     [&](std::size_t a, std::size_t b) { return refs[a].time_s < refs[b].time_s; });
-    for (std::size_t i = 0; i < refs.size(); ++i) {
-        if (refs[i].has_forward) impl->forward_sequence.push_back(i);
-    }
-    std::stable_sort(impl->forward_sequence.begin(), impl->forward_sequence.end(),
-                     [&](std::size_t a, std::size_t b) {
-                         return refs[a].forward_time_s < refs[b].forward_time_s;
-                     });
+    impl->by_time = timeOrder(impl->refs);
+    impl->forward_sequence = forwardOrder(impl->refs);
     impl->cache = std::make_unique<ImageCache>(std::max<std::size_t>(1, cache_capacity));
     return ReferenceDatabase(std::move(impl));
 }

@@ -42,46 +42,89 @@ double parseNumber(const std::string& text, const std::string& where) {
     return v;
 }
 
-}  // namespace
-
-Run loadRun(const std::string& directory) {
-    Run run;
-    run.directory = directory;
-    run.method = fs::path(directory).filename().string();
-
-    const std::string ini = directory + "/run.ini";
-    if (fs::exists(ini)) {
-        mrpt::config::CConfigFile cfg(ini);
-        run.method = common::IniSection(cfg, "run", ini).getString("method", run.method);
-    }
-    const std::string timing = directory + "/timing.json";
-    if (fs::exists(timing)) {
-        std::ifstream in(timing);
-        try {
-            const auto j = nlohmann::json::parse(in);
-            run.frames_per_s = j.value("frames_per_s", 0.0);
-            if (j.contains("refine_ms_per_frame") && j["refine_ms_per_frame"].is_object()) {
-                run.match_ms_per_frame = j["refine_ms_per_frame"].value("match", 0.0);
-            }
-            run.frames_dropped = j.value("frames_dropped", 0);
-            run.timing_frames = j.value("frames", -1L);
-            run.has_timing = true;
-        } catch (const std::exception& e) {
-            throw ConfigError(timing + ": malformed JSON: " + e.what());
+// timing.json's throughput and frame counts into `run`.
+void readTiming(const std::string& timing, Run& run) {
+    std::ifstream in(timing);
+    try {
+        const auto j = nlohmann::json::parse(in);
+        run.frames_per_s = j.value("frames_per_s", 0.0);
+        if (j.contains("refine_ms_per_frame") && j["refine_ms_per_frame"].is_object()) {
+            run.match_ms_per_frame = j["refine_ms_per_frame"].value("match", 0.0);
         }
+        run.frames_dropped = j.value("frames_dropped", 0);
+        run.timing_frames = j.value("frames", -1L);
+        run.has_timing = true;
+    } catch (const std::exception& e) {
+        throw ConfigError(timing + ": malformed JSON: " + e.what());
     }
+}
 
-    const std::string csv = directory + "/frames.csv";
-    std::ifstream in(csv);
-    if (!in) throw ConfigError(csv + ": cannot open (is this a lookup-localize output folder?)");
-    std::string line;
-    if (!std::getline(in, line)) throw ConfigError(csv + ": empty file");
-    const auto header = splitCsv(line);
+// Column name to index, refusing a header without one of kColumns.
+std::map<std::string, size_t> columnsOf(const std::vector<std::string>& header,
+                                        const std::string& csv) {
     std::map<std::string, size_t> col;
     for (size_t i = 0; i < header.size(); ++i) col[header[i]] = i;
     for (const char* name : kColumns) {
         if (!col.count(name)) throw ConfigError(csv + ":1: missing column '" + name + "'");
     }
+    return col;
+}
+
+// The cells of one frames.csv line by column name; `where` ("<csv>:<line>: ") prefixes errors.
+struct CsvRow {
+    const std::vector<std::string>& cells;
+    const std::map<std::string, size_t>& col;
+    const std::string& where;
+
+    const std::string& cell(const char* name) const { return cells[col.at(name)]; }
+    double number(const char* name) const { return parseNumber(cell(name), where + name + ": "); }
+    // An empty cell reads as 0.
+    double numberOrZero(const char* name) const { return cell(name).empty() ? 0 : number(name); }
+};
+
+FrameRow parseRow(const CsvRow& row) {
+    FrameRow r;
+    r.time_s = row.number("time_s");
+    r.status = row.cell("status");
+    r.reason = row.cell("reason");
+    r.has_pose = !row.cell("x").empty();
+    if (r.has_pose) {
+        r.x = row.number("x");
+        r.y = row.number("y");
+        r.yaw = row.number("yaw");
+        r.cov_xx = row.number("cov_xx");
+        r.cov_xy = row.number("cov_xy");
+        r.cov_yy = row.number("cov_yy");
+        r.cov_tt = row.number("cov_tt");
+    }
+    r.has_coarse = !row.cell("coarse_x").empty();
+    if (r.has_coarse) {
+        r.coarse_x = row.number("coarse_x");
+        r.coarse_y = row.number("coarse_y");
+        r.coarse_yaw = row.number("coarse_yaw");
+    }
+    return r;
+}
+
+// Drops a non-finite pose or coarse pose from the row; true when the row had any non-finite
+// value.
+bool dropNonFinite(FrameRow& r) {
+    const bool pose_finite =
+        std::isfinite(r.x + r.y + r.yaw + r.cov_xx + r.cov_xy + r.cov_yy + r.cov_tt);
+    const bool coarse_finite = std::isfinite(r.coarse_x + r.coarse_y + r.coarse_yaw);
+    if (!pose_finite) r.has_pose = false;
+    if (!coarse_finite) r.has_coarse = false;
+    return !pose_finite || !coarse_finite || !std::isfinite(r.time_s);
+}
+
+// Every row of frames.csv into run.frames.
+void readFrames(const std::string& csv, Run& run) {
+    std::ifstream in(csv);
+    if (!in) throw ConfigError(csv + ": cannot open (is this a lookup-localize output folder?)");
+    std::string line;
+    if (!std::getline(in, line)) throw ConfigError(csv + ": empty file");
+    const auto header = splitCsv(line);
+    const auto col = columnsOf(header, csv);
     int line_no = 1;
     while (std::getline(in, line)) {
         ++line_no;
@@ -92,41 +135,31 @@ Run loadRun(const std::string& directory) {
             throw ConfigError(where + "expected " + std::to_string(header.size()) +
                               " columns, found " + std::to_string(cells.size()));
         }
-        auto cell = [&](const char* name) -> const std::string& { return cells[col[name]]; };
-        auto number = [&](const char* name) {
-            return parseNumber(cell(name), where + name + ": ");
-        };
-        FrameRow r;
-        r.time_s = number("time_s");
-        r.status = cell("status");
-        r.reason = cell("reason");
-        r.has_pose = !cell("x").empty();
-        if (r.has_pose) {
-            r.x = number("x");
-            r.y = number("y");
-            r.yaw = number("yaw");
-            r.cov_xx = number("cov_xx");
-            r.cov_xy = number("cov_xy");
-            r.cov_yy = number("cov_yy");
-            r.cov_tt = number("cov_tt");
-        }
-        r.has_coarse = !cell("coarse_x").empty();
-        if (r.has_coarse) {
-            r.coarse_x = number("coarse_x");
-            r.coarse_y = number("coarse_y");
-            r.coarse_yaw = number("coarse_yaw");
-        }
-        const bool pose_finite =
-            std::isfinite(r.x + r.y + r.yaw + r.cov_xx + r.cov_xy + r.cov_yy + r.cov_tt);
-        const bool coarse_finite = std::isfinite(r.coarse_x + r.coarse_y + r.coarse_yaw);
-        if (!pose_finite || !coarse_finite || !std::isfinite(r.time_s)) ++run.non_finite_rows;
-        if (!pose_finite) r.has_pose = false;
-        if (!coarse_finite) r.has_coarse = false;
-        r.inlier_share = cell("inlier_share").empty() ? 0 : number("inlier_share");
-        r.references = cell("references").empty() ? 0 : static_cast<int>(number("references"));
-        r.ms = cell("ms").empty() ? 0 : number("ms");
+        const CsvRow row{cells, col, where};
+        FrameRow r = parseRow(row);
+        if (dropNonFinite(r)) ++run.non_finite_rows;
+        r.inlier_share = row.numberOrZero("inlier_share");
+        r.references = row.cell("references").empty() ? 0
+                                                      : static_cast<int>(row.number("references"));
+        r.ms = row.numberOrZero("ms");
         run.frames.push_back(std::move(r));
     }
+}
+
+}  // namespace
+
+Run loadRun(const std::string& directory) {
+    Run run;
+    run.directory = directory;
+    run.method = fs::path(directory).filename().string();
+    const std::string ini = directory + "/run.ini";
+    if (fs::exists(ini)) {
+        mrpt::config::CConfigFile cfg(ini);
+        run.method = common::IniSection(cfg, "run", ini).getString("method", run.method);
+    }
+    const std::string timing = directory + "/timing.json";
+    if (fs::exists(timing)) readTiming(timing, run);
+    readFrames(directory + "/frames.csv", run);
     return run;
 }
 

@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iostream>
 #include <nlohmann/json.hpp>
 
@@ -60,45 +61,52 @@ bool plotCurve(const TrainResult& r, const std::string& dir, std::string& png,
     return false;
 }
 
-}  // namespace
+using ImageOf = std::function<cv::Mat(std::size_t)>;
 
-TrainReport runTraining(const TrainRequest& req, const TrainOptions& options) {
-    const auto t0 = std::chrono::steady_clock::now();
-    options.check();
-    if (req.train_rawlogs.empty()) throw std::runtime_error("no training rawlog given (--train)");
-    TrainReport report;
-    const auto db = database::ReferenceDatabase::load(req.db_dir);
-    if (db.size() < std::size_t(options.labels.min_references)) {
-        throw std::runtime_error(req.db_dir + ": only " + std::to_string(db.size()) +
+double secondsSince(std::chrono::steady_clock::time_point start) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+std::string joined(const std::vector<std::string>& rawlogs) {
+    std::string list;
+    for (const auto& r : rawlogs) list += (list.empty() ? "" : ",") + r;
+    return list;
+}
+
+// The database to train on, refused when it has fewer references than labelling needs.
+database::ReferenceDatabase loadDatabase(const std::string& db_dir, const LabelOptions& o) {
+    auto db = database::ReferenceDatabase::load(db_dir);
+    if (db.size() < std::size_t(o.min_references)) {
+        throw std::runtime_error(db_dir + ": only " + std::to_string(db.size()) +
                                  " references (fcn.labels min_references = " +
-                                 std::to_string(options.labels.min_references) + ")");
+                                 std::to_string(o.min_references) + ")");
     }
-    const auto image_of = [&db](std::size_t i) { return db.ceilingImage(i).clone(); };
+    return db;
+}
 
-    // 1. Labels (paper Sec. III-B), split by time into training and held-out frames.
-    const LabelSet labels =
-        generateLabels(db, req.train_rawlogs, options.labels, [&](std::size_t d, std::size_t n) {
-            if (req.progress) bar("labels", d, n, "");
-        });
-    report.labels = labels.stats;
-    std::string rawlog_list;
-    for (const auto& r : req.train_rawlogs) rawlog_list += (rawlog_list.empty() ? "" : ",") + r;
-    const auto& st = labels.stats;
-    if (st.training_pairs < std::size_t(options.labels.min_training_pairs) ||
-        st.held_out_pairs < std::size_t(options.labels.min_held_out_pairs)) {
-        throw std::runtime_error(
-            rawlog_list + ": too few usable pairs with " + req.db_dir + " (training " +
-            std::to_string(st.training_pairs) + ", held out " + std::to_string(st.held_out_pairs) +
-            "; need " + std::to_string(options.labels.min_training_pairs) + " and " +
-            std::to_string(options.labels.min_held_out_pairs) +
-            "): " + std::to_string(st.frames_without_reference) + " of " +
-            std::to_string(st.query_frames) + " frames have no reference within " +
-            std::to_string(options.labels.max_reference_distance_m) + " m, " +
-            std::to_string(st.pairs - st.usable_pairs) + " of " + std::to_string(st.pairs) +
-            " pairs did not match (no overlap?)");
+// Refuses labels too few to train and validate on, saying why pairs were lost.
+void checkEnoughPairs(const LabelStats& st, const LabelOptions& o, const std::string& rawlog_list,
+                      const std::string& db_dir) {
+    if (st.training_pairs >= std::size_t(o.min_training_pairs) &&
+        st.held_out_pairs >= std::size_t(o.min_held_out_pairs)) {
+        return;
     }
+    throw std::runtime_error(
+        rawlog_list + ": too few usable pairs with " + db_dir + " (training " +
+        std::to_string(st.training_pairs) + ", held out " + std::to_string(st.held_out_pairs) +
+        "; need " + std::to_string(o.min_training_pairs) + " and " +
+        std::to_string(o.min_held_out_pairs) + "): " + std::to_string(st.frames_without_reference) +
+        " of " + std::to_string(st.query_frames) + " frames have no reference within " +
+        std::to_string(o.max_reference_distance_m) + " m, " +
+        std::to_string(st.pairs - st.usable_pairs) + " of " + std::to_string(st.pairs) +
+        " pairs did not match (no overlap?)");
+}
 
-    // 2. Training.
+// A new model (or --init's) trained on the labels; the sample counts, parameter count and
+// training curve go into `report`.
+HeatMapModel trainModel(const TrainRequest& req, const TrainOptions& options,
+                        const LabelSet& labels, const ImageOf& image_of,
+                        const std::string& rawlog_list, TrainReport& report) {
     const auto train_samples = samplesFromPairs(labels.pairs, false, image_of);
     const auto val_samples = samplesFromPairs(labels.pairs, true, image_of);
     report.training_samples = train_samples.size();
@@ -118,12 +126,35 @@ TrainReport runTraining(const TrainRequest& req, const TrainOptions& options) {
     } catch (const std::invalid_argument& e) {
         throw std::runtime_error(rawlog_list + ": cannot train: " + e.what());
     }
+    return model;
+}
+
+}  // namespace
+
+TrainReport runTraining(const TrainRequest& req, const TrainOptions& options) {
+    const auto t0 = std::chrono::steady_clock::now();
+    options.check();
+    if (req.train_rawlogs.empty()) throw std::runtime_error("no training rawlog given (--train)");
+    TrainReport report;
+    const auto db = loadDatabase(req.db_dir, options.labels);
+    const ImageOf image_of = [&db](std::size_t i) { return db.ceilingImage(i).clone(); };
+
+    // 1. Labels (paper Sec. III-B), split by time into training and held-out frames.
+    const LabelSet labels =
+        generateLabels(db, req.train_rawlogs, options.labels, [&](std::size_t d, std::size_t n) {
+            if (req.progress) bar("labels", d, n, "");
+        });
+    report.labels = labels.stats;
+    const std::string rawlog_list = joined(req.train_rawlogs);
+    checkEnoughPairs(labels.stats, options.labels, rawlog_list, req.db_dir);
+
+    // 2. Training.
+    HeatMapModel model = trainModel(req, options, labels, image_of, rawlog_list, report);
 
     // 3. The paper's metric on the held-out frames.
     const auto e0 = std::chrono::steady_clock::now();
     report.evaluation = evaluatePoints(model, labels.pairs, image_of);
-    report.evaluation_seconds =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - e0).count();
+    report.evaluation_seconds = secondsSince(e0);
 
     // 4. Model, then heat maps (the database changes only once they are all written).
     report.model_file = req.out_model.empty() ? req.db_dir + "/fcn_model.pt" : req.out_model;
@@ -142,8 +173,7 @@ TrainReport runTraining(const TrainRequest& req, const TrainOptions& options) {
         report.warnings.push_back(warning);
     }
     report.report_file = dir + "/train_report.json";
-    report.total_seconds =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    report.total_seconds = secondsSince(t0);
     writeTrainReport(report, req, options, report.report_file);
     return report;
 }

@@ -534,96 +534,128 @@ RunTiming runLocalization(const LocalizeRequest& req) {
     return session.finish();
 }
 
+namespace {
+
+// One live sensor of a rawlog-grabber style .ini, polled at its process_rate.
+struct LiveSensor {
+    std::string section;
+    mrpt::hwdrivers::CGenericSensor::Ptr driver;
+    std::optional<mrpt::img::TCamera> camera;  ///< camera_params_file: live calibration
+    double period_s = 0.01;
+    double next_s = 0;
+};
+
+// The sensor of `section` (with a non-empty `driver`), configured and initialised.
+LiveSensor openSensor(const mrpt::config::CConfigFile& ini, const std::string& section,
+                      const std::string& driver, const std::string& sensors_ini) {
+    LiveSensor s;
+    s.section = section;
+    s.driver = mrpt::hwdrivers::CGenericSensor::createSensorPtr(driver);
+    if (!s.driver) {
+        throw common::ConfigError(sensors_ini + " [" + section + "] driver: unknown " +
+                                  "sensor class '" + driver + "'");
+    }
+    try {
+        s.driver->loadConfig(ini, section);
+        s.camera = common::sensorCameraParams(ini, section, sensors_ini);
+        s.driver->initialize();
+        const std::string recorded = ini.read_string(section, "rawlog_file", "", false);
+        if (ini.read_string(section, "grabber_type", "", false) == "rawlog" && !recorded.empty()) {
+            // MRPT 2.5.8 drops the '/' before <name>_Images for absolute rawlog paths;
+            // point external images at the right folder ourselves.
+            mrpt::img::CImage::setImagesPathBase(common::imagesDirectoryFor(recorded));
+        }
+    } catch (const std::exception& e) {
+        throw common::ConfigError(sensors_ini + " [" + section + "]: " + e.what());
+    }
+    s.period_s = 1.0 / std::max(1e-3, ini.read_double(section, "process_rate", 100, false));
+    return s;
+}
+
+// Every section of the .ini with a `driver` key; refuses an .ini without one.
+std::vector<LiveSensor> openSensors(const std::string& sensors_ini) {
+    mrpt::config::CConfigFile ini(sensors_ini);
+    std::vector<std::string> sections;
+    ini.getAllSections(sections);
+    std::vector<LiveSensor> sensors;
+    for (const auto& section : sections) {
+        const std::string driver = ini.read_string(section, "driver", "", false);
+        if (!driver.empty()) sensors.push_back(openSensor(ini, section, driver, sensors_ini));
+    }
+    if (sensors.empty()) {
+        throw common::ConfigError(sensors_ini + ": no section with a 'driver' key");
+    }
+    return sensors;
+}
+
+// Polls one sensor into `arrived`. A sensor that fails (unplugged camera, end of a recorded
+// stream) is closed; the others go on, and the run ends when all are quiet.
+void pollSensor(LiveSensor& s, const std::string& sensors_ini,
+                mrpt::hwdrivers::CGenericSensor::TListObservations& arrived) {
+    try {
+        s.driver->doProcess();
+    } catch (const std::exception& e) {
+        std::cerr << "lookup-localize: " << sensors_ini << " [" << s.section
+                  << "]: sensor stopped: " << mrpt::exception_to_str(e).substr(0, 200) << "\n";
+        s.driver.reset();
+        return;
+    }
+    mrpt::hwdrivers::CGenericSensor::TListObservations got;
+    s.driver->getObservations(got);
+    for (auto& [stamp, object] : got) {
+        auto obs = std::dynamic_pointer_cast<mrpt::obs::CObservation>(object);
+        if (s.camera && obs) common::applyCameraParams(*s.camera, *obs);
+    }
+    arrived.insert(got.begin(), got.end());
+}
+
+// What every sensor that is due at `now` delivers, in time order.
+mrpt::hwdrivers::CGenericSensor::TListObservations pollDue(std::vector<LiveSensor>& sensors,
+                                                          double now,
+                                                          const std::string& sensors_ini) {
+    mrpt::hwdrivers::CGenericSensor::TListObservations arrived;
+    for (auto& s : sensors) {
+        if (!s.driver || now < s.next_s) continue;
+        s.next_s = now + s.period_s;
+        pollSensor(s, sensors_ini, arrived);
+    }
+    return arrived;
+}
+
+// Hands one polled batch to the session; lateness is the time since the batch was polled,
+// i.e. spent on earlier observations.
+void feedBatch(Session& session, const mrpt::hwdrivers::CGenericSensor::TListObservations& arrived,
+               double polled_s) {
+    for (const auto& [stamp, object] : arrived) {
+        auto obs = std::dynamic_pointer_cast<mrpt::obs::CObservation>(object);
+        if (!obs) continue;
+        session.feedClocked(obs, session.elapsed() - polled_s, polled_s);
+        session.progress(0);
+        if (session.done()) break;
+    }
+}
+
+}  // namespace
+
 RunTiming runLiveLocalization(const LiveRequest& live) {
     LocalizeRequest req = live.base;
     req.realtime = 1;
     stop_requested = false;
-    mrpt::config::CConfigFile ini(live.sensors_ini);
-    std::vector<std::string> sections;
-    ini.getAllSections(sections);
-    struct Sensor {
-        std::string section;
-        mrpt::hwdrivers::CGenericSensor::Ptr driver;
-        std::optional<mrpt::img::TCamera> camera;  ///< camera_params_file: live calibration
-        double period_s = 0.01;
-        double next_s = 0;
-    };
-    std::vector<Sensor> sensors;
-    for (const auto& section : sections) {
-        const std::string driver = ini.read_string(section, "driver", "", false);
-        if (driver.empty()) continue;
-        Sensor s;
-        s.section = section;
-        s.driver = mrpt::hwdrivers::CGenericSensor::createSensorPtr(driver);
-        if (!s.driver) {
-            throw common::ConfigError(live.sensors_ini + " [" + section + "] driver: unknown " +
-                                      "sensor class '" + driver + "'");
-        }
-        try {
-            s.driver->loadConfig(ini, section);
-            s.camera = common::sensorCameraParams(ini, section, live.sensors_ini);
-            s.driver->initialize();
-            const std::string recorded = ini.read_string(section, "rawlog_file", "", false);
-            if (ini.read_string(section, "grabber_type", "", false) == "rawlog" &&
-                !recorded.empty()) {
-                // MRPT 2.5.8 drops the '/' before <name>_Images for absolute rawlog paths;
-                // point external images at the right folder ourselves.
-                mrpt::img::CImage::setImagesPathBase(common::imagesDirectoryFor(recorded));
-            }
-        } catch (const std::exception& e) {
-            throw common::ConfigError(live.sensors_ini + " [" + section + "]: " + e.what());
-        }
-        s.period_s = 1.0 / std::max(1e-3, ini.read_double(section, "process_rate", 100, false));
-        sensors.push_back(std::move(s));
-    }
-    if (sensors.empty()) {
-        throw common::ConfigError(live.sensors_ini + ": no section with a 'driver' key");
-    }
-
+    std::vector<LiveSensor> sensors = openSensors(live.sensors_ini);
     Session session(req, live.sensors_ini);
     double last_data_s = 0;
     while (!session.done() && !stop_requested) {
         const double now = session.elapsed();
         if (live.duration_s > 0 && now > live.duration_s) break;
         if (now - last_data_s > live.quiet_timeout_s) break;
-        // Poll every sensor that is due, then hand over what arrived in time order.
-        mrpt::hwdrivers::CGenericSensor::TListObservations arrived;
-        for (auto& s : sensors) {
-            if (!s.driver || now < s.next_s) continue;
-            s.next_s = now + s.period_s;
-            try {
-                s.driver->doProcess();
-            } catch (const std::exception& e) {
-                // A sensor that fails (unplugged camera, end of a recorded stream) is closed;
-                // the others go on, and the run ends when all are quiet.
-                std::cerr << "lookup-localize: " << live.sensors_ini << " [" << s.section
-                          << "]: sensor stopped: " << mrpt::exception_to_str(e).substr(0, 200)
-                          << "\n";
-                s.driver.reset();
-                continue;
-            }
-            mrpt::hwdrivers::CGenericSensor::TListObservations got;
-            s.driver->getObservations(got);
-            for (auto& [stamp, object] : got) {
-                auto obs = std::dynamic_pointer_cast<mrpt::obs::CObservation>(object);
-                if (s.camera && obs) common::applyCameraParams(*s.camera, *obs);
-            }
-            arrived.insert(got.begin(), got.end());
-        }
+        const auto arrived = pollDue(sensors, now, live.sensors_ini);
         if (arrived.empty()) {
             std::this_thread::sleep_for(std::chrono::milliseconds(1));
             session.tick();  // a stopped camera is noticed while nothing arrives
             continue;
         }
         last_data_s = now;
-        for (const auto& [stamp, object] : arrived) {
-            auto obs = std::dynamic_pointer_cast<mrpt::obs::CObservation>(object);
-            if (!obs) continue;
-            // Lateness: time since this batch was polled, i.e. spent on earlier observations.
-            session.feedClocked(obs, session.elapsed() - now, now);
-            session.progress(0);
-            if (session.done()) break;
-        }
+        feedBatch(session, arrived, now);
     }
     if (!stop_requested) session.flushClock();
     return session.finish();

@@ -117,10 +117,96 @@ double percentile(std::vector<double> v, double p) {
     return v[std::min(v.size() - 1, static_cast<std::size_t>(p * double(v.size())))];
 }
 
+// How well the index finds the truth, over the evaluated frames.
+struct PlaceScore {
+    // Right: within the SAD window of the truth; wrong: another place.
+    static constexpr double kRightM = 1.0, kWrongM = 2.0;
+
+    int frames = 0, scored = 0, top1_right = 0, top1_wrong = 0, any_right = 0, none = 0;
+    std::vector<double> ms, top1_error;
+    double features_ms = 0, search_ms = 0, geometry_ms = 0;
+
+    void addQuery(double query_ms, const PlaceQueryTimes& t) {
+        ms.push_back(query_ms);
+        features_ms += t.features_ms;
+        search_ms += t.search_ms;
+        geometry_ms += t.geometry_ms;
+    }
+
+    // A frame with ground truth: its candidates' vehicle poses, best first.
+    void addScored(const std::vector<mrpt::poses::CPose2D>& poses, const mrpt::poses::CPose3D& gt) {
+        ++scored;
+        if (poses.empty()) {
+            ++none;
+            return;
+        }
+        const auto err = [&](const mrpt::poses::CPose2D& p) {
+            return std::hypot(p.x() - gt.x(), p.y() - gt.y());
+        };
+        top1_error.push_back(err(poses.front()));
+        if (err(poses.front()) < kRightM) ++top1_right;
+        if (err(poses.front()) > kWrongM) ++top1_wrong;
+        if (std::any_of(poses.begin(), poses.end(), [&](auto& p) { return err(p) < kRightM; })) {
+            ++any_right;
+        }
+    }
+
+    double share(int n) const { return scored ? 100.0 * n / scored : 0.0; }
+    double meanMs() const {
+        return ms.empty() ? 0.0 : std::accumulate(ms.begin(), ms.end(), 0.0) / double(ms.size());
+    }
+};
+
+// The ceiling image rectified to the database's camera, in grey.
+cv::Mat ceilingGrey(const mrpt::obs::CObservationImage& img, const refine::Rectifier& rectifier) {
+    if (img.image.isExternallyStored()) img.image.forceLoad();
+    cv::Mat grey =
+        rectifier.rectify(img.image.asCvMat<cv::Mat>(mrpt::img::SHALLOW_COPY), img.cameraParams);
+    if (grey.channels() == 3) cv::cvtColor(grey, grey, cv::COLOR_BGR2GRAY);
+    return grey;
+}
+
+// The vehicle poses the index's candidates for one frame imply, best first.
+std::vector<mrpt::poses::CPose2D> candidatePoses(const PlaceIndex& index,
+                                                 const database::ReferenceDatabase& db,
+                                                 const QueryCamera& camera, const cv::Mat& grey,
+                                                 PlaceQueryTimes* t) {
+    std::vector<mrpt::poses::CPose2D> poses;
+    for (const auto& c : index.query(grey, t)) {
+        if (auto p = vehiclePose(c, db, camera)) poses.push_back(*p);
+    }
+    return poses;
+}
+
+std::string summaryLine(const PlaceScore& s, const std::string& rawlog, const PlaceIndex& index) {
+    char line[512];
+    std::snprintf(line, sizeof line,
+                  "%s: %d frames, %d scored: top-1 within 1 m %.1f %%, beyond 2 m %.1f %%, any "
+                  "candidate within 1 m %.1f %%, no candidate %.1f %%; top-1 error median %.3f m; "
+                  "query %.1f ms mean, %.1f ms "
+                  "p99; index %.1f MB, %zu features",
+                  rawlog.c_str(), s.frames, s.scored, s.share(s.top1_right),
+                  s.share(s.top1_wrong), s.share(s.any_right), s.share(s.none),
+                  percentile(s.top1_error, 0.5), s.meanMs(), percentile(s.ms, 0.99),
+                  index.memoryBytes() / 1e6, index.featureCount());
+    return line;
+}
+
+nlohmann::ordered_json scoreJson(const PlaceScore& s, double heap_mb) {
+    return {{"frames", s.frames},
+            {"scored", s.scored},
+            {"top1_right_pct", s.share(s.top1_right)},
+            {"top1_wrong_pct", s.share(s.top1_wrong)},
+            {"any_right_pct", s.share(s.any_right)},
+            {"none_pct", s.share(s.none)},
+            {"query_ms_mean", s.meanMs()},
+            {"query_ms_p99", percentile(s.ms, 0.99)},
+            {"heap_mb", heap_mb}};
+}
+
 }  // namespace
 
 int PlaceApp::evaluate() {
-    constexpr double kRightM = 1.0, kWrongM = 2.0;
     const auto db = database::ReferenceDatabase::load(db_dir_, 8);
     // Heap bytes the loaded index holds (its own estimate leaves out FLANN's allocator).
     const std::size_t heap_before = mallinfo2().uordblks;
@@ -129,85 +215,35 @@ int PlaceApp::evaluate() {
     const auto truth = common::makeInterpolator(common::readPoseFile(gt_file_), 1.0);
     common::RawlogReader reader(query_rawlog_);
     const refine::Rectifier rectifier(db.info().ceiling_camera);
+    PlaceScore score;
     mrpt::obs::CObservation::Ptr obs;
-    int frames = 0, scored = 0, top1_right = 0, top1_wrong = 0, any_right = 0, none = 0;
-    std::vector<double> ms, top1_error;
-    double tf_ms = 0, ts_ms = 0, tg_ms = 0;
     std::size_t ceiling_seen = 0;
     while (reader.next(obs)) {
         const auto* img = dynamic_cast<const mrpt::obs::CObservationImage*>(obs.get());
         if (!img || img->sensorLabel != db.info().ceiling_camera_label) continue;
         if (ceiling_seen++ % static_cast<std::size_t>(every_) != 0) continue;
-        ++frames;
-        if (img->image.isExternallyStored()) img->image.forceLoad();
-        cv::Mat grey = rectifier.rectify(img->image.asCvMat<cv::Mat>(mrpt::img::SHALLOW_COPY),
-                                         img->cameraParams);
-        if (grey.channels() == 3) cv::cvtColor(grey, grey, cv::COLOR_BGR2GRAY);
+        ++score.frames;
+        const cv::Mat grey = ceilingGrey(*img, rectifier);
         PlaceQueryTimes t;
         mrpt::system::CTicTac timer;
-        const auto candidates = index.query(grey, &t);
-        std::vector<mrpt::poses::CPose2D> poses;
         const QueryCamera camera{rectifier.target(), img->cameraPose};
-        for (const auto& c : candidates) {
-            if (auto p = vehiclePose(c, db, camera)) {
-                poses.push_back(*p);
-            }
-        }
-        ms.push_back(1e3 * timer.Tac());
-        tf_ms += t.features_ms;
-        ts_ms += t.search_ms;
-        tg_ms += t.geometry_ms;
+        const auto poses = candidatePoses(index, db, camera, grey, &t);
+        score.addQuery(1e3 * timer.Tac(), t);
         mrpt::poses::CPose3D gt;
         bool valid = false;
         truth.interpolate(img->timestamp, gt, valid);
-        if (!valid) continue;
-        ++scored;
-        if (poses.empty()) {
-            ++none;
-            continue;
-        }
-        const auto err = [&](const mrpt::poses::CPose2D& p) {
-            return std::hypot(p.x() - gt.x(), p.y() - gt.y());
-        };
-        top1_error.push_back(err(poses.front()));
-        // Right: within the SAD window of the truth; wrong: another place.
-        if (err(poses.front()) < kRightM) ++top1_right;
-        if (err(poses.front()) > kWrongM) ++top1_wrong;
-        if (std::any_of(poses.begin(), poses.end(), [&](auto& p) { return err(p) < kRightM; })) {
-            ++any_right;
-        }
+        if (valid) score.addScored(poses, gt);
     }
-    const auto share = [&](int n) { return scored ? 100.0 * n / scored : 0.0; };
-    char line[512];
-    std::snprintf(line, sizeof line,
-                  "%s: %d frames, %d scored: top-1 within 1 m %.1f %%, beyond 2 m %.1f %%, any "
-                  "candidate within 1 m %.1f %%, no candidate %.1f %%; top-1 error median %.3f m; "
-                  "query %.1f ms mean, %.1f ms "
-                  "p99; index %.1f MB, %zu features",
-                  query_rawlog_.c_str(), frames, scored, share(top1_right), share(top1_wrong),
-                  share(any_right), share(none), percentile(top1_error, 0.5),
-                  ms.empty() ? 0.0 : std::accumulate(ms.begin(), ms.end(), 0.0) / double(ms.size()),
-                  percentile(ms, 0.99), index.memoryBytes() / 1e6, index.featureCount());
-    std::cout << line << std::endl;
-    if (frames > 0) {
+    std::cout << summaryLine(score, query_rawlog_, index) << std::endl;
+    if (score.frames > 0) {
         std::printf(
             "per query: features %.2f ms, search %.2f ms, geometry %.2f ms; index heap "
             "%.1f MB\n",
-            tf_ms / frames, ts_ms / frames, tg_ms / frames, heap_mb);
+            score.features_ms / score.frames, score.search_ms / score.frames,
+            score.geometry_ms / score.frames, heap_mb);
     }
     if (!json_file_.empty()) {
-        const nlohmann::ordered_json j = {
-            {"frames", frames},
-            {"scored", scored},
-            {"top1_right_pct", share(top1_right)},
-            {"top1_wrong_pct", share(top1_wrong)},
-            {"any_right_pct", share(any_right)},
-            {"none_pct", share(none)},
-            {"query_ms_mean",
-             ms.empty() ? 0.0 : std::accumulate(ms.begin(), ms.end(), 0.0) / double(ms.size())},
-            {"query_ms_p99", percentile(ms, 0.99)},
-            {"heap_mb", heap_mb}};
-        common::writeFileAtomically(json_file_, j.dump() + "\n");
+        common::writeFileAtomically(json_file_, scoreJson(score, heap_mb).dump() + "\n");
     }
     return common::kExitOk;
 }

@@ -152,6 +152,111 @@ Correspondences collect(const EstimatorInput& in, double h0) {
     return c;
 }
 
+// 2-D rigid fit dst = R(yaw) src + t (closed form, Umeyama without scale): (t.x, t.y, yaw).
+Eigen::Vector3d rigidFit(const Eigen::Matrix2Xd& src, const Eigen::Matrix2Xd& dst) {
+    const Eigen::Vector2d src_mean = src.rowwise().mean(), dst_mean = dst.rowwise().mean();
+    double dot = 0.0, cross = 0.0;
+    for (Eigen::Index i = 0; i < src.cols(); ++i) {
+        const Eigen::Vector2d a = src.col(i) - src_mean, b = dst.col(i) - dst_mean;
+        dot += a.dot(b);
+        cross += a.x() * b.y() - a.y() * b.x();
+    }
+    const double yaw = std::atan2(cross, dot);
+    const Eigen::Vector2d t = dst_mean - Eigen::Rotation2Dd(yaw) * src_mean;
+    return {t.x(), t.y(), yaw};
+}
+
+// The query camera on the vehicle, as ReprojectionCost takes it.
+struct CameraMount {
+    explicit CameraMount(const mrpt::poses::CPose3D& on_vehicle)
+        : R(rotationOf(on_vehicle)), t(on_vehicle.x(), on_vehicle.y(), on_vehicle.z()) {}
+    Eigen::Matrix3d R;
+    Eigen::Vector3d t;
+};
+
+ReprojectionCost reprojection(const Correspondences& corr, std::size_t i, const EstimatorInput& in,
+                              const CameraMount& mount, double sigma_px) {
+    return ReprojectionCost(corr.As[i], corr.Bs[i], corr.qs[i], in.query_camera, mount.R, mount.t,
+                            in.vehicle_z, sigma_px, corr.motions[i]);
+}
+
+// One Huber-robust pixel residual per correspondence.
+void addReprojections(ceres::Problem& problem, const Correspondences& corr,
+                      const EstimatorInput& in, const EstimatorOptions& o,
+                      const CameraMount& mount, double* pose, double* h) {
+    const double huber = o.huber_loss_px / o.pixel_sigma_px;  // residuals are in sigmas
+    for (std::size_t i = 0; i < corr.qs.size(); ++i) {
+        auto* cost = new ceres::AutoDiffCostFunction<ReprojectionCost, 2, 5, 1>(
+            new ReprojectionCost(reprojection(corr, i, in, mount, o.pixel_sigma_px)));
+        problem.AddResidualBlock(cost, new ceres::HuberLoss(huber), pose, h);
+    }
+}
+
+// The priors on the ceiling height and on the tilt (pitch, roll).
+void addPrior(ceres::Problem& problem, const EstimatorInput& in, const EstimatorOptions& o,
+              double* pose, double* h) {
+    const double tilt_sigma = o.tilt_sigma_deg * M_PI / 180.0;
+    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<PriorCost, 3, 5, 1>(new PriorCost{
+                                 in.ceiling_height_m, in.prior_pitch_rad, in.prior_roll_rad,
+                                 1.0 / o.ceiling_height_sigma_m, 1.0 / tilt_sigma}),
+                             nullptr, pose, h);
+}
+
+void solve(ceres::Problem& problem, int max_iterations, ceres::Solver::Summary* summary) {
+    ceres::Solver::Options solver;
+    solver.linear_solver_type = ceres::DENSE_QR;
+    solver.max_num_iterations = max_iterations;
+    solver.num_threads = 1;
+    solver.logging_type = ceres::SILENT;
+    ceres::Solve(solver, &problem, summary);
+}
+
+// The covariance of (x, y, yaw, pitch, roll, h); false when rank deficient.
+bool jointCovariance(ceres::Problem& problem, const double* pose, const double* h,
+                     mrpt::math::CMatrixDouble66& out) {
+    ceres::Covariance::Options cov_options;
+    cov_options.num_threads = 1;
+    ceres::Covariance covariance(cov_options);
+    const std::vector<std::pair<const double*, const double*>> blocks = {
+        {pose, pose}, {pose, h}, {h, h}};
+    if (!covariance.Compute(blocks, &problem)) return false;
+    double c_pp[25], c_ph[5], c_hh[1];
+    covariance.GetCovarianceBlock(pose, pose, c_pp);
+    covariance.GetCovarianceBlock(pose, h, c_ph);
+    covariance.GetCovarianceBlock(h, h, c_hh);
+    for (int i = 0; i < 5; ++i) {
+        for (int j = 0; j < 5; ++j) out(i, j) = c_pp[i * 5 + j];
+        out(i, 5) = out(5, i) = c_ph[i];
+    }
+    out(5, 5) = c_hh[0];
+    return true;
+}
+
+// The solved pose and height into `out`, whose covariance is already set.
+void storeSolution(const EstimatorInput& in, const double* pose, const double* h,
+                   PoseEstimate& out) {
+    out.vehicle_in_map =
+        mrpt::poses::CPose3D(pose[0], pose[1], in.vehicle_z, pose[2], pose[3], pose[4]);
+    mrpt::math::CMatrixDouble33 c3;
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) c3(i, j) = out.covariance(i, j);
+    out.pose = mrpt::poses::CPosePDFGaussian(mrpt::poses::CPose2D(pose[0], pose[1], pose[2]), c3);
+    out.ceiling_height_m = h[0];
+    out.ceiling_height_sigma_m = std::sqrt(std::max(0.0, out.covariance(5, 5)));
+}
+
+// Root mean square of the unweighted pixel residuals at the solution.
+double rmsResidualPx(const Correspondences& corr, const EstimatorInput& in,
+                     const CameraMount& mount, const double* pose, const double* h) {
+    double sq = 0.0;
+    for (std::size_t i = 0; i < corr.qs.size(); ++i) {
+        double r[2];
+        reprojection(corr, i, in, mount, 1.0)(pose, h, r);
+        sq += r[0] * r[0] + r[1] * r[1];
+    }
+    return std::sqrt(sq / double(corr.qs.size()));
+}
+
 }  // namespace
 
 PoseEstimate estimateQueryPose(const EstimatorInput& in, const EstimatorOptions& o) {
@@ -161,97 +266,35 @@ PoseEstimate estimateQueryPose(const EstimatorInput& in, const EstimatorOptions&
         out.reason = "ceiling height prior is not finite";
         return out;
     }
-
     const Correspondences corr = collect(in, h0);
-    const auto& qs = corr.qs;
-    out.correspondences = int(qs.size());
+    out.correspondences = int(corr.qs.size());
     if (out.correspondences < o.min_inliers) {
         out.reason = "only " + std::to_string(out.correspondences) +
                      " usable correspondences (min_inliers = " + std::to_string(o.min_inliers) +
                      ")";
         return out;
     }
-    // 2-D rigid fit dst = R(yaw) src + t (closed form, Umeyama without scale).
-    const Eigen::Matrix2Xd &src = corr.src, &dst = corr.dst;
-    const Eigen::Vector2d src_mean = src.rowwise().mean(), dst_mean = dst.rowwise().mean();
-    double dot = 0.0, cross = 0.0;
-    for (Eigen::Index i = 0; i < src.cols(); ++i) {
-        const Eigen::Vector2d a = src.col(i) - src_mean, b = dst.col(i) - dst_mean;
-        dot += a.dot(b);
-        cross += a.x() * b.y() - a.y() * b.x();
-    }
-    const double yaw0 = std::atan2(cross, dot);
-    const Eigen::Vector2d t0 = dst_mean - Eigen::Rotation2Dd(yaw0) * src_mean;
-    double pose[5] = {t0.x(), t0.y(), yaw0, in.prior_pitch_rad, in.prior_roll_rad};
+    const Eigen::Vector3d start = rigidFit(corr.src, corr.dst);
+    double pose[5] = {start.x(), start.y(), start.z(), in.prior_pitch_rad, in.prior_roll_rad};
     double h[1] = {h0};
 
     ceres::Problem problem;
-    const Eigen::Matrix3d R_cv = rotationOf(in.query_camera_on_vehicle);
-    const Eigen::Vector3d t_cv(in.query_camera_on_vehicle.x(), in.query_camera_on_vehicle.y(),
-                               in.query_camera_on_vehicle.z());
-    const double huber = o.huber_loss_px / o.pixel_sigma_px;  // residuals are in sigmas
-    for (std::size_t i = 0; i < qs.size(); ++i) {
-        auto* cost = new ceres::AutoDiffCostFunction<ReprojectionCost, 2, 5, 1>(
-            new ReprojectionCost(corr.As[i], corr.Bs[i], qs[i], in.query_camera, R_cv, t_cv,
-                                 in.vehicle_z, o.pixel_sigma_px, corr.motions[i]));
-        problem.AddResidualBlock(cost, new ceres::HuberLoss(huber), pose, h);
-    }
-    const double tilt_sigma = o.tilt_sigma_deg * M_PI / 180.0;
-    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<PriorCost, 3, 5, 1>(
-                                 new PriorCost{h0, in.prior_pitch_rad, in.prior_roll_rad,
-                                               1.0 / o.ceiling_height_sigma_m, 1.0 / tilt_sigma}),
-                             nullptr, pose, h);
-
-    ceres::Solver::Options solver;
-    solver.linear_solver_type = ceres::DENSE_QR;
-    solver.max_num_iterations = o.max_iterations;
-    solver.num_threads = 1;
-    solver.logging_type = ceres::SILENT;
+    const CameraMount mount(in.query_camera_on_vehicle);
+    addReprojections(problem, corr, in, o, mount, pose, h);
+    addPrior(problem, in, o, pose, h);
     ceres::Solver::Summary summary;
-    ceres::Solve(solver, &problem, &summary);
+    solve(problem, o.max_iterations, &summary);
     out.iterations = int(summary.iterations.size());
     if (!summary.IsSolutionUsable()) {
         out.reason = "Ceres: " + summary.message;
         return out;
     }
-
-    ceres::Covariance::Options cov_options;
-    cov_options.num_threads = 1;
-    ceres::Covariance covariance(cov_options);
-    const std::vector<std::pair<const double*, const double*>> blocks = {
-        {pose, pose}, {pose, h}, {h, h}};
-    if (!covariance.Compute(blocks, &problem)) {
+    if (!jointCovariance(problem, pose, h, out.covariance)) {
         out.reason = "Ceres covariance is rank deficient (pose not observable from the matches)";
         return out;
     }
-    double c_pp[25], c_ph[5], c_hh[1];
-    covariance.GetCovarianceBlock(pose, pose, c_pp);
-    covariance.GetCovarianceBlock(pose, h, c_ph);
-    covariance.GetCovarianceBlock(h, h, c_hh);
-    for (int i = 0; i < 5; ++i) {
-        for (int j = 0; j < 5; ++j) out.covariance(i, j) = c_pp[i * 5 + j];
-        out.covariance(i, 5) = out.covariance(5, i) = c_ph[i];
-    }
-    out.covariance(5, 5) = c_hh[0];
-
-    out.vehicle_in_map =
-        mrpt::poses::CPose3D(pose[0], pose[1], in.vehicle_z, pose[2], pose[3], pose[4]);
-    mrpt::math::CMatrixDouble33 c3;
-    for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j) c3(i, j) = out.covariance(i, j);
-    out.pose = mrpt::poses::CPosePDFGaussian(mrpt::poses::CPose2D(pose[0], pose[1], pose[2]), c3);
-    out.ceiling_height_m = h[0];
-    out.ceiling_height_sigma_m = std::sqrt(std::max(0.0, c_hh[0]));
-
-    double sq = 0.0;
-    for (std::size_t i = 0; i < qs.size(); ++i) {
-        ReprojectionCost f(corr.As[i], corr.Bs[i], qs[i], in.query_camera, R_cv, t_cv, in.vehicle_z,
-                           1.0, corr.motions[i]);
-        double r[2];
-        f(pose, h, r);
-        sq += r[0] * r[0] + r[1] * r[1];
-    }
-    out.rms_residual_px = std::sqrt(sq / double(qs.size()));
+    storeSolution(in, pose, h, out);
+    out.rms_residual_px = rmsResidualPx(corr, in, mount, pose, h);
     out.ok = true;
     return out;
 }
