@@ -143,7 +143,7 @@ TEST(Scenario, PhysicallyImpossibleSensorValuesAreRefusedNamingTheKey) {
         {"lidar", "dust_rate = -0.1", "lidar.dust_rate"},
         {"odometry", "slip_fraction = -0.2", "odometry.slip_fraction"},
         {"ceiling_camera", "distortion = barrel", "ceiling_camera.distortion"},
-        {"ceiling_camera", "stamp_row = last", "ceiling_camera.stamp_row"},
+        {"ceiling_camera", "stamp_row = last", "[ceiling_camera] stamp_row"},
         {"ceiling_camera", "jitter_ms = 50", "ceiling_camera.jitter_ms"},
         {"lidar", "sweep_ms = 150", "lidar.sweep_ms"},
         {"traverse_3", "direction = sideways", "traverse_3.direction"},

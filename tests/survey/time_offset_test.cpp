@@ -110,7 +110,7 @@ TEST(TimeOffset, ARollingShutterOffsetRefersToTheStampedRow) {
     EXPECT_EQ(middle.source, "estimated") << middle.warning;
     EXPECT_NEAR(middle.offset_s, -0.025, 0.004);
     o.ceiling_readout_ms = 30;
-    o.ceiling_stamp_row = "first";
+    o.ceiling_stamp_row = common::StampRow::First;
     const auto first = estimate(d, o);
     EXPECT_EQ(first.source, "estimated") << first.warning;
     EXPECT_NEAR(first.offset_s, -0.040, 0.004);

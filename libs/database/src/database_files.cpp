@@ -56,6 +56,15 @@ void readCamera(const mrpt::config::CConfigFileBase& cfg, const std::string& pat
     }
 }
 
+// db.ini's ceiling_stamp_row ("first" when absent, as older databases have it).
+common::StampRow stampRowOf(const common::IniSection& db) {
+    const std::string name = db.getString("ceiling_stamp_row", "first");
+    for (const auto& [known, row] : common::stampRowNames()) {
+        if (name == known) return row;
+    }
+    throw DatabaseError(db.where("ceiling_stamp_row") + "'" + name + "' is not first or middle");
+}
+
 }  // namespace
 
 DatabaseInfo readDatabaseInfo(const std::string& path) {
@@ -89,11 +98,7 @@ DatabaseInfo readDatabaseInfo(const std::string& path) {
         info.map_file = db.getString("map", "");
         info.source_rawlogs = split(db.getString("source_rawlogs", ""));
         info.ceiling_readout_ms = db.getDouble("ceiling_readout_ms", 0.0, 0.0, 999.999);
-        info.ceiling_stamp_row = db.getString("ceiling_stamp_row", "first");
-        if (info.ceiling_stamp_row != "first" && info.ceiling_stamp_row != "middle") {
-            throw DatabaseError(db.where("ceiling_stamp_row") + "'" + info.ceiling_stamp_row +
-                                "' is not first or middle");
-        }
+        info.ceiling_stamp_row = stampRowOf(db);
         common::IniSection heat(cfg, "heatmaps", path);
         info.heatmaps_dir = heat.getString("directory", "");
     } catch (const common::ConfigError& e) {
@@ -119,7 +124,8 @@ void writeDatabaseInfo(const std::string& path, const DatabaseInfo& info) {
     cfg.write("database", "source_rawlogs", join(info.source_rawlogs));
     if (info.ceiling_readout_ms > 0) {
         cfg.write("database", "ceiling_readout_ms", info.ceiling_readout_ms);
-        cfg.write("database", "ceiling_stamp_row", info.ceiling_stamp_row);
+        cfg.write("database", "ceiling_stamp_row",
+                  common::enumName(common::stampRowNames(), info.ceiling_stamp_row));
     }
     info.ceiling_camera.saveToConfigFile("ceiling_camera", cfg);
     info.forward_camera.saveToConfigFile("forward_camera", cfg);

@@ -489,7 +489,8 @@ refine::RowTiming Localizer::surveyRowTiming(std::size_t index, int rows) const 
     refine::RowTiming t;
     t.readout_s = 1e-3 * db_.info().ceiling_readout_ms;
     t.rows = rows;
-    t.stamp_row = db_.info().ceiling_stamp_row == "middle" ? 0.5 * (rows - 1) : 0.0;
+    t.stamp_row =
+        db_.info().ceiling_stamp_row == common::StampRow::Middle ? 0.5 * (rows - 1) : 0.0;
     // The survey vehicle's velocity from the neighbouring references of its traverse.
     const auto& ref = db_.reference(index);
     const auto neighbour = [&](std::size_t j) {

@@ -21,8 +21,6 @@ const common::EnumNames<SubpixelMethod> kSubpixelMethods = {
     {"parabola", SubpixelMethod::Parabola},
     {"equiangular", SubpixelMethod::Equiangular}};
 
-const common::EnumNames<StampRow> kStampRows = {{"first", StampRow::First},
-                                                {"middle", StampRow::Middle}};
 
 }  // namespace
 
@@ -87,7 +85,7 @@ void AcceptanceOptions::declareKeys(OptionsTable& t) {
 
 void RollingShutterOptions::declareKeys(OptionsTable& t) {
     t.add("readout_ms", readout_ms);
-    t.add("stamp_row", stamp_row, kStampRows);
+    t.add("stamp_row", stamp_row, common::stampRowNames());
 }
 
 // ---------------------------------------------------------------- checks

@@ -130,7 +130,7 @@ OptionsTable cameraKeys(CameraOptions& c) {
     t.add("dist_k3", c.dist_k3);
     t.add("dist_k4", c.dist_k4);
     t.add("readout_ms", c.readout_ms);
-    t.add("stamp_row", c.stamp_row);
+    t.add("stamp_row", c.stamp_row, common::stampRowNames());
     addTiming(t, c.timing);
     t.add("response_gamma", c.response_gamma);
     t.add("response_knee_dn", c.response_knee_dn);
@@ -236,8 +236,6 @@ void checkCameraEffects(common::OptionsCheck& c, const CameraOptions& cam, const
     c.require(cam.readout_ms >= 0 && cam.readout_ms < 1000 / cam.rate_hz, p + ".readout_ms",
               "in [0, frame period " + std::to_string(1000 / cam.rate_hz) +
                   " ms): rows are read within one frame");
-    c.require(cam.stamp_row == "first" || cam.stamp_row == "middle", p + ".stamp_row",
-              "first or middle");
     checkTiming(c, cam.timing, p, cam.rate_hz);
     c.require(cam.response_gamma >= 0.2 && cam.response_gamma <= 5, p + ".response_gamma",
               "in [0.2, 5]");

@@ -111,7 +111,7 @@ bool inDropout(const OdometryOptions& o, double t, uint32_t seed) {
 std::vector<mrpt::poses::CPose3D> rowPoses(const common::PoseTrack& track, const CameraOptions& cam,
                                            const mrpt::poses::CPose3D& on_vehicle, double t_abs) {
     const double readout = 1e-3 * cam.readout_ms;
-    const double t_first = t_abs - (cam.stamp_row == "middle" ? readout / 2 : 0.0);
+    const double t_first = t_abs - (cam.stamp_row == common::StampRow::Middle ? readout / 2 : 0.0);
     std::vector<mrpt::poses::CPose3D> poses;
     poses.reserve(cam.height_px);
     for (int v = 0; v < cam.height_px; ++v) {

@@ -41,7 +41,7 @@ void SurveyOptions::declareKeys(common::OptionsTable& t) {
     t.add("ceiling_time_offset_s", ceiling_time_offset_s, -1.0, 1.0);
     t.add("forward_time_offset_s", forward_time_offset_s, -1.0, 1.0);
     t.add("ceiling_readout_ms", ceiling_readout_ms, 0.0, 999.999);
-    t.add("ceiling_stamp_row", ceiling_stamp_row);
+    t.add("ceiling_stamp_row", ceiling_stamp_row, common::stampRowNames());
     t.add("time_offset_estimate", time_offset_estimate);
     t.add("time_offset_max_s", time_offset_max_s, common::kPositive, 1.0);
     t.add("time_offset_baseline_m", time_offset_baseline_m, common::kPositive, 5.0);
@@ -78,8 +78,6 @@ void SurveyOptions::check() const {
     c.require(start_pose.empty() || parseStartPose(start_pose).has_value(), "start_pose",
               "three numbers: x y yaw_deg");
     c.require(icp_max_range_m >= 0, "icp_max_range_m", ">= 0 (0 = no limit)");
-    c.require(ceiling_stamp_row == "first" || ceiling_stamp_row == "middle", "ceiling_stamp_row",
-              "first or middle");
     c.throwIfFailed();
 }
 

@@ -377,7 +377,7 @@ std::string notEstimated(const TimeOffsetEstimate& e, const std::string& why) {
 // The image motion of a pair is that of the rows' mean exposure, the middle row's; with a
 // rolling shutter the stamp refers to ceiling_stamp_row, this much earlier [s].
 double middleRowLag(const SurveyOptions& o) {
-    return o.ceiling_stamp_row == "first" ? 0.5e-3 * o.ceiling_readout_ms : 0.0;
+    return o.ceiling_stamp_row == common::StampRow::First ? 0.5e-3 * o.ceiling_readout_ms : 0.0;
 }
 
 }  // namespace

@@ -11,6 +11,8 @@
 #include <string>
 #include <vector>
 
+#include "lookup/common/stamp_row.h"
+
 namespace lookup::database {
 
 /// File names inside a database folder.
@@ -69,7 +71,7 @@ struct DatabaseInfo {
     /// last row [ms], 0 = a global shutter; and the row its stamp (offset applied) refers to,
     /// "first" or "middle". db.ini lists them only for a rolling shutter.
     double ceiling_readout_ms = 0;
-    std::string ceiling_stamp_row = "first";
+    common::StampRow ceiling_stamp_row = common::StampRow::First;
     std::vector<std::string> source_rawlogs;  ///< absolute paths of the survey rawlogs
     std::string pose_source;                  ///< "laser" (ICP-SLAM + MCL) or "file:<path>"
     std::string map_file;                     ///< map file name in the folder ("" if none)

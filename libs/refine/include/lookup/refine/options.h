@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "lookup/common/options_table.h"
+#include "lookup/common/stamp_row.h"
 
 namespace lookup::refine {
 
@@ -168,10 +169,7 @@ struct AcceptanceOptions : public common::TableOptions<AcceptanceOptions> {
 };
 
 /// The row the query camera's stamp (after the localiser's [time_offsets]) refers to.
-enum class StampRow {
-    First,  ///< V4L2 / UVC drivers stamp at the start of the frame
-    Middle  ///< the central row (a camera offset set to the central row's time)
-};
+using StampRow = common::StampRow;
 
 /// The query ceiling camera's rolling shutter (rolling_shutter.h), section
 /// `<prefix>.rolling_shutter`. With a readout and the vehicle's velocity in the hint, every

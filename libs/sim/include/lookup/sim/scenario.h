@@ -11,6 +11,8 @@
 #include <string>
 #include <vector>
 
+#include "lookup/common/stamp_row.h"
+
 namespace lookup::sim {
 
 /// A sensor's mounting pose on the vehicle (vehicle frame: +x forward, +y left, +z up, origin on
@@ -128,7 +130,7 @@ struct CameraOptions {
     double dist_k1 = 0, dist_k2 = 0, dist_p1 = 0, dist_p2 = 0, dist_k3 = 0, dist_k4 = 0;
     /// Rolling shutter: time from the first row's exposure to the last row's, 0 = global [ms].
     double readout_ms = 0;
-    std::string stamp_row = "first";  ///< row the time stamp refers to: "first" or "middle"
+    common::StampRow stamp_row = common::StampRow::First;  ///< row the time stamp refers to
     SensorTiming timing;
     double response_gamma = 1;         ///< output = linear^(1/gamma) (1: linear response)
     double response_knee_dn = 0;       ///< knee point, above it the slope drops, 0 = none [DN]

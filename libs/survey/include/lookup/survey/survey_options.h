@@ -13,6 +13,7 @@
 #include <string>
 
 #include "lookup/common/options_table.h"
+#include "lookup/common/stamp_row.h"
 
 namespace lookup::survey {
 
@@ -62,7 +63,7 @@ struct SurveyOptions : public common::TableOptions<SurveyOptions> {
     /// "middle"): stored in the database, where the localiser sees each reference's rows from
     /// the survey vehicle's poses at their times.
     double ceiling_readout_ms = 0;
-    std::string ceiling_stamp_row = "first";
+    common::StampRow ceiling_stamp_row = common::StampRow::First;
     bool time_offset_estimate = true;     ///< estimate the ceiling camera's offset from the images
     double time_offset_max_s = 0.2;       ///< search range around the configured offset [s]
     double time_offset_baseline_m = 0.5;  ///< travel between the two images of a pair [m]
