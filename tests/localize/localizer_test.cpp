@@ -271,6 +271,31 @@ TEST(Localize, FixesThatKeepDisagreeingWithOdometryDropTheTrack) {
               1u);
 }
 
+TEST(Localize, PastTheTrackingGapOdometryFromTheLastFixStaysTheFallback) {
+    const auto dir = lookup::test::freshDir("lookup_localize_dead_reckoning");
+    // From frame 5 on (1.5 s, past the 1 s tracking gap) a ceiling too flat to match, as in a
+    // place the survey never entered; the coarse poses are 0.72 m off with their 2 m sigma.
+    const int frames = 20;
+    auto req = planarRun(
+        dir,
+        [](int i, mrpt::obs::CObservationImage& img, mrpt::obs::CObservationOdometry&) {
+            if (i < 5) return;
+            img.image = mrpt::img::CImage(cv::Mat(240, 320, CV_8UC1, cv::Scalar(128)),
+                                          mrpt::img::DEEP_COPY);
+        },
+        frames);
+    localize::runLocalization(req);
+    const auto run = eval::loadRun(req.out_dir);
+    ASSERT_EQ(run.frames.size(), std::size_t(frames));
+    ASSERT_EQ(run.frames[4].status, "refined") << run.frames[4].reason;
+    for (int i = 16; i < frames; ++i) {  // more than 1 s after the last fix
+        const auto& f = run.frames[i];
+        ASSERT_EQ(f.status, "fallback") << i << ": " << f.reason;
+        EXPECT_LT(std::hypot(f.x - (-5 + 0.3 * i), f.y - 0.4), 0.1) << i;
+        EXPECT_LT(f.cov_xx, 1.0) << i;  // not the coarse pose's 2 m
+    }
+}
+
 TEST(Localize, RunsAreNamedAfterTheirSamplerAndMatcher) {
     refine::RefinerOptions o;
     o.sampler.mode = refine::SamplingMode::Auto;

@@ -319,8 +319,14 @@ void Localizer::processOdometry(const mrpt::obs::CObservation& obs) {
         travelled_since_forward_ += (odo->odometry - odometry_.lastPose()).translation().norm();
     }
     odometry_.add(t, odo->odometry);
-    // Keep what a prediction can need: back to the last fix (bounded by the tracking gap).
-    odometry_.forgetBefore(t - 2 * options_.max_tracking_gap_s - 1.0);
+    // Keep what dead reckoning can need: back to the last fix (bounded by the tracking gap, or
+    // by max_dead_reckoning_s).
+    double keep_from = t - 2 * options_.max_tracking_gap_s - 1.0;
+    if (last_fix_) {
+        keep_from = std::min(keep_from, std::max(last_fix_->time_s - 1.0,
+                                                 t - options_.max_dead_reckoning_s - 1.0));
+    }
+    odometry_.forgetBefore(keep_from);
 }
 
 std::optional<common::OdometryTrack::Pose> Localizer::odometryAt(double t) const {
@@ -341,6 +347,12 @@ std::optional<refine::VehicleMotion> Localizer::velocityAt(double t) const {
 
 std::optional<Localizer::Prediction> Localizer::predict(double t) const {
     if (!last_fix_ || t - last_fix_->time_s > options_.max_tracking_gap_s) return std::nullopt;
+    return deadReckon(t);
+}
+
+std::optional<Localizer::Prediction> Localizer::deadReckon(double t) const {
+    const double gap = std::max(options_.max_tracking_gap_s, options_.max_dead_reckoning_s);
+    if (!last_fix_ || t - last_fix_->time_s > gap) return std::nullopt;
     const auto odo_now = odometryAt(t), odo_fix = odometryAt(last_fix_->time_s);
     if (!odo_now || !odo_fix) {
         // Without odometry the previous fix is the prediction, the vehicle's motion since then
@@ -911,10 +923,10 @@ void Localizer::emit(const Attempt& a, const std::optional<Prediction>& predicti
     }
     out.status = FrameStatus::Fallback;
     out.reason = a.result ? a.result->reason : "no references to refine against";
-    if (prediction) {
+    if (const auto dead_reckoned = deadReckonedFallback(prediction, out)) {
         out.has_pose = true;
         out.pose_source = "prediction";
-        out.pose = refiner_.acceptance().deadReckoned(prediction->pose, prediction->motion);
+        out.pose = *dead_reckoned;
     } else if (out.coarse_pose) {
         out.has_pose = true;
         out.pose_source = "coarse";
@@ -925,6 +937,25 @@ void Localizer::emit(const Attempt& a, const std::optional<Prediction>& predicti
                                   : "no coarse match yet";
         out.reason += a.note;
     }
+}
+
+std::optional<mrpt::poses::CPosePDFGaussian> Localizer::deadReckonedFallback(
+    const std::optional<Prediction>& prediction, const FrameResult& out) const {
+    const auto& policy = refiner_.acceptance();
+    if (prediction) return policy.deadReckoned(prediction->pose, prediction->motion);
+    if (!options_.use_tracking) return std::nullopt;
+    const auto dead = deadReckon(out.time_s);
+    if (!dead || !dead->motion.velocity_known) return std::nullopt;
+    auto pose = policy.deadReckoned(dead->pose, dead->motion);
+    // A coarse pose is the forward camera's guess of a place; odometry from a fix is better
+    // evidence until its uncertainty has grown past the guess's.
+    if (out.coarse_pose) {
+        const auto coarse = policy.fallback(*out.coarse_pose);
+        if (pose.cov(0, 0) + pose.cov(1, 1) >= coarse.cov(0, 0) + coarse.cov(1, 1)) {
+            return std::nullopt;
+        }
+    }
+    return pose;
 }
 
 mrpt::math::CMatrixDouble33 Localizer::surveyCovariance(

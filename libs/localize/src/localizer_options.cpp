@@ -17,6 +17,7 @@ void LocalizerOptions::declareKeys(common::OptionsTable& t) {
     t.add("references_per_query", references_per_query, 1, 1000);
     t.add("use_tracking", use_tracking);
     t.add("max_tracking_gap_s", max_tracking_gap_s, common::kPositive);
+    t.add("max_dead_reckoning_s", max_dead_reckoning_s, 0.0);
     t.add("odometry_timeout_s", odometry_timeout_s, common::kPositive);
     t.add("acquisition_radius_m", acquisition_radius_m, 0.0);
     t.add("acquisition_step_m", acquisition_step_m, common::kPositive);

@@ -186,7 +186,14 @@ class Localizer {
     /// reported poses.
     std::vector<CoarseFix> startupSeeds() const;
     std::optional<CoarseFix> fixFromMatch(const coarse::CoarseResult& match) const;
+    /// The last fix moved by the odometry since, within max_tracking_gap_s of it (tracking).
     std::optional<Prediction> predict(double time_s) const;
+    /// The same without the tracking gap, within max_dead_reckoning_s: the fallback pose.
+    std::optional<Prediction> deadReckon(double time_s) const;
+    /// The fallback pose from odometry: the prediction, or past the tracking gap the dead
+    /// reckoning while it is more certain than the coarse pose `out` has (if any).
+    std::optional<mrpt::poses::CPosePDFGaussian> deadReckonedFallback(
+        const std::optional<Prediction>& prediction, const FrameResult& out) const;
     std::optional<common::OdometryTrack::Pose> odometryAt(double time_s) const;
     /// The vehicle's velocity from the odometry just before `time_s` (rolling shutter).
     std::optional<refine::VehicleMotion> velocityAt(double time_s) const;

@@ -27,6 +27,10 @@ struct LocalizerOptions : public common::TableOptions<LocalizerOptions> {
     bool use_tracking = true;
     /// A fix older than this (in time without a new fix) is not used to predict [s].
     double max_tracking_gap_s = 1.0;
+    /// Past max_tracking_gap_s the fallback pose stays the last fix dead-reckoned with the
+    /// odometry for up to this long, while its uncertainty is below the coarse pose's (a
+    /// vehicle in a place the survey never entered, a stop under a bare ceiling) [s].
+    double max_dead_reckoning_s = 60.0;
     /// No odometry reading for this long is a dropout: the coarse stage matches without
     /// odometry and predictions are extrapolated with a growing uncertainty [s].
     double odometry_timeout_s = 0.2;
