@@ -266,8 +266,9 @@ TEST(Localize, FixesThatKeepDisagreeingWithOdometryDropTheTrack) {
         return dropped;
     };
     EXPECT_EQ(drops("default", "[localizer]\n"), 0u);
-    EXPECT_GE(drops("tight", "[localizer]\ntrack_disagreement_m = 0.02\n"
-                             "track_disagreement_per_m = 0\n"),
+    EXPECT_GE(drops("tight",
+                    "[localizer]\ntrack_disagreement_m = 0.02\n"
+                    "track_disagreement_per_m = 0\n"),
               1u);
 }
 

@@ -398,8 +398,8 @@ TEST(Operations, RollingShutterRowsAreExposedAfterTheStampedRow) {
         ScenarioOptions sc = quickScenario();
         lookup::sim::CameraOptions& cam = sc.ceiling_camera;
         cam.readout_ms = 35;
-        cam.stamp_row = ref == "first" ? lookup::common::StampRow::First
-                                       : lookup::common::StampRow::Middle;
+        cam.stamp_row =
+            ref == "first" ? lookup::common::StampRow::First : lookup::common::StampRow::Middle;
         cam.noise_std_dn = 0;
         cam.exposure_variation = 0;
         cam.exposure_ms = 0;

@@ -19,7 +19,7 @@ namespace fs = std::filesystem;
 namespace {
 
 struct Run {
-    int code = -1;  ///< exit code; >= 128: killed by a signal; 124: timed out
+    int code = -1;    ///< exit code; >= 128: killed by a signal; 124: timed out
     std::string log;  ///< stdout and stderr together
 };
 

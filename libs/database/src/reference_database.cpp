@@ -61,9 +61,8 @@ mrpt::img::TCamera ceilingCameraOf(const obs::CObservationLookupReference& rec,
 }
 
 // One reference from its record; `where` ("<rawlog>: record <n>: ") prefixes every error.
-Reference referenceFromRecord(const obs::CObservationLookupReference& rec,
-                              const DatabaseInfo& info, const std::string& images_dir,
-                              const std::string& where) {
+Reference referenceFromRecord(const obs::CObservationLookupReference& rec, const DatabaseInfo& info,
+                              const std::string& images_dir, const std::string& where) {
     Reference r;
     r.id = rec.reference_id;
     r.traverse = rec.traverse;

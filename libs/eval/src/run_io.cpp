@@ -139,8 +139,8 @@ void readFrames(const std::string& csv, Run& run) {
         FrameRow r = parseRow(row);
         if (dropNonFinite(r)) ++run.non_finite_rows;
         r.inlier_share = row.numberOrZero("inlier_share");
-        r.references = row.cell("references").empty() ? 0
-                                                      : static_cast<int>(row.number("references"));
+        r.references =
+            row.cell("references").empty() ? 0 : static_cast<int>(row.number("references"));
         r.ms = row.numberOrZero("ms");
         run.frames.push_back(std::move(r));
     }

@@ -77,9 +77,9 @@ std::string joined(const std::vector<std::string>& rawlogs) {
 database::ReferenceDatabase loadDatabase(const std::string& db_dir, const LabelOptions& o) {
     auto db = database::ReferenceDatabase::load(db_dir);
     if (db.size() < std::size_t(o.min_references)) {
-        throw std::runtime_error(db_dir + ": only " + std::to_string(db.size()) +
-                                 " references (fcn.labels min_references = " +
-                                 std::to_string(o.min_references) + ")");
+        throw std::runtime_error(
+            db_dir + ": only " + std::to_string(db.size()) +
+            " references (fcn.labels min_references = " + std::to_string(o.min_references) + ")");
     }
     return db;
 }

@@ -611,8 +611,8 @@ void pollSensor(LiveSensor& s, const std::string& sensors_ini,
 
 // What every sensor that is due at `now` delivers, in time order.
 mrpt::hwdrivers::CGenericSensor::TListObservations pollDue(std::vector<LiveSensor>& sensors,
-                                                          double now,
-                                                          const std::string& sensors_ini) {
+                                                           double now,
+                                                           const std::string& sensors_ini) {
     mrpt::hwdrivers::CGenericSensor::TListObservations arrived;
     for (auto& s : sensors) {
         if (!s.driver || now < s.next_s) continue;

@@ -323,8 +323,8 @@ void Localizer::processOdometry(const mrpt::obs::CObservation& obs) {
     // by max_dead_reckoning_s).
     double keep_from = t - 2 * options_.max_tracking_gap_s - 1.0;
     if (last_fix_) {
-        keep_from = std::min(keep_from, std::max(last_fix_->time_s - 1.0,
-                                                 t - options_.max_dead_reckoning_s - 1.0));
+        keep_from = std::min(
+            keep_from, std::max(last_fix_->time_s - 1.0, t - options_.max_dead_reckoning_s - 1.0));
     }
     odometry_.forgetBefore(keep_from);
 }
@@ -501,8 +501,7 @@ refine::RowTiming Localizer::surveyRowTiming(std::size_t index, int rows) const 
     refine::RowTiming t;
     t.readout_s = 1e-3 * db_.info().ceiling_readout_ms;
     t.rows = rows;
-    t.stamp_row =
-        db_.info().ceiling_stamp_row == common::StampRow::Middle ? 0.5 * (rows - 1) : 0.0;
+    t.stamp_row = db_.info().ceiling_stamp_row == common::StampRow::Middle ? 0.5 * (rows - 1) : 0.0;
     // The survey vehicle's velocity from the neighbouring references of its traverse.
     const auto& ref = db_.reference(index);
     const auto neighbour = [&](std::size_t j) {

@@ -185,10 +185,9 @@ std::string summaryLine(const PlaceScore& s, const std::string& rawlog, const Pl
                   "candidate within 1 m %.1f %%, no candidate %.1f %%; top-1 error median %.3f m; "
                   "query %.1f ms mean, %.1f ms "
                   "p99; index %.1f MB, %zu features",
-                  rawlog.c_str(), s.frames, s.scored, s.share(s.top1_right),
-                  s.share(s.top1_wrong), s.share(s.any_right), s.share(s.none),
-                  percentile(s.top1_error, 0.5), s.meanMs(), percentile(s.ms, 0.99),
-                  index.memoryBytes() / 1e6, index.featureCount());
+                  rawlog.c_str(), s.frames, s.scored, s.share(s.top1_right), s.share(s.top1_wrong),
+                  s.share(s.any_right), s.share(s.none), percentile(s.top1_error, 0.5), s.meanMs(),
+                  percentile(s.ms, 0.99), index.memoryBytes() / 1e6, index.featureCount());
     return line;
 }
 

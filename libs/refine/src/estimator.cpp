@@ -182,8 +182,8 @@ ReprojectionCost reprojection(const Correspondences& corr, std::size_t i, const 
 
 // One Huber-robust pixel residual per correspondence.
 void addReprojections(ceres::Problem& problem, const Correspondences& corr,
-                      const EstimatorInput& in, const EstimatorOptions& o,
-                      const CameraMount& mount, double* pose, double* h) {
+                      const EstimatorInput& in, const EstimatorOptions& o, const CameraMount& mount,
+                      double* pose, double* h) {
     const double huber = o.huber_loss_px / o.pixel_sigma_px;  // residuals are in sigmas
     for (std::size_t i = 0; i < corr.qs.size(); ++i) {
         auto* cost = new ceres::AutoDiffCostFunction<ReprojectionCost, 2, 5, 1>(

@@ -21,7 +21,6 @@ const common::EnumNames<SubpixelMethod> kSubpixelMethods = {
     {"parabola", SubpixelMethod::Parabola},
     {"equiangular", SubpixelMethod::Equiangular}};
 
-
 }  // namespace
 
 // The keys of each section, in file order; checks below.
