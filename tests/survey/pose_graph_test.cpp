@@ -6,7 +6,7 @@
 
 #include <cmath>
 
-#include "../sim/test_worlds.h"
+#include "lidar_drives.h"
 #include "lookup/common/config.h"
 #include "lookup/common/options_table.h"
 #include "lookup/sim/simulator.h"
@@ -14,66 +14,11 @@
 #include "lookup/survey/pose_graph.h"
 
 using namespace lookup::survey;
+using lookup::test::bentTunnel;
+using lookup::test::drive;
+using lookup::test::Drive;
 
 namespace {
-
-/// A 160 m tunnel with 8 deg bends, rough walls and niches as in the presets, no furniture.
-lookup::sim::WorldOptions bentTunnel() {
-    lookup::sim::WorldOptions w = lookup::sim::testing::straightTunnel(false);
-    const lookup::sim::WorldOptions preset;
-    w.length_m = 160;
-    w.segment_length_m = 40;
-    w.bend_max_deg = 8;
-    w.wall_roughness_m = preset.wall_roughness_m;
-    w.niche_spacing_m = preset.niche_spacing_m;
-    return w;
-}
-
-struct Drive {
-    TraverseData data;
-    lookup::common::PoseTrack truth;     ///< vehicle pose at each scan
-    lookup::common::PoseTrack odometry;  ///< dead reckoning at each scan, from the true start
-};
-
-/// A drive along the route at `lateral_m` from the centre line, a scan every `step_m`, with
-/// wheel odometry that is 1 % long and turns 0.05 deg per metre too far.
-Drive drive(const lookup::sim::TunnelWorld& world, double lateral_m, double t0, uint32_t seed) {
-    Drive d;
-    d.data.rawlog = "synthetic-" + std::to_string(seed);
-    const auto& route = world.route();
-    const double step_m = 0.5;
-    const std::size_t stride = std::size_t(step_m / 0.25);
-    lookup::sim::LidarOptions lidar;
-    mrpt::poses::CPose2D odometry, previous_truth;
-    for (std::size_t i = 8, n = 0; i + 8 < route.size(); i += stride, ++n) {
-        const Eigen::Vector2d dir = (route[i + 1] - route[i - 1]).normalized();
-        const Eigen::Vector2d p = route[i] + lateral_m * Eigen::Vector2d(-dir.y(), dir.x());
-        const mrpt::poses::CPose2D truth(p.x(), p.y(), std::atan2(dir.y(), dir.x()));
-        if (n == 0) {
-            odometry = truth;
-        } else {
-            mrpt::poses::CPose2D inc = truth - previous_truth;
-            inc = mrpt::poses::CPose2D(inc.x() * 1.01, inc.y() * 1.01,
-                                       inc.phi() + mrpt::DEG2RAD(0.05) * step_m);
-            odometry = odometry + inc;
-        }
-        previous_truth = truth;
-        const auto stamp = mrpt::Clock::fromDouble(t0 + 0.1 * double(n));
-        auto odo = std::make_shared<mrpt::obs::CObservationOdometry>();
-        odo->odometry = odometry;
-        odo->timestamp = stamp;
-        odo->sensorLabel = "ODOMETRY";
-        auto scan = std::make_shared<mrpt::obs::CObservation2DRangeScan>(
-            lookup::sim::simulateLidar(world, truth, lidar, seed * 100000 + uint32_t(n)));
-        scan->timestamp = stamp;
-        d.data.laser_sequence.push_back(odo);
-        d.data.laser_sequence.push_back(scan);
-        d.truth.push_back({t0 + 0.1 * double(n), mrpt::poses::CPose3D(truth)});
-        d.odometry.push_back({t0 + 0.1 * double(n), mrpt::poses::CPose3D(odometry)});
-    }
-    d.data.scan_count = d.data.odometry_count = d.truth.size();
-    return d;
-}
 
 /// Mean and max position error of `track` against `truth`.
 std::pair<double, double> errors(const lookup::common::PoseTrack& track,

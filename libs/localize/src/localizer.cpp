@@ -3,6 +3,7 @@
 #include <mrpt/math/wrap2pi.h>
 #include <mrpt/obs/CObservationOdometry.h>
 #include <mrpt/system/CTicTac.h>
+#include <Eigen/Core>
 
 #include <algorithm>
 #include <cmath>
@@ -971,11 +972,26 @@ mrpt::math::CMatrixDouble33 Localizer::surveyCovariance(
     return cov;
 }
 
+mrpt::math::CMatrixDouble33 Localizer::imageTimeCovariance(double time_s, double yaw) const {
+    // The vehicle moves and turns over the image time's uncertainty; velocity in its frame.
+    mrpt::math::CMatrixDouble33 cov;
+    cov.setZero();
+    const auto v = velocityAt(time_s);
+    if (!v || options_.image_time_sigma_s <= 0) return cov;
+    const double c = std::cos(yaw), s = std::sin(yaw);
+    const Eigen::Vector3d rate(c * v->vx_mps - s * v->vy_mps, s * v->vx_mps + c * v->vy_mps,
+                               v->yaw_rate_radps);
+    cov.asEigen() =
+        options_.image_time_sigma_s * options_.image_time_sigma_s * rate * rate.transpose();
+    return cov;
+}
+
 void Localizer::finishFrame(FrameResult& out) {
     if (out.coarse_pose &&
         !std::isfinite(out.coarse_pose->x() + out.coarse_pose->y() + out.coarse_pose->phi())) {
         out.coarse_pose.reset();
     }
+    if (out.has_pose) out.pose.cov += imageTimeCovariance(out.time_s, out.pose.mean.phi());
     if (out.has_pose && !finite(out.pose)) {
         // Last line of defence: a pose or covariance that is not finite is no pose at all.
         out.reason = "non-finite " + out.pose_source + " pose or covariance" +

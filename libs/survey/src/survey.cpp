@@ -23,6 +23,7 @@
 #include "lookup/database/database_writer.h"
 #include "lookup/survey/keyframes.h"
 #include "lookup/survey/mrpt_sections.h"
+#include "lookup/survey/scan_deskew.h"
 #include "lookup/survey/start_search.h"
 #include "lookup/survey/traverse.h"
 
@@ -260,6 +261,12 @@ struct SurveyData {
     std::vector<TraverseData> data;
     std::vector<std::optional<mrpt::poses::CPose3DInterpolator>> gt;
 };
+
+/// The options traverses are read with: scans not de-skewed when the sweep is to be estimated.
+SurveyOptions readingOptions(SurveyOptions o, bool laser) {
+    if (laser && o.lidar_sweep_estimate) o.lidar_sweep_ms = 0;
+    return o;
+}
 
 SurveyData readTraverses(const SurveyInputs& in, const SurveyOptions& o, bool laser) {
     SurveyData s;
@@ -509,15 +516,34 @@ struct Cameras {
     std::optional<mrpt::img::TCamera> ceiling, forward;
 };
 
-/// A traverse's vehicle poses, looked up by time.
+/// A traverse's vehicle poses, looked up by the ceiling images' times, which are uncertain by
+/// `image_time_sigma_s`.
 struct TrackLookup {
-    TrackLookup(const LaserTrack& t, double max_gap_s)
-        : track(t), interp(common::makeInterpolator(t.poses, max_gap_s)) {
+    TrackLookup(const LaserTrack& t, double max_gap_s, double image_time_sigma)
+        : track(t),
+          interp(common::makeInterpolator(t.poses, max_gap_s)),
+          image_time_sigma_s(image_time_sigma) {
         for (const auto& p : t.poses) times.push_back(p.time_s);
+    }
+    /// The track's covariance at image time `t`, with what the time's uncertainty adds: the
+    /// vehicle moves (speed x sigma) along its motion and turns (rate x sigma) meanwhile.
+    mrpt::math::CMatrixDouble33 covarianceAt(double t) const {
+        mrpt::math::CMatrixDouble33 cov = track.covs[nearestIndex(times, t)];
+        constexpr double kSpan_s = 0.05;
+        const auto a = poseAt(interp, t - kSpan_s), b = poseAt(interp, t + kSpan_s);
+        if (!a || !b || image_time_sigma_s <= 0) return cov;
+        const Eigen::Vector3d rate((b->x() - a->x()) / (2 * kSpan_s),
+                                   (b->y() - a->y()) / (2 * kSpan_s),
+                                   mrpt::math::wrapToPi(b->yaw() - a->yaw()) / (2 * kSpan_s));
+        const Eigen::Matrix3d added =
+            image_time_sigma_s * image_time_sigma_s * rate * rate.transpose();
+        cov.asEigen() += added;
+        return cov;
     }
     const LaserTrack& track;
     mrpt::poses::CPose3DInterpolator interp;
     std::vector<double> times;
+    double image_time_sigma_s = 0;
 };
 
 /// The keyframe candidates: the ceiling frames with a pose on the track.
@@ -650,7 +676,7 @@ ReferenceErrors writeReferences(const TraverseSpec& spec, const TraverseData& d,
         ref.traverse = spec.name;
         ref.ceiling = d.ceiling[frames.frame_of[selection.kept[k]]];
         ref.vehicle_pose = candidate.vehicle_pose;
-        ref.vehicle_cov = poses.track.covs[nearestIndex(poses.times, candidate.time_s)];
+        ref.vehicle_cov = poses.covarianceAt(candidate.time_s);
         ref.sharpness = selection.kept_quality[k].sharpness;
         ref.mean_intensity = selection.kept_quality[k].mean_intensity;
         ref.travelled_m = selection.kept_travelled_m[k];
@@ -696,7 +722,8 @@ std::vector<SegmentError> errorSegments(const ReferenceErrors& e) {
 TraverseReport addTraverse(const TraverseSpec& spec, const TraverseData& d, const LaserTrack& track,
                            const std::optional<mrpt::poses::CPose3DInterpolator>& gt,
                            const TraverseStart& start, double localisation_time_s,
-                           const SurveyOptions& o, const std::string& track_name, Cameras& cameras,
+                           double image_time_sigma_s, const SurveyOptions& o,
+                           const std::string& track_name, Cameras& cameras,
                            database::DatabaseWriter& writer) {
     TraverseReport rep;
     rep.name = spec.name;
@@ -709,7 +736,7 @@ TraverseReport addTraverse(const TraverseSpec& spec, const TraverseData& d, cons
     if (track.poses.empty()) {
         throw common::RawlogError(d.rawlog, "no vehicle poses (no lidar scans localised)");
     }
-    const TrackLookup poses(track, o.max_pose_gap_s);
+    const TrackLookup poses(track, o.max_pose_gap_s, image_time_sigma_s);
     const PosedFrames frames = posedFrames(d, poses);
     rep.frames_without_pose = frames.without_pose;
     checkPoseCoverage(d, frames, poses, o, track_name);
@@ -772,9 +799,9 @@ std::string SurveyResult::summaryLine() const {
     if (!time_offsets.empty()) {
         const auto& c = time_offsets.front();
         o.precision(1);
-        o << "; " << c.label << " time offset " << 1e3 * c.offset_s << " ms (" << c.source;
-        if (c.source == "estimated") o << " +- " << 1e3 * c.sigma_s << " ms";
-        o << ")";
+        o << "; " << c.label << " time offset " << 1e3 * c.offset_s << " +- "
+          << 1e3 * c.applied_sigma_s << " ms (" << c.source << "); lidar sweep "
+          << lidar_sweep.sweep_ms << " ms (" << lidar_sweep.source << ")";
     }
     for (const auto& t : traverses) {
         if (!t.has_ground_truth) continue;
@@ -803,6 +830,7 @@ std::string SurveyResult::toJson() const {
     if (!time_offsets.empty()) {
         j["time_offsets"] = ordered_json::array();
         for (const auto& t : time_offsets) j["time_offsets"].push_back(timeOffsetJson(t));
+        j["lidar_sweep"] = lidarSweepJson(lidar_sweep);
     }
     j["traverses"] = ordered_json::array();
     for (const auto& t : traverses) j["traverses"].push_back(traverseJson(t));
@@ -860,6 +888,22 @@ double Survey::ceilingHeight(const SurveyInputs& in, const std::vector<TraverseD
     return result.ceiling.ceiling_height_m;
 }
 
+void Survey::lidarSweep(const SurveyInputs& in, std::vector<TraverseData>& data,
+                        SurveyResult& result) const {
+    LidarSweepEstimate& e = result.lidar_sweep;
+    e.configured_ms = e.sweep_ms = options_.lidar_sweep_ms;
+    const std::size_t mapping = mappingIndex(in);
+    if (!options_.lidar_sweep_estimate || mapping == data.size()) return;
+    TraverseData& m = data[mapping];
+    if (m.scan_count == 0 || m.odometry_count == 0) {
+        m = readTraverse(in.traverses[mapping].rawlog, readingOptions(options_, true), true);
+        configuredOffsets(options_, m);
+    }
+    e = estimateLidarSweep(m, graph_options_, config_, options_);
+    if (!e.warning.empty()) result.warnings.push_back(e.warning);
+    for (auto& d : data) d.scans_deskewed = deskewTraverse(d, 1e-3 * e.sweep_ms);
+}
+
 void Survey::timeOffsets(std::vector<TraverseData>& data, const std::vector<LaserTrack>& tracks,
                          const std::vector<bool>& reference, double ceiling_height_m,
                          SurveyResult& result) const {
@@ -867,6 +911,7 @@ void Survey::timeOffsets(std::vector<TraverseData>& data, const std::vector<Lase
     ceiling.label = options_.ceiling_camera_label;
     ceiling.source = "configured";
     ceiling.offset_s = ceiling.configured_s = options_.ceiling_time_offset_s;
+    ceiling.applied_sigma_s = options_.ceiling_time_offset_sigma_s;
     if (options_.time_offset_estimate) {
         std::vector<mrpt::poses::CPose3DInterpolator> interps;
         interps.reserve(data.size());
@@ -900,7 +945,8 @@ SurveyResult Survey::run(const SurveyInputs& in) const {
         }
         // 1. Read every traverse (image headers, odometry, scans) and its ground truth.
         const bool laser = in.poses_file.empty();
-        SurveyData survey = readTraverses(in, options_, laser);
+        SurveyData survey = readTraverses(in, readingOptions(options_, laser), laser);
+        if (laser) lidarSweep(in, survey.data, result);
 
         // 2. Vehicle poses per traverse.
         VehiclePoses poses =
@@ -921,7 +967,8 @@ SurveyResult Survey::run(const SurveyInputs& in) const {
             if (!in.traverses[i].reference) continue;
             TraverseReport rep = addTraverse(
                 in.traverses[i], survey.data[i], poses.tracks[i], survey.gt[i], poses.starts[i],
-                poses.localisation_time_s[i], options_, track_name, cameras, writer);
+                poses.localisation_time_s[i], result.time_offsets.front().applied_sigma_s, options_,
+                track_name, cameras, writer);
             addWarnings(rep, survey.data[i].rawlog, result.warnings);
             result.traverses.push_back(std::move(rep));
         }

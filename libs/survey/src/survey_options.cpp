@@ -40,6 +40,7 @@ void SurveyOptions::declareKeys(common::OptionsTable& t) {
     t.add("use_dataset_ceiling_height", use_dataset_ceiling_height);
     t.add("ceiling_time_offset_s", ceiling_time_offset_s, -1.0, 1.0);
     t.add("forward_time_offset_s", forward_time_offset_s, -1.0, 1.0);
+    t.add("ceiling_time_offset_sigma_s", ceiling_time_offset_sigma_s, 0.0, 1.0);
     t.add("ceiling_readout_ms", ceiling_readout_ms, 0.0, 999.999);
     t.add("ceiling_stamp_row", ceiling_stamp_row, common::stampRowNames());
     t.add("time_offset_estimate", time_offset_estimate);
@@ -60,6 +61,8 @@ void SurveyOptions::declareKeys(common::OptionsTable& t) {
     t.add("start_at_ground_truth", start_at_ground_truth);
     t.add("icp_max_range_m", icp_max_range_m);
     t.add("lidar_sweep_ms", lidar_sweep_ms, 0.0, 1000.0);
+    t.add("lidar_sweep_estimate", lidar_sweep_estimate);
+    t.add("lidar_sweep_estimate_m", lidar_sweep_estimate_m, common::kPositive);
     t.add("map_std_xy_m", map_std_xy_m, 0.0);
     t.add("map_std_yaw_deg", map_std_yaw_deg, 0.0);
     t.add("pose_file_std_xy_m", pose_file_std_xy_m, 0.0);

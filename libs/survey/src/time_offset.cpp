@@ -374,6 +374,15 @@ std::string notEstimated(const TimeOffsetEstimate& e, const std::string& why) {
     return e.label + " time offset not estimated: " + why + buf;
 }
 
+// A fit not trusted as the offset still bounds the configured one: that is off the fit by
+// the distance between them, give or take the fit's own deviation.
+double appliedSigma(const TimeOffsetEstimate& e, const SurveyOptions& o) {
+    if (e.source == "estimated") return e.sigma_s;
+    if (e.pairs_used == 0 || !std::isfinite(e.sigma_s)) return o.ceiling_time_offset_sigma_s;
+    return std::min(o.ceiling_time_offset_sigma_s,
+                    std::hypot(e.fitted_s - e.configured_s, e.sigma_s));
+}
+
 // The image motion of a pair is that of the rows' mean exposure, the middle row's; with a
 // rolling shutter the stamp refers to ceiling_stamp_row, this much earlier [s].
 double middleRowLag(const SurveyOptions& o) {
@@ -389,6 +398,7 @@ TimeOffsetEstimate estimateTimeOffset(const std::vector<CeilingTraverse>& traver
     e.label = o.ceiling_camera_label;
     e.source = "configured";
     e.configured_s = e.offset_s = o.ceiling_time_offset_s;
+    e.applied_sigma_s = o.ceiling_time_offset_sigma_s;
     e.tried = true;
     std::vector<Pair> all;
     for (const auto& t : traverses) {
@@ -449,6 +459,7 @@ TimeOffsetEstimate estimateTimeOffset(const std::vector<CeilingTraverse>& traver
         e.source = "estimated";
         e.offset_s = e.fitted_s;
     }
+    e.applied_sigma_s = appliedSigma(e, o);
     return finish();
 }
 
@@ -472,6 +483,7 @@ nlohmann::ordered_json timeOffsetJson(const TimeOffsetEstimate& e) {
             {"estimated", e.source == "estimated"},
             {"fitted_s", fit(e.fitted_s)},
             {"sigma_s", fit(e.sigma_s)},
+            {"applied_sigma_s", e.applied_sigma_s},
             {"scale", fit(e.scale)},
             {"rms_m", fit(e.rms_m)},
             {"pairs_tried", e.pairs_tried},

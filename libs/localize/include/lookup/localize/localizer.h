@@ -172,6 +172,7 @@ class Localizer {
     void emit(const Attempt& a, const std::optional<Prediction>& prediction,
               FrameResult& out) const;
     mrpt::math::CMatrixDouble33 surveyCovariance(const std::vector<std::size_t>& references) const;
+    mrpt::math::CMatrixDouble33 imageTimeCovariance(double time_s, double yaw) const;
     void finishFrame(FrameResult& out);
     void processForward(const mrpt::obs::CObservationImage& image);
     void processOdometry(const mrpt::obs::CObservation& odo);

@@ -34,6 +34,11 @@ struct LocalizerOptions : public common::TableOptions<LocalizerOptions> {
     /// No odometry reading for this long is a dropout: the coarse stage matches without
     /// odometry and predictions are extrapolated with a growing uncertainty [s].
     double odometry_timeout_s = 0.2;
+    /// Standard deviation of the ceiling camera's stamps on the vehicle clock once [time_offsets]
+    /// is applied (that offset's calibration) [s]. A fix is the pose at the image's time: by
+    /// this much in time it is off by the vehicle's speed x this along its motion, which every
+    /// emitted pose's covariance carries.
+    double image_time_sigma_s = 0.0;
     /// Acquisition (not tracking): also try references within this distance of the coarse
     /// match, one by one, before giving up, since the SAD window covers only +-L_SR/2 [m].
     double acquisition_radius_m = 4.0;

@@ -12,6 +12,7 @@
 #include "lookup/common/config.h"
 #include "lookup/survey/ceiling_distance.h"
 #include "lookup/survey/laser_poses.h"
+#include "lookup/survey/lidar_sweep.h"
 #include "lookup/survey/pose_graph.h"
 #include "lookup/survey/survey_options.h"
 #include "lookup/survey/time_offset.h"
@@ -101,6 +102,7 @@ struct SurveyResult {
     std::string ceiling_source;       ///< "estimated", "configured" or "dataset"
     /// Each camera's time offset against the pose track (ceiling, then forward), as applied.
     std::vector<TimeOffsetEstimate> time_offsets;
+    LidarSweepEstimate lidar_sweep;  ///< the lidar's sweep as applied to every scan
     /// Refused or skipped input, one line each (file, record, reason, count); lookup-survey
     /// prints them on stderr.
     std::vector<std::string> warnings;
@@ -131,6 +133,8 @@ class Survey {
     /// The ceiling camera's time offset: estimated from the images (time_offset.h) unless
     /// disabled, applied to the traverses' ceiling stamps, recorded in `result` with the
     /// forward camera's configured one.
+    void lidarSweep(const SurveyInputs& in, std::vector<TraverseData>& data,
+                    SurveyResult& result) const;
     void timeOffsets(std::vector<TraverseData>& data, const std::vector<LaserTrack>& tracks,
                      const std::vector<bool>& reference, double ceiling_height_m,
                      SurveyResult& result) const;

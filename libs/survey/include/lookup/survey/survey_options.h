@@ -58,6 +58,10 @@ struct SurveyOptions : public common::TableOptions<SurveyOptions> {
     /// the estimate (time_offset_estimate), the forward camera's is used as configured.
     double ceiling_time_offset_s = 0;
     double forward_time_offset_s = 0;
+    /// Standard deviation of the configured ceiling_time_offset_s (its calibration's) [s]. When
+    /// the images do not pin the offset down, it (or the fit's, if tighter) is the applied
+    /// offset's, and every reference's covariance grows by speed x it along the motion.
+    double ceiling_time_offset_sigma_s = 0.05;
     /// The ceiling camera's rolling shutter, first row to last row [ms] (0 = a global shutter),
     /// and the row its stamp refers to once ceiling_time_offset_s is applied ("first" or
     /// "middle"): stored in the database, where the localiser sees each reference's rows from
@@ -97,6 +101,10 @@ struct SurveyOptions : public common::TableOptions<SurveyOptions> {
     /// aperture at 10 Hz sweeps in 75 ms); every scan is de-skewed with the odometry's motion
     /// over it (scan_deskew.h). The time stamp refers to the first ray. 0 = instantaneous [ms].
     double lidar_sweep_ms = 0;
+    /// Estimate the sweep from the scans (lidar_sweep.h), lidar_sweep_ms being the fallback;
+    /// on the first lidar_sweep_estimate_m of the mapping traverse's travel [m].
+    bool lidar_sweep_estimate = true;
+    double lidar_sweep_estimate_m = 100;
     /// Error of the ICP-SLAM map itself, added to every laser pose's covariance: MCL's particle
     /// spread is relative to the map and alone is over-confident (docs/benchmarks.md) [m].
     double map_std_xy_m = 0.08;

@@ -25,13 +25,16 @@
 namespace lookup::survey {
 
 struct TimeOffsetEstimate {
-    std::string label;               ///< the camera's sensor label
-    std::string source;              ///< "estimated" or "configured"
-    double offset_s = 0;             ///< applied: added to the camera's stamps [s]
-    double configured_s = 0;         ///< the [survey] option [s]
-    bool tried = false;              ///< an estimate was attempted
-    double fitted_s = 0;             ///< the fit's total offset, used or not (when tried) [s]
-    double sigma_s = 0;              ///< its standard deviation (when tried) [s]
+    std::string label;        ///< the camera's sensor label
+    std::string source;       ///< "estimated" or "configured"
+    double offset_s = 0;      ///< applied: added to the camera's stamps [s]
+    double configured_s = 0;  ///< the [survey] option [s]
+    bool tried = false;       ///< an estimate was attempted
+    double fitted_s = 0;      ///< the fit's total offset, used or not (when tried) [s]
+    double sigma_s = 0;       ///< its standard deviation (when tried) [s]
+    /// The applied offset's standard deviation: the fit's when estimated, else the configured
+    /// one's, or what the fit allows of the configured offset if tighter [s].
+    double applied_sigma_s = 0;
     double scale = 1;                ///< fitted image-to-track scale (1 = ceiling height right)
     double rms_m = 0;                ///< residual of the used pairs at the fit [m]
     std::size_t pairs_tried = 0;     ///< image pairs measured
