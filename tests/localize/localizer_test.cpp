@@ -272,6 +272,28 @@ TEST(Localize, FixesThatKeepDisagreeingWithOdometryDropTheTrack) {
               1u);
 }
 
+// A pose at the image's time is as uncertain as that time: 3 m/s along x with the stamps
+// uncertain by 0.1 s adds (0.3 m)^2 along the motion to every emitted pose, nothing across it.
+TEST(Localize, AnUncertainImageTimeWidensThePoseAlongTheMotion) {
+    const auto run = [&](const std::string& name, const std::string& ini_text) {
+        const auto dir = lookup::test::freshDir("lookup_localize_image_time_" + name);
+        auto req = planarRun(
+            dir, [](int, mrpt::obs::CObservationImage&, mrpt::obs::CObservationOdometry&) {}, 8);
+        req.ini_file = (dir / "localize.ini").string();
+        std::ofstream(req.ini_file) << ini_text;
+        localize::runLocalization(req);
+        return eval::loadRun(req.out_dir);
+    };
+    const auto exact = run("exact", "[localizer]\n");
+    const auto uncertain = run("uncertain", "[localizer]\nimage_time_sigma_s = 0.1\n");
+    for (int i = 3; i < 8; ++i) {
+        ASSERT_EQ(uncertain.frames[i].status, "refined") << uncertain.frames[i].reason;
+        EXPECT_NEAR(uncertain.frames[i].cov_xx - exact.frames[i].cov_xx, 0.09, 0.01) << i;
+        EXPECT_NEAR(uncertain.frames[i].cov_yy - exact.frames[i].cov_yy, 0.0, 0.001) << i;
+        EXPECT_EQ(uncertain.frames[i].x, exact.frames[i].x) << i;
+    }
+}
+
 TEST(Localize, PastTheTrackingGapOdometryFromTheLastFixStaysTheFallback) {
     const auto dir = lookup::test::freshDir("lookup_localize_dead_reckoning");
     // From frame 5 on (1.5 s, past the 1 s tracking gap) a ceiling too flat to match, as in a
@@ -289,6 +311,10 @@ TEST(Localize, PastTheTrackingGapOdometryFromTheLastFixStaysTheFallback) {
     const auto run = eval::loadRun(req.out_dir);
     ASSERT_EQ(run.frames.size(), std::size_t(frames));
     ASSERT_EQ(run.frames[4].status, "refined") << run.frames[4].reason;
+    // Dead reckoning starts from the fix as uncertain as it was, then odometry adds its own
+    // (0.05 m + 0.05 m per metre, 0.3 m driven).
+    const double odometry_sigma = 0.05 + 0.05 * 0.3;
+    EXPECT_GE(run.frames[5].cov_xx, run.frames[4].cov_xx + 0.99 * odometry_sigma * odometry_sigma);
     for (int i = 16; i < frames; ++i) {  // more than 1 s after the last fix
         const auto& f = run.frames[i];
         ASSERT_EQ(f.status, "fallback") << i << ": " << f.reason;

@@ -941,12 +941,18 @@ void Localizer::emit(const Attempt& a, const std::optional<Prediction>& predicti
 
 std::optional<mrpt::poses::CPosePDFGaussian> Localizer::deadReckonedFallback(
     const std::optional<Prediction>& prediction, const FrameResult& out) const {
+    // Dead reckoning starts from the last fix, as uncertain as that was.
     const auto& policy = refiner_.acceptance();
-    if (prediction) return policy.deadReckoned(prediction->pose, prediction->motion);
+    if (prediction) {
+        auto pose = policy.deadReckoned(prediction->pose, prediction->motion);
+        pose.cov += last_fix_->cov;
+        return pose;
+    }
     if (!options_.use_tracking) return std::nullopt;
     const auto dead = deadReckon(out.time_s);
     if (!dead || !dead->motion.velocity_known) return std::nullopt;
     auto pose = policy.deadReckoned(dead->pose, dead->motion);
+    pose.cov += last_fix_->cov;
     // A coarse pose is the forward camera's guess of a place; odometry from a fix is better
     // evidence until its uncertainty has grown past the guess's.
     if (out.coarse_pose) {
@@ -1003,7 +1009,8 @@ void Localizer::finishFrame(FrameResult& out) {
     }
     // An ambiguous frame or a dropped track leaves no place as the track's.
     if (out.status == FrameStatus::Ambiguous || !out.has_pose) last_fix_.reset();
-    if (out.status == FrameStatus::Refined) last_fix_ = Fix{out.time_s, out.pose.mean};
+    if (out.status == FrameStatus::Refined)
+        last_fix_ = Fix{out.time_s, out.pose.mean, out.pose.cov};
     fine_tracking_ = out.status == FrameStatus::Refined;
     if (fine_tracking_) open_places_.clear();
 }

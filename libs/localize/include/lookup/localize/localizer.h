@@ -260,6 +260,7 @@ class Localizer {
     struct Fix {
         double time_s = 0;
         mrpt::poses::CPose2D pose;
+        mrpt::math::CMatrixDouble33 cov = mrpt::math::CMatrixDouble33::Zero();  ///< as emitted
     };
     std::optional<Fix> last_fix_;
     std::optional<mrpt::poses::CPosePDFGaussian> hypothesis_;  ///< see offerHypothesis
