@@ -23,6 +23,8 @@ constexpr std::size_t kMinScans = 50;
 constexpr std::size_t kMinRegistrations = 30;
 // Sweeps tried first, as fractions of the scan period; the parabola refines between them.
 constexpr int kCoarseSteps = 4;
+// A configured sweep whose graph costs at most this much more than the best is kept.
+constexpr double kKeepConfigured = 1.5;
 
 /// The first `max_m` of travel of `d`'s laser sequence (odometry's), its scans copied so that
 /// de-skewing them leaves `d` untouched.
@@ -93,6 +95,14 @@ std::string costList(const std::vector<double>& cost) {
     return out;
 }
 
+/// The cost of `ms` as tried, or tried now.
+template <typename Try>
+double costAt(const LidarSweepEstimate& e, double ms, const Try& tryOne) {
+    for (const auto& [tried_ms, cost] : e.tried)
+        if (std::abs(tried_ms - ms) < 1e-6) return cost;
+    return tryOne(ms);
+}
+
 /// Vertex of the parabola through (x0, y0), (x1, y1), (x2, y2), x0 < x1 < x2 equally spaced.
 double parabolaVertex(double x0, double y0, double x1, double y1, double x2, double y2) {
     const double den = y0 - 2 * y1 + y2;
@@ -147,15 +157,17 @@ LidarSweepEstimate estimateLidarSweep(const TraverseData& mapping, const PoseGra
     const int mid = std::clamp(best, 1, kCoarseSteps - 1);
     const double vertex = parabolaVertex((mid - 1) * step, cost[mid - 1], mid * step, cost[mid],
                                          (mid + 1) * step, cost[mid + 1]);
-    if (std::none_of(e.tried.begin(), e.tried.end(),
-                     [&](const auto& t) { return std::abs(t.first - vertex) < 1e-6; })) {
-        tryOne(vertex);
-    }
-    const auto lowest =
-        std::min_element(e.tried.begin(), e.tried.end(), [](const auto& a, const auto& b) {
+    costAt(e, vertex, tryOne);
+    const auto [best_ms, best_cost] =
+        *std::min_element(e.tried.begin(), e.tried.end(), [](const auto& a, const auto& b) {
             return std::isfinite(a.second) && (!std::isfinite(b.second) || a.second < b.second);
         });
-    e.sweep_ms = lowest->first;
+    // The configured sweep stands unless the scans clearly disagree with it.
+    const double configured_cost = costAt(e, e.configured_ms, tryOne);
+    if (std::isfinite(configured_cost) && configured_cost <= kKeepConfigured * best_cost) {
+        return finish("");
+    }
+    e.sweep_ms = best_ms;
     e.source = "estimated";
     return finish("");
 }

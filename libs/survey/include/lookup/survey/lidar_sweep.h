@@ -5,7 +5,9 @@
 // different keyframes stop agreeing: the pose graph of the mapping traverse's first
 // `lidar_sweep_estimate_m` settles at a higher cost per registration. The sweep whose graph
 // costs least is the estimate: candidates spread over [0, one scan period], then the vertex of
-// the parabola through the best and its neighbours.
+// the parabola through the best and its neighbours. The configured sweep stands unless it
+// costs more than 1.5 times the best: near the minimum the cost is flat, and a few
+// milliseconds either way move nothing.
 
 #include <mrpt/config/CConfigFileBase.h>
 
@@ -22,7 +24,7 @@
 namespace lookup::survey {
 
 struct LidarSweepEstimate {
-    std::string source = "configured";  ///< "estimated" or "configured"
+    std::string source = "configured";  ///< "estimated", or "configured" (kept or not estimated)
     double sweep_ms = 0;                ///< applied [ms]
     double configured_ms = 0;           ///< [survey] lidar_sweep_ms [ms]
     double scan_period_ms = 0;          ///< median spacing of the scans' stamps [ms]
