@@ -207,10 +207,15 @@ nlohmann::ordered_json scoreJson(const PlaceScore& s, double heap_mb) {
 
 int PlaceApp::evaluate() {
     const auto db = database::ReferenceDatabase::load(db_dir_, 8);
-    // Heap bytes the loaded index holds (its own estimate leaves out FLANN's allocator).
-    const std::size_t heap_before = mallinfo2().uordblks;
+    // Heap bytes the loaded index holds, the blocks malloc maps on their own included (the
+    // descriptor tables of a large index are such blocks).
+    const auto heap = [] {
+        const auto m = mallinfo2();
+        return m.uordblks + m.hblkhd;
+    };
+    const std::size_t heap_before = heap();
     const PlaceIndex index = PlaceIndex::load(db_dir_ + "/" + kPlaceIndexFile, db, options_);
-    const double heap_mb = double(mallinfo2().uordblks - heap_before) / 1e6;
+    const double heap_mb = double(heap() - heap_before) / 1e6;
     const auto truth = common::makeInterpolator(common::readPoseFile(gt_file_), 1.0);
     common::RawlogReader reader(query_rawlog_);
     const refine::Rectifier rectifier(db.info().ceiling_camera);

@@ -13,8 +13,12 @@ Votes vote(const Impl& impl, const std::vector<cv::KeyPoint>& keypoints,
     const auto& o = impl.options;
     const int k = std::min<int>(o.neighbours, static_cast<int>(impl.features.size()));
     cv::Mat indices, distances;
-    impl.search->knnSearch(descriptors, indices, distances, k,
-                           cv::flann::SearchParams(o.search_checks));
+    if (isBinary(o.features)) {
+        impl.lsh.knn(descriptors, k, o.lsh_max_bucket, indices, distances);
+    } else {
+        impl.search->knnSearch(descriptors, indices, distances, k,
+                               cv::flann::SearchParams(o.search_checks));
+    }
     cv::Mat dist;
     distances.convertTo(dist, CV_32F);
     // A float descriptor's distance is L2 squared; the budget applies to binary ones only.

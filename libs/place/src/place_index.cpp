@@ -61,19 +61,18 @@ bool isBinary(FeatureType type) { return type != FeatureType::Sift; }
 
 void buildSearch(Impl& impl) {
     impl.search.reset();
+    impl.lsh = BinaryLsh();
     if (impl.descriptors.empty()) return;
     const auto& o = impl.options;
-    impl.search = std::make_unique<cv::flann::Index>();
     if (isBinary(o.features)) {
-        impl.search->build(
-            impl.descriptors,
-            cv::flann::LshIndexParams(o.lsh_tables, o.lsh_key_bits, o.lsh_probe_level),
-            cvflann::FLANN_DIST_HAMMING);
-    } else {
-        impl.search->build(impl.descriptors, cv::flann::KDTreeIndexParams(4),
-                           cvflann::FLANN_DIST_L2);
+        impl.lsh.build(impl.descriptors, o.lsh_tables, o.lsh_key_bits, o.lsh_probe_level);
+        return;
     }
+    impl.search = std::make_unique<cv::flann::Index>();
+    impl.search->build(impl.descriptors, cv::flann::KDTreeIndexParams(4), cvflann::FLANN_DIST_L2);
 }
+
+bool hasSearch(const Impl& impl) { return impl.search || impl.lsh.size() > 0; }
 
 }  // namespace detail
 
@@ -147,7 +146,7 @@ std::vector<PlaceCandidate> PlaceIndex::query(const cv::Mat& grey, PlaceQueryTim
     detail::detect(grey, o.features, o.query_features, keypoints, descriptors);
     t.query_features = static_cast<int>(keypoints.size());
     t.features_ms = 1e3 * timer.Tac();
-    if (keypoints.empty() || !impl.search) return {};
+    if (keypoints.empty() || !detail::hasSearch(impl)) return {};
 
     timer.Tic();
     const auto votes = detail::vote(impl, keypoints, descriptors);
@@ -166,7 +165,7 @@ const PlaceIndexOptions& PlaceIndex::options() const { return impl_->options; }
 std::size_t PlaceIndex::memoryBytes() const {
     const Impl& impl = *impl_;
     return impl.features.size() * sizeof(detail::Feature) +
-           impl.descriptors.total() * impl.descriptors.elemSize();
+           impl.descriptors.total() * impl.descriptors.elemSize() + impl.lsh.tableBytes();
 }
 
 std::uint64_t referenceFingerprint(const database::ReferenceDatabase& db) {

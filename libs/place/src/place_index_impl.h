@@ -8,6 +8,7 @@
 #include <opencv2/flann.hpp>
 #include <vector>
 
+#include "binary_lsh.h"
 #include "lookup/place/place_index.h"
 
 namespace lookup::place::detail {
@@ -24,8 +25,9 @@ struct Impl {
     std::size_t database_references = 0;
     std::size_t indexed_references = 0;
     std::vector<Feature> features;
-    cv::Mat descriptors;  ///< one row per feature (CV_8U binary or CV_32F)
-    std::unique_ptr<cv::flann::Index> search;
+    cv::Mat descriptors;                       ///< one row per feature (CV_8U binary or CV_32F)
+    BinaryLsh lsh;                             ///< binary descriptors
+    std::unique_ptr<cv::flann::Index> search;  ///< float descriptors (KD-trees)
 };
 
 /// Query-to-reference point pairs, per reference.
@@ -37,6 +39,7 @@ void detect(const cv::Mat& grey, FeatureType type, int n, std::vector<cv::KeyPoi
             cv::Mat& descriptors);
 bool isBinary(FeatureType type);
 void buildSearch(Impl& impl);
+bool hasSearch(const Impl& impl);
 Votes vote(const Impl& impl, const std::vector<cv::KeyPoint>& keypoints,
            const cv::Mat& descriptors);
 std::vector<PlaceCandidate> fitCandidates(const Impl& impl, const Votes& votes);

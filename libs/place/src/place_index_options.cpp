@@ -20,6 +20,7 @@ void PlaceIndexOptions::declareKeys(common::OptionsTable& t) {
     t.add("lsh_tables", lsh_tables, 1, 64);
     t.add("lsh_key_bits", lsh_key_bits, 4, 24);
     t.add("lsh_probe_level", lsh_probe_level, 0, 4);
+    t.add("lsh_max_bucket", lsh_max_bucket, 0, 100000000);
     t.add("search_checks", search_checks, 1, 100000);
 }
 

@@ -3,11 +3,11 @@
 // nearest-neighbour index, so one query ceiling frame finds its references anywhere in the
 // database at any heading (global acquisition, docs/place-index.md).
 //
-// Per query: features of the query image -> nearest database features (FLANN: LSH for binary
-// descriptors, KD-trees for float ones) -> votes per reference -> a RANSAC similarity transform
-// (rotation, translation, scale near 1) per best-voted reference. A candidate is a reference
-// and the query-to-reference pixel transform; placePose() turns it into a vehicle pose that
-// the SAD refinement verifies.
+// Per query: features of the query image -> nearest database features (LSH for binary
+// descriptors, detail::BinaryLsh; FLANN's KD-trees for float ones) -> votes per reference -> a
+// RANSAC similarity transform (rotation, translation, scale near 1) per best-voted reference. A
+// candidate is a reference and the query-to-reference pixel transform; placePose() turns it into a
+// vehicle pose that the SAD refinement verifies.
 
 #include <mrpt/config/CLoadableOptions.h>
 
@@ -59,10 +59,11 @@ struct PlaceIndexOptions : public common::TableOptions<PlaceIndexOptions> {
     double ransac_threshold_px = 4.0;  ///< similarity RANSAC inlier distance [px]
     int min_inliers = 12;              ///< fewer geometric inliers: not a candidate
     double max_scale_change = 0.25;    ///< |scale - 1| allowed (another camera height)
-    int lsh_tables = 3;                ///< FLANN LSH (binary descriptors)
+    int lsh_tables = 3;                ///< LSH tables (binary descriptors)
     int lsh_key_bits = 18;
     int lsh_probe_level = 0;
-    int search_checks = 64;  ///< FLANN search checks
+    int lsh_max_bucket = 0;  ///< LSH buckets holding more descriptors are skipped (0: none)
+    int search_checks = 64;  ///< FLANN search checks (KD-trees of float descriptors)
 
     /// Adds every key of its .ini section to `t` (load, save and the unknown-key check).
     void declareKeys(common::OptionsTable& t);
@@ -114,7 +115,8 @@ class PlaceIndex {
 
     std::size_t indexedReferences() const;
     std::size_t featureCount() const;
-    /// Bytes of the features and descriptors (FLANN's hash tables come on top).
+    /// Bytes of the features, descriptors and LSH tables (FLANN's KD-trees of float
+    /// descriptors come on top).
     std::size_t memoryBytes() const;
     const PlaceIndexOptions& options() const;
 
