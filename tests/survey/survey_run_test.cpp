@@ -156,6 +156,36 @@ TEST(SurveyRun, LaserPathPosesCloseToTruth) {
     EXPECT_TRUE(fs::exists(dir / "db" / "map.png"));
 }
 
+// The start pose's heading error turns the whole map about the start: every reference's
+// covariance carries it as the lever from the start, turned by 90 deg, times that error.
+TEST(SurveyRun, TheStartPoseErrorIsARigidErrorInEveryCovariance) {
+    const auto dir = lookup::test::freshDir("lookup_survey_start_std");
+    const auto f = lookup::test::makeSurveyRawlog(dir.string(), "corridor", 12.0);
+    const auto covariances = [&](double std_xy_m, double std_yaw_deg, const std::string& name) {
+        auto o = shareOptions();
+        o.start_pose = "0 0 5.7106";
+        o.start_pose_std_xy_m = std_xy_m;
+        o.start_pose_std_yaw_deg = std_yaw_deg;
+        const auto result = Survey(o, shareIni()).run(inputsFor(f, dir / name));
+        EXPECT_TRUE(result.ok()) << result.reason;
+        return lookup::database::ReferenceDatabase::load((dir / name).string());
+    };
+    const auto exact = covariances(0, 0, "exact");
+    const auto uncertain = covariances(0.05, 1.0, "uncertain");
+    ASSERT_EQ(exact.size(), uncertain.size());
+    ASSERT_GT(exact.size(), 30u);
+    const double syaw2 = std::pow(mrpt::DEG2RAD(1.0), 2);
+    for (std::size_t i = 0; i < exact.size(); ++i) {
+        const auto& a = exact.reference(i);
+        const auto& b = uncertain.reference(i);
+        ASSERT_EQ(a.vehicle_pose.x(), b.vehicle_pose.x()) << i;
+        const double x = b.vehicle_pose.x(), y = b.vehicle_pose.y();
+        EXPECT_NEAR(b.vehicle_cov(0, 0) - a.vehicle_cov(0, 0), 0.0025 + syaw2 * y * y, 1e-6) << i;
+        EXPECT_NEAR(b.vehicle_cov(1, 1) - a.vehicle_cov(1, 1), 0.0025 + syaw2 * x * x, 1e-6) << i;
+        EXPECT_NEAR(b.vehicle_cov(2, 2) - a.vehicle_cov(2, 2), syaw2, 1e-9) << i;
+    }
+}
+
 TEST(SurveyRun, MissingLidarNamesLabelsPresent) {
     const auto dir = lookup::test::freshDir("lookup_survey_nolidar");
     const auto f = lookup::test::makeSurveyRawlog(dir.string(), "corridor", 2.0, false);

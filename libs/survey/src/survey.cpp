@@ -469,6 +469,26 @@ void jointGraph(const SurveyInputs& in, const SurveyData& survey, std::size_t ma
 
 /// From the grid frame into the map frame: poses and starts composed with the grid's origin,
 /// (x, y) covariances rotated.
+/// The operator's start pose defines the map frame, and its error is a rigid error of the whole
+/// map: the start's offset everywhere, its heading error times the distance from the start.
+/// Every laser pose's covariance (the graph's is relative to the fixed start) carries it.
+void addStartUncertainty(const mrpt::poses::CPose2D& origin, const SurveyOptions& o,
+                         VehiclePoses& poses) {
+    const double sxy2 = o.start_pose_std_xy_m * o.start_pose_std_xy_m;
+    const double syaw2 = std::pow(mrpt::DEG2RAD(o.start_pose_std_yaw_deg), 2);
+    for (auto& track : poses.tracks) {
+        for (std::size_t k = 0; k < track.poses.size() && k < track.covs.size(); ++k) {
+            // d(pose)/d(start heading): the lever from the start, turned by 90 deg.
+            const Eigen::Vector3d lever(-(track.poses[k].pose.y() - origin.y()),
+                                        track.poses[k].pose.x() - origin.x(), 1.0);
+            Eigen::Matrix3d added = syaw2 * lever * lever.transpose();
+            added(0, 0) += sxy2;
+            added(1, 1) += sxy2;
+            track.covs[k].asEigen() += added;
+        }
+    }
+}
+
 void toMapFrame(const mrpt::poses::CPose2D& origin, VehiclePoses& poses) {
     for (auto& start : poses.starts) start.pose = origin + start.pose;
     const mrpt::poses::CPose3D origin3(origin);
@@ -507,6 +527,8 @@ VehiclePoses posesFromLaser(const SurveyInputs& in, SurveyData& survey, const Su
         poses.starts[mapping] = {"map origin", mrpt::poses::CPose2D(), 0};
     }
     toMapFrame(map.origin, poses);
+    // The frame's own error: the operator's start (not a map file's frame, nor the truth's).
+    if (in.map_file.empty() && !o.start_at_ground_truth) addStartUncertainty(map.origin, o, poses);
     poses.grid = std::move(map.grid);
     return poses;
 }

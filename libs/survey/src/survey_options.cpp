@@ -50,6 +50,8 @@ void SurveyOptions::declareKeys(common::OptionsTable& t) {
     t.add("time_offset_min_pairs", time_offset_min_pairs, 1, 1000000);
     t.add("time_offset_max_sigma_s", time_offset_max_sigma_s, common::kPositive);
     t.add("start_pose", start_pose);
+    t.add("start_pose_std_xy_m", start_pose_std_xy_m, 0.0);
+    t.add("start_pose_std_yaw_deg", start_pose_std_yaw_deg, 0.0, 180.0);
     t.add("start_search_spacing_m", start_search_spacing_m, common::kPositive);
     t.add("start_match_travel_m", start_match_travel_m, 0.0);
     t.add("start_min_goodness", start_min_goodness, 0.0, 1.0);

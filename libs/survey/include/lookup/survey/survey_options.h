@@ -90,6 +90,11 @@ struct SurveyOptions : public common::TableOptions<SurveyOptions> {
     /// Operator's start pose of the mapping traverse, "x y yaw_deg" in mine coordinates
     /// ("" = the dataset's `start_pose`, else the origin). Defines the map frame.
     std::string start_pose;
+    /// Its standard deviation (a vehicle parked over a surveyed mark, aligned by eye with a
+    /// painted line), carried by every reference's covariance as a rigid error of the map [m] /
+    /// [deg].
+    double start_pose_std_xy_m = 0.05;
+    double start_pose_std_yaw_deg = 0.1;
     double start_search_spacing_m = 1.0;  ///< spacing of the start guesses along the map [m]
     double start_match_travel_m = 4.0;    ///< scans of the first metres matched together [m]
     double start_min_goodness = 0.5;      ///< a start with a lower ICP goodness is an error
