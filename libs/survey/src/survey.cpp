@@ -467,8 +467,6 @@ void jointGraph(const SurveyInputs& in, const SurveyData& survey, std::size_t ma
     }
 }
 
-/// From the grid frame into the map frame: poses and starts composed with the grid's origin,
-/// (x, y) covariances rotated.
 /// The operator's start pose defines the map frame, and its error is a rigid error of the whole
 /// map: the start's offset everywhere, its heading error times the distance from the start.
 /// Every laser pose's covariance (the graph's is relative to the fixed start) carries it.
@@ -489,6 +487,8 @@ void addStartUncertainty(const mrpt::poses::CPose2D& origin, const SurveyOptions
     }
 }
 
+/// From the grid frame into the map frame: poses and starts composed with the grid's origin,
+/// (x, y) covariances rotated.
 void toMapFrame(const mrpt::poses::CPose2D& origin, VehiclePoses& poses) {
     for (auto& start : poses.starts) start.pose = origin + start.pose;
     const mrpt::poses::CPose3D origin3(origin);
