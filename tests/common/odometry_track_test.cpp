@@ -64,3 +64,17 @@ TEST(OdometryTrack, ForgetsOldReadingsButKeepsOneForInterpolation) {
     EXPECT_DOUBLE_EQ(held->pose.x(), 1.0);
     EXPECT_NEAR(held->extrapolated_s, 0.2, 1e-12);
 }
+
+TEST(OdometryTrack, APoseInsideADropoutTellsHowFarItIsFromAReading) {
+    OdometryTrack track;
+    track.add(0.0, onCircle(0.0));
+    track.add(0.02, onCircle(0.02));
+    track.add(1.02, onCircle(1.02));  // a 1 s dropout
+    const auto regular = track.at(0.01), early = track.at(0.32), late = track.at(0.92);
+    ASSERT_TRUE(regular && early && late);
+    EXPECT_NEAR(regular->gap_s, 0.02, 1e-9);
+    EXPECT_NEAR(early->gap_s, 1.0, 1e-9);
+    EXPECT_NEAR(early->inside_gap_s, 0.30, 1e-9);  // from the reading before
+    EXPECT_NEAR(late->inside_gap_s, 0.10, 1e-9);   // from the reading after
+    EXPECT_EQ(late->extrapolated_s, 0.0);
+}

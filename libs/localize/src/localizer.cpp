@@ -362,8 +362,12 @@ std::optional<Localizer::Prediction> Localizer::deadReckon(double t) const {
     }
     const mrpt::poses::CPose2D delta = odo_now->pose - odo_fix->pose;
     // Both ends extrapolated lie in the same gap in the readings: the later one's error bounds
-    // the motion's.
-    const double extrapolated_s = std::max(odo_now->extrapolated_s, odo_fix->extrapolated_s);
+    // the motion's. An end interpolated inside a dropout is as uncertain as one extrapolated
+    // from the nearer reading.
+    const auto uncovered_s = [&](const common::OdometryTrack::Pose& p) {
+        return p.extrapolated_s + (p.gap_s > options_.odometry_timeout_s ? p.inside_gap_s : 0.0);
+    };
+    const double extrapolated_s = std::max(uncovered_s(*odo_now), uncovered_s(*odo_fix));
     return Prediction{last_fix_->pose + delta, {delta.translation().norm(), extrapolated_s, true}};
 }
 

@@ -20,6 +20,9 @@ class OdometryTrack {
     struct Pose {
         mrpt::poses::CPose2D pose;
         double extrapolated_s = 0;  ///< time past the last reading (0: between readings)
+        /// Between readings: their spacing, and the time to the nearer of them (a dropout's
+        /// readings bracket a motion of which only the end points are known) [s].
+        double gap_s = 0, inside_gap_s = 0;
     };
 
     /// Appends a reading; false (and ignored) when it is not later than the last one.
