@@ -59,9 +59,7 @@ void readCamera(const mrpt::config::CConfigFileBase& cfg, const std::string& pat
 // db.ini's ceiling_stamp_row ("first" when absent, as older databases have it).
 common::StampRow stampRowOf(const common::IniSection& db) {
     const std::string name = db.getString("ceiling_stamp_row", "first");
-    for (const auto& [known, row] : common::stampRowNames()) {
-        if (name == known) return row;
-    }
+    if (const auto row = common::enumValue(common::stampRowNames(), name)) return *row;
     throw DatabaseError(db.where("ceiling_stamp_row") + "'" + name + "' is not first or middle");
 }
 

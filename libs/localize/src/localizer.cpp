@@ -986,8 +986,9 @@ mrpt::math::CMatrixDouble33 Localizer::imageTimeCovariance(double time_s, double
     // The vehicle moves and turns over the image time's uncertainty; velocity in its frame.
     mrpt::math::CMatrixDouble33 cov;
     cov.setZero();
+    if (options_.image_time_sigma_s <= 0) return cov;
     const auto v = velocityAt(time_s);
-    if (!v || options_.image_time_sigma_s <= 0) return cov;
+    if (!v) return cov;
     const double c = std::cos(yaw), s = std::sin(yaw);
     const Eigen::Vector3d rate(c * v->vx_mps - s * v->vy_mps, s * v->vx_mps + c * v->vy_mps,
                                v->yaw_rate_radps);

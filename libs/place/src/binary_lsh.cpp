@@ -6,22 +6,9 @@
 #include <numeric>
 #include <random>
 
+#include <opencv2/core/hal/hal.hpp>
+
 namespace lookup::place::detail {
-namespace {
-
-int hamming(const std::uint8_t* a, const std::uint8_t* b, int bytes) {
-    int d = 0, i = 0;
-    for (; i + 8 <= bytes; i += 8) {
-        std::uint64_t x, y;
-        std::memcpy(&x, a + i, 8);
-        std::memcpy(&y, b + i, 8);
-        d += __builtin_popcountll(x ^ y);
-    }
-    for (; i < bytes; ++i) d += __builtin_popcount(unsigned(a[i] ^ b[i]));
-    return d;
-}
-
-}  // namespace
 
 std::uint32_t BinaryLsh::key(const Table& t, const std::uint8_t* row) const {
     std::uint32_t k = 0;
@@ -132,7 +119,7 @@ void BinaryLsh::knn(const cv::Mat& queries, int k, int max_bucket, cv::Mat& indi
                 }
                 const std::uint8_t* cand = t.rows.ptr<std::uint8_t>(static_cast<int>(begin));
                 for (std::uint32_t i = begin; i < end; ++i, cand += bytes_) {
-                    const int d = hamming(row, cand, bytes_);
+                    const int d = cv::hal::normHamming(row, cand, bytes_);
                     if (d >= best_d[k - 1]) continue;
                     const int id = static_cast<int>(t.ids[i]);
                     if (std::find(best_id, best_id + k, id) != best_id + k) continue;  // seen

@@ -24,13 +24,9 @@ const char* toString(CorrespondenceMethod m) {
 }
 
 bool parseCorrespondenceMethod(const std::string& name, CorrespondenceMethod& out) {
-    for (const auto& [n, value] : kMethods) {
-        if (n == name) {
-            out = value;
-            return true;
-        }
-    }
-    return false;
+    const auto method = common::enumValue(kMethods, name);
+    if (method) out = *method;
+    return method.has_value();
 }
 
 // ---------------------------------------------------------------- options

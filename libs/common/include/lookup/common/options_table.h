@@ -20,6 +20,7 @@
 #include <cstdint>
 #include <functional>
 #include <limits>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -39,6 +40,15 @@ std::string enumName(const EnumNames<E>& names, E value) {
         if (v == value) return name;
     }
     return {};
+}
+
+/// The value named `name` in `names` (nullopt when none is).
+template <class E>
+std::optional<E> enumValue(const EnumNames<E>& names, const std::string& name) {
+    for (const auto& [n, v] : names) {
+        if (n == name) return v;
+    }
+    return std::nullopt;
 }
 
 class OptionsTable {

@@ -130,11 +130,13 @@ class Survey {
     double ceilingHeight(const SurveyInputs& in, const std::vector<TraverseData>& data,
                          const std::vector<LaserTrack>& tracks, SurveyResult& result) const;
 
+    /// The lidar's sweep: estimated from the mapping traverse's scans (lidar_sweep.h) unless
+    /// disabled, every traverse's scans de-skewed with it, recorded in `result`.
+    void lidarSweep(const SurveyInputs& in, std::vector<TraverseData>& data,
+                    SurveyResult& result) const;
     /// The ceiling camera's time offset: estimated from the images (time_offset.h) unless
     /// disabled, applied to the traverses' ceiling stamps, recorded in `result` with the
     /// forward camera's configured one.
-    void lidarSweep(const SurveyInputs& in, std::vector<TraverseData>& data,
-                    SurveyResult& result) const;
     void timeOffsets(std::vector<TraverseData>& data, const std::vector<LaserTrack>& tracks,
                      const std::vector<bool>& reference, double ceiling_height_m,
                      SurveyResult& result) const;
