@@ -10,6 +10,7 @@
 #include <lookup/common/rawlog_io.h>
 #include <lookup/sim/simulator.h>
 #include <lookup/sim/world.h>
+#include <mrpt/obs/CObservationIMU.h>
 #include <mrpt/obs/CObservationOdometry.h>
 
 #include <algorithm>
@@ -235,6 +236,7 @@ TEST(Decline, AGradedDatasetsGroundTruthDescendsTheRamp) {
     std::string text = kLevelScenario;
     const std::string anchor = "grid_resolution_m = 0.1\n";
     text.insert(text.find(anchor) + anchor.size(), "grade = 3 17 -1:7\ngrade_transition_m = 4\n");
+    text += "\n[imu]\nenabled = true\n";
     {
         std::ofstream f(dir / "graded.ini");
         f << text;
@@ -267,17 +269,38 @@ TEST(Decline, AGradedDatasetsGroundTruthDescendsTheRamp) {
     lookup::common::RawlogReader reader((dir / "out" / "middle.rawlog").string());
     mrpt::obs::CObservation::Ptr obs;
     std::optional<mrpt::poses::CPose2D> last;
+    std::size_t odometry_records = 0;
+    std::vector<double> pitch_error;  // inclinometer minus the truth [deg]
     while (reader.next(obs)) {
         if (auto odo = std::dynamic_pointer_cast<mrpt::obs::CObservationOdometry>(obs)) {
             if (last) odometry += (odo->odometry - *last).norm();
             last = odo->odometry;
+            ++odometry_records;
+        } else if (auto imu = std::dynamic_pointer_cast<mrpt::obs::CObservationIMU>(obs)) {
+            ASSERT_TRUE(imu->has(mrpt::obs::IMU_PITCH) && imu->has(mrpt::obs::IMU_ROLL));
+            const double t = mrpt::Clock::toDouble(imu->timestamp);
+            const auto truth = std::min_element(track.begin(), track.end(), [t](auto& a, auto& b) {
+                return std::abs(a.time_s - t) < std::abs(b.time_s - t);
+            });
+            pitch_error.push_back(
+                mrpt::RAD2DEG(imu->get(mrpt::obs::IMU_PITCH) - truth->pose.pitch()));
         }
     }
+    // One inclinometer reading per odometry record, off the truth by the traverse's bias (one
+    // draw of 0.5 deg spread) and 0.2 deg of noise (plus the pitch change within the 10 ms
+    // between a record and the nearest ground-truth row).
+    ASSERT_EQ(pitch_error.size(), odometry_records);
+    double mean = 0, var = 0;
+    for (double e : pitch_error) mean += e / pitch_error.size();
+    for (double e : pitch_error) var += (e - mean) * (e - mean) / pitch_error.size();
+    EXPECT_LT(std::abs(mean), 2.0);
+    EXPECT_NEAR(std::sqrt(var), scenario.imu.noise_std_deg, 0.1);
     const double k = 1 + scenario.odometry.scale_error;
     EXPECT_NEAR(odometry / slope, k, 0.002);
     EXPECT_GT(odometry / plan, k + 0.004);
     const std::string resolved = lookup::test::readText(dir / "out" / "scenario.ini");
     EXPECT_NE(resolved.find("grade = 3 17 -1:7"), std::string::npos);
+    EXPECT_NE(resolved.find("[imu]"), std::string::npos);
 }
 
 TEST(Decline, GradeKeysRoundTripInTheResolvedScenario) {

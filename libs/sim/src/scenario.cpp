@@ -183,6 +183,15 @@ OptionsTable odometryKeys(OdometryOptions& o) {
     return t;
 }
 
+OptionsTable imuKeys(ImuOptions& o) {
+    OptionsTable t;
+    t.add("enabled", o.enabled);
+    t.add("label", o.label);
+    t.add("noise_std_deg", o.noise_std_deg);
+    t.add("bias_std_deg", o.bias_std_deg);
+    return t;
+}
+
 OptionsTable traverseKeys(TraverseOptions& tr) {
     OptionsTable t;
     t.add("name", tr.name);
@@ -703,8 +712,8 @@ void ScenarioOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& so
         throw ConfigError(sc.where("traverse_count") + "must be in [1, 100]");
     }
 
-    std::vector<std::string> known = {"scenario",       "world", "vehicle", "ceiling_camera",
-                                      "forward_camera", "lidar", "odometry"};
+    std::vector<std::string> known = {"scenario",       "world", "vehicle",  "ceiling_camera",
+                                      "forward_camera", "lidar", "odometry", "imu"};
     for (int i = 0; i < traverse_count; ++i) {
         known.push_back(traverseSection(i));
         for (const char* o : kOverridable) known.push_back(traverseSection(i) + "." + o);
@@ -728,6 +737,7 @@ void ScenarioOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& so
     cameraKeys(forward_camera).load(IniSection(source, "forward_camera", source_name));
     lidarKeys(lidar).load(IniSection(source, "lidar", source_name));
     odometryKeys(odometry).load(IniSection(source, "odometry", source_name));
+    imuKeys(imu).load(IniSection(source, "imu", source_name));
 
     traverses.assign(traverse_count, TraverseOptions{});
     for (int i = 0; i < traverse_count; ++i) {
@@ -763,6 +773,8 @@ void ScenarioOptions::saveToConfigFile(mrpt::config::CConfigFileBase& target,
     cameraKeys(copy.forward_camera).save(target, "forward_camera");
     lidarKeys(copy.lidar).save(target, "lidar");
     odometryKeys(copy.odometry).save(target, "odometry");
+    // Only when on, so that a scenario without one writes the scenario.ini it did.
+    if (copy.imu.enabled) imuKeys(copy.imu).save(target, "imu");
     for (std::size_t i = 0; i < copy.traverses.size(); ++i) {
         traverseKeys(copy.traverses[i]).save(target, traverseSection(i));
         forEachOverride(copy.traverses[i], [&](const char* name, auto& opt, auto table) {
@@ -782,6 +794,9 @@ void ScenarioOptions::check() const {
     checkCameraMount(c, forward_camera, "forward_camera", world.ceiling_height_m);
     checkLidar(c, lidar, "lidar", world);
     checkOdometry(c, odometry, "odometry");
+    c.require(!imu.enabled || !imu.label.empty(), "imu.label", "not empty");
+    c.require(imu.noise_std_deg >= 0 && imu.noise_std_deg <= 10, "imu.noise_std_deg", "in [0, 10]");
+    c.require(imu.bias_std_deg >= 0 && imu.bias_std_deg <= 10, "imu.bias_std_deg", "in [0, 10]");
     c.require(!traverses.empty(), "traverse_count", ">= 1");
     for (std::size_t i = 0; i < traverses.size(); ++i) checkTraverse(c, *this, i);
     c.throwIfFailed();

@@ -9,6 +9,7 @@
 #include <mrpt/io/CFileGZOutputStream.h>
 #include <mrpt/math/wrap2pi.h>
 #include <mrpt/obs/CObservation2DRangeScan.h>
+#include <mrpt/obs/CObservationIMU.h>
 #include <mrpt/obs/CObservationImage.h>
 #include <mrpt/obs/CObservationOdometry.h>
 #include <mrpt/poses/CPose2D.h>
@@ -236,6 +237,25 @@ mrpt::obs::CObservationOdometry odometryRecord(const OdometryOptions& o,
     obs.velocityLocal.vx = measured.x() * o.rate_hz / periods;
     obs.velocityLocal.vy = measured.y() * o.rate_hz / periods;
     obs.velocityLocal.omega = measured.phi() * o.rate_hz / periods;
+    return obs;
+}
+
+/// The inclinometer's pitch and roll at `vehicle`: the truth plus the traverse's constant bias
+/// and per-record noise.
+mrpt::obs::CObservationIMU imuRecord(const ImuOptions& o, const mrpt::poses::CPose3D& vehicle,
+                                     const Event& ev, uint32_t seed) {
+    const auto draw = [&](uint32_t a, uint32_t b) {
+        return gaussian(hash3(seed, a, b), hash3(seed, a, b + 1));
+    };
+    mrpt::obs::CObservationIMU obs;
+    obs.sensorLabel = o.label;
+    const double bias_pitch = o.bias_std_deg * draw(7000, 0);
+    const double bias_roll = o.bias_std_deg * draw(7000, 2);
+    const uint32_t k = 2 * static_cast<uint32_t>(ev.index);
+    obs.set(mrpt::obs::IMU_PITCH,
+            vehicle.pitch() + mrpt::DEG2RAD(bias_pitch + o.noise_std_deg * draw(7100, k)));
+    obs.set(mrpt::obs::IMU_ROLL,
+            vehicle.roll() + mrpt::DEG2RAD(bias_roll + o.noise_std_deg * draw(7200, k)));
     return obs;
 }
 
@@ -726,6 +746,11 @@ TraverseSummary Simulator::runTraverse(std::size_t index, const std::string& out
                 obs.timestamp = stamp;
                 writer.write(obs);
                 sum.odometry_records++;
+                if (scenario_.imu.enabled) {
+                    mrpt::obs::CObservationIMU imu = imuRecord(scenario_.imu, vehicle, ev, seed);
+                    imu.timestamp = stamp;
+                    writer.write(imu);
+                }
                 break;
             }
         }

@@ -39,19 +39,30 @@ struct Redrawn {
     std::vector<bool> valid;
 };
 
-Redrawn redraw(const mrpt::obs::CObservation2DRangeScan& scan, const mrpt::poses::CPose2D& motion) {
+Redrawn redraw(const mrpt::obs::CObservation2DRangeScan& scan, const mrpt::poses::CPose2D& motion,
+               const Attitude& attitude) {
     const std::size_t n = scan.getScanSize();
     const mrpt::poses::CPose2D sensor(scan.sensorPose);
+    const bool tilted = attitude.pitch != 0 || attitude.roll != 0;
+    // The scanner in a frame of the vehicle's heading whose x-y plane is horizontal.
+    const mrpt::poses::CPose3D levelled =
+        mrpt::poses::CPose3D(0, 0, 0, 0, attitude.pitch, attitude.roll) + scan.sensorPose;
     const mrpt::poses::CPose2D sensor_inv = mrpt::poses::CPose2D() - sensor;
     Redrawn out{std::vector<double>(n), std::vector<double>(n), std::vector<double>(n),
                 std::vector<bool>(n, false)};
     for (std::size_t i = 0; i < n; ++i) {
         if (!scan.getScanRangeValidity(i)) continue;
         const double r = scan.getScanRange(i), bearing = scan.getScanAngle(i);
+        double x = r * std::cos(bearing), y = r * std::sin(bearing);
+        if (tilted) {
+            double vx, vy, vz;
+            levelled.composePoint(x, y, 0, vx, vy, vz);
+            sensor.inverseComposePoint(vx, vy, x, y);
+        }
         // The sensor at this ray's time, seen from the sensor at the first ray.
         const mrpt::poses::CPose2D at_ray =
             sensor_inv + interpolate(motion, i / double(n - 1)) + sensor;
-        at_ray.composePoint(r * std::cos(bearing), r * std::sin(bearing), out.x[i], out.y[i]);
+        at_ray.composePoint(x, y, out.x[i], out.y[i]);
         const double a = std::atan2(out.y[i], out.x[i]);
         out.bearing[i] = scan.rightToLeft ? a + scan.aperture / 2 : scan.aperture / 2 - a;
         out.valid[i] = true;
@@ -61,11 +72,12 @@ Redrawn redraw(const mrpt::obs::CObservation2DRangeScan& scan, const mrpt::poses
 
 }  // namespace
 
-void deskewScan(mrpt::obs::CObservation2DRangeScan& scan, const mrpt::poses::CPose2D& motion) {
+void deskewScan(mrpt::obs::CObservation2DRangeScan& scan, const mrpt::poses::CPose2D& motion,
+                const Attitude& attitude) {
     const std::size_t n = scan.getScanSize();
     if (n < 2) return;
     const double step = scan.aperture / double(n - 1);
-    const Redrawn p = redraw(scan, motion);
+    const Redrawn p = redraw(scan, motion, attitude);
     std::vector<float> range(n, 0.0f);
     std::vector<bool> valid(n, false);
     const auto keep = [&](long bin, double rho) {

@@ -229,10 +229,18 @@ nlohmann::ordered_json traverseJson(const TraverseReport& t) {
     j["skipped"] = {{"lidar_ranges", t.skipped.lidar_ranges},
                     {"scans", t.skipped.scans},
                     {"odometry", t.skipped.odometry},
+                    {"imu", t.skipped.imu},
                     {"ceiling_intrinsics", t.skipped.ceiling_intrinsics},
                     {"forward_intrinsics", t.skipped.forward_intrinsics},
                     {"first", t.skipped.first},
                     {"first_image", t.first_image_problem}};
+    const LevellingReport& l = t.levelling;
+    j["levelling"] = {{"imu_records", l.imu_records},
+                      {"scans_levelled", l.scans_levelled},
+                      {"odometry_levelled", l.odometry_levelled},
+                      {"max_pitch_deg", l.max_pitch_deg},
+                      {"odometry_m", l.odometry_m},
+                      {"levelled_m", l.levelled_m}};
     j["localisation_time_s"] = t.localisation_time_s;
     if (!t.start_source.empty()) {
         j["start"] = {{"source", t.start_source},
@@ -766,6 +774,7 @@ TraverseReport addTraverse(const TraverseSpec& spec, const TraverseData& d, cons
     rep.rejected_image = selection.rejected_unusable;
     rep.skipped = d.skipped;
     rep.scans_deskewed = d.scans_deskewed;
+    rep.levelling = d.levelling;
     rep.rejected_blur = selection.rejected_blur;
     rep.rejected_exposure = selection.rejected_exposure;
     const ReferenceErrors errors =

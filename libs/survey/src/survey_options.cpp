@@ -23,6 +23,7 @@ void SurveyOptions::declareKeys(common::OptionsTable& t) {
     t.add("forward_camera_label", forward_camera_label);
     t.add("lidar_label", lidar_label);
     t.add("odometry_label", odometry_label);
+    t.add("imu_label", imu_label);
     t.add("keyframe_spacing_m", keyframe_spacing_m, common::kPositive);
     t.add("min_sharpness", min_sharpness, 0.0);
     t.add("min_mean_intensity", min_mean_intensity);

@@ -3,11 +3,13 @@
 #include "lookup/survey/scan_deskew.h"
 
 #include <mrpt/obs/CObservation2DRangeScan.h>
+#include <mrpt/obs/CObservationIMU.h>
 #include <mrpt/obs/CObservationOdometry.h>
 
 #include <cmath>
 #include <filesystem>
 #include <map>
+#include <optional>
 
 #include "lookup/common/camera_params.h"
 #include "lookup/common/rawlog_io.h"
@@ -60,6 +62,17 @@ std::string odometryProblem(const mrpt::obs::CObservationOdometry& odo) {
     return "";
 }
 
+/// The vehicle's attitude from an inclinometer reading, its mount's tilt taken off (small
+/// angles); nullopt without a finite pitch and roll.
+std::optional<Attitude> attitudeOf(const mrpt::obs::CObservationIMU& imu) {
+    using mrpt::obs::IMU_PITCH, mrpt::obs::IMU_ROLL;
+    if (!imu.has(IMU_PITCH) || !imu.has(IMU_ROLL)) return std::nullopt;
+    const double pitch = imu.get(IMU_PITCH) - imu.sensorPose.pitch();
+    const double roll = imu.get(IMU_ROLL) - imu.sensorPose.roll();
+    if (!std::isfinite(pitch) || !std::isfinite(roll)) return std::nullopt;
+    return Attitude{pitch, roll};
+}
+
 void noteSkip(SkippedRecords& skipped, const std::string& rawlog, std::size_t record,
               const std::string& reason) {
     if (skipped.first.empty()) {
@@ -89,6 +102,7 @@ TraverseData readTraverse(const std::string& rawlog, const SurveyOptions& option
                           bool need_laser) {
     TraverseData t;
     t.rawlog = rawlog;
+    AttitudeTrack attitude;
     common::RawlogReader reader(rawlog);
     std::map<std::string, double> last_time;  // per label
     mrpt::obs::CObservation::Ptr o;
@@ -156,6 +170,15 @@ TraverseData readTraverse(const std::string& rawlog, const SurveyOptions& option
             }
             t.laser_sequence.push_back(o);
             ++t.odometry_count;
+        } else if (auto imu = std::dynamic_pointer_cast<mrpt::obs::CObservationIMU>(o);
+                   imu && !options.imu_label.empty() && o->sensorLabel == options.imu_label) {
+            const auto a = attitudeOf(*imu);
+            if (!a) {
+                ++t.skipped.imu;
+                noteSkip(t.skipped, rawlog, record, o->sensorLabel + ": no finite pitch and roll");
+                continue;
+            }
+            attitude.add(time, *a);
         }
     }
     if (t.ceiling.empty() && t.skipped.ceiling_intrinsics > 0) {
@@ -177,6 +200,7 @@ TraverseData readTraverse(const std::string& rawlog, const SurveyOptions& option
                                               options.odometry_label +
                                               "' (labels present: " + listLabels(t.labels) + ")");
     }
+    t.levelling = levelTraverse(t, attitude, options.max_pose_gap_s);
     t.scans_deskewed = deskewTraverse(t, 1e-3 * options.lidar_sweep_ms);
     return t;
 }

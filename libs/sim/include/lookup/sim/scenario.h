@@ -186,6 +186,17 @@ struct OdometryOptions {
     double dropout_s = 2;         ///< duration of one dropout [s]
 };
 
+/// An inclinometer (the attitude output of the vehicle's IMU): pitch and roll against gravity,
+/// one CObservationIMU (IMU_PITCH, IMU_ROLL) with every odometry record. Off by default: the
+/// level presets' datasets stay as they were; the declines carry one.
+struct ImuOptions {
+    bool enabled = false;
+    std::string label = "IMU";
+    /// An industrial MEMS unit's dynamic attitude accuracy (a few tenths of a degree).
+    double noise_std_deg = 0.2;  ///< noise per record on pitch and roll [deg]
+    double bias_std_deg = 0.5;   ///< spread of a per-traverse constant bias on each [deg]
+};
+
 /// One drive along the route.
 struct TraverseOptions {
     std::string name;               ///< file stem of its rawlog, e.g. "left"
@@ -224,8 +235,8 @@ struct PlanLeg {
 std::vector<PlanLeg> parsePlan(const std::string& plan);
 
 /// The whole scenario. Sections: [scenario], [world], [vehicle], [ceiling_camera],
-/// [forward_camera], [lidar], [odometry], [traverse_0] ... [traverse_{traverse_count-1}], and
-/// optional overrides [traverse_i.world] (appearance keys), [traverse_i.vehicle],
+/// [forward_camera], [lidar], [odometry], [imu], [traverse_0] ... [traverse_{traverse_count-1}],
+/// and optional overrides [traverse_i.world] (appearance keys), [traverse_i.vehicle],
 /// [traverse_i.ceiling_camera], [traverse_i.forward_camera], [traverse_i.lidar],
 /// [traverse_i.odometry] holding the keys that differ on that traverse.
 /// Loading is strict: unknown sections or keys and malformed values are refused with a
@@ -242,6 +253,7 @@ struct ScenarioOptions : public mrpt::config::CLoadableOptions {
     CameraOptions forward_camera;
     LidarOptions lidar;
     OdometryOptions odometry;
+    ImuOptions imu;
     std::vector<TraverseOptions> traverses;
 
     /// Name that error messages give the source (the file path when read by fromFile()).

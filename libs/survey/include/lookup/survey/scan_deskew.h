@@ -15,8 +15,11 @@ namespace lookup::survey {
 /// Redraws `scan` from the pose of its first ray, given the vehicle's pose at the last ray
 /// relative to the first (`motion`, vehicle frame), interpolated linearly over the rays. Each
 /// corrected point goes to the ray of its new bearing (the nearest return wins); rays left
-/// without a point become invalid returns; points outside the aperture are dropped.
-void deskewScan(mrpt::obs::CObservation2DRangeScan& scan, const mrpt::poses::CPose2D& motion);
+/// without a point become invalid returns; points outside the aperture are dropped. A non-zero
+/// `attitude` (the vehicle's pitch and roll during the scan) first rotates each ray's point to
+/// the horizontal about the vehicle's origin, so the scan shows plan distances (levelling.h).
+void deskewScan(mrpt::obs::CObservation2DRangeScan& scan, const mrpt::poses::CPose2D& motion,
+                const Attitude& attitude = {});
 
 /// De-skews every scan of `traverse` with a sweep of `sweep_s` from its first ray to its last,
 /// the motion from the traverse's odometry interpolated at the two ray times. Scans that the

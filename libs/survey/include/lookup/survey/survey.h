@@ -74,6 +74,7 @@ struct TraverseReport {
     std::size_t without_forward = 0;   ///< references with no forward image in time
     SkippedRecords skipped;            ///< sensor records refused while reading the rawlog
     std::size_t scans_deskewed = 0;    ///< lidar scans redrawn for the motion over their sweep
+    LevellingReport levelling;         ///< odometry and scans projected onto the horizontal
     std::string first_image_problem;   ///< the first refused image: file and reason
     double localisation_time_s = 0;    ///< MCL (or ICP-SLAM) wall time for this traverse
     std::string start_source;          ///< "map origin", "ground truth" or "scan match"

@@ -23,6 +23,9 @@ struct SurveyOptions : public common::TableOptions<SurveyOptions> {
     std::string forward_camera_label = "FORWARD_CAM";  ///< CObservationImage ("" = none)
     std::string lidar_label = "LIDAR";                 ///< CObservation2DRangeScan
     std::string odometry_label = "ODOMETRY";           ///< CObservationOdometry
+    /// CObservationIMU with IMU_PITCH and IMU_ROLL (an inclinometer): odometry and scans are
+    /// projected onto the horizontal (levelling.h). Absent from a rawlog: level ground assumed.
+    std::string imu_label = "IMU";
 
     // --- keyframes (paper Sec. III-A: references sampled along the survey) ---------------
     double keyframe_spacing_m = 0.25;    ///< travel between kept references [m]

@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "lookup/survey/levelling.h"
 #include "lookup/survey/survey_options.h"
 
 namespace lookup::survey {
@@ -19,12 +20,13 @@ struct SkippedRecords {
     std::size_t lidar_ranges = 0;        ///< non-finite or negative ranges made invalid
     std::size_t scans = 0;               ///< scans dropped: no usable range or bad geometry
     std::size_t odometry = 0;            ///< odometry with a non-finite pose or velocity
+    std::size_t imu = 0;                 ///< inclinometer readings without finite pitch and roll
     std::size_t ceiling_intrinsics = 0;  ///< ceiling images with unusable intrinsics/mount
     std::size_t forward_intrinsics = 0;  ///< forward images with unusable intrinsics/mount
     std::string first;                   ///< the first one: "<rawlog>: record N: reason"
 
     std::size_t records() const {
-        return scans + odometry + ceiling_intrinsics + forward_intrinsics;
+        return scans + odometry + imu + ceiling_intrinsics + forward_intrinsics;
     }
 };
 
@@ -42,6 +44,7 @@ struct TraverseData {
     std::size_t scan_count = 0;
     std::size_t odometry_count = 0;
     std::size_t scans_deskewed = 0;  ///< scans redrawn for the motion over the sweep
+    LevellingReport levelling;       ///< odometry and scans projected onto the horizontal
     std::set<std::string> labels;    ///< every sensor label seen
     SkippedRecords skipped;          ///< refused sensor data
 };
@@ -53,7 +56,8 @@ struct TraverseData {
 /// data is refused and counted in TraverseData::skipped: NaN/inf/negative lidar ranges become
 /// invalid returns (a scan with none left, or with a non-finite pose or aperture, is dropped),
 /// odometry with a non-finite pose or velocity is dropped, images with unusable intrinsics are
-/// dropped.
+/// dropped. With inclinometer readings (options.imu_label), odometry and scans are levelled
+/// (levelling.h) before the scans are de-skewed.
 TraverseData readTraverse(const std::string& rawlog, const SurveyOptions& options, bool need_laser);
 
 }  // namespace lookup::survey
