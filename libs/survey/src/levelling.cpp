@@ -7,6 +7,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
+#include <utility>
+#include <vector>
 
 #include "lookup/survey/scan_deskew.h"
 #include "lookup/survey/traverse.h"
@@ -45,46 +48,121 @@ mrpt::poses::CPose2D planStep(const mrpt::poses::CPose2D& step, const Attitude& 
     return {step.x() * std::cos(a.pitch), step.y() * std::cos(a.roll), step.phi()};
 }
 
+/// The floor's height along the drive, by signed plan travel (the vehicle's own ground heights
+/// from the odometry steps and the pitch), in bins of kBinM.
+class FloorProfile {
+  public:
+    static constexpr double kBinM = 0.5;
+    void add(double s, double z) {
+        auto& [sum, n] = bins_[std::lround(s / kBinM)];
+        sum += z;
+        ++n;
+    }
+    std::optional<double> at(double s) const {
+        const auto it = bins_.find(std::lround(s / kBinM));
+        if (it == bins_.end()) return std::nullopt;
+        return it->second.first / it->second.second;
+    }
+
+  private:
+    std::map<long, std::pair<double, int>> bins_;
+};
+
+/// Where the vehicle was at an odometry record: signed plan travel and ground height.
+struct Station {
+    double time_s, s, z;
+};
+
+/// Travel and ground height at `time_s`, interpolated between stations.
+std::optional<Station> stationAt(const std::vector<Station>& st, double time_s) {
+    const auto it = std::lower_bound(st.begin(), st.end(), time_s,
+                                     [](const Station& a, double t) { return a.time_s < t; });
+    if (it == st.end() || (it == st.begin() && it->time_s != time_s)) return std::nullopt;
+    if (it->time_s == time_s) return *it;
+    const Station &a = *(it - 1), &b = *it;
+    const double w = (time_s - a.time_s) / (b.time_s - a.time_s);
+    return Station{time_s, a.s + w * (b.s - a.s), a.z + w * (b.z - a.z)};
+}
+
+/// Odometry steps to plan motion; the stations and floor heights they pass.
+void levelOdometry(TraverseData& traverse, const AttitudeTrack& attitude, double max_gap_s,
+                   LevellingReport& rep, std::vector<Station>& stations, FloorProfile& floor) {
+    bool first = true;
+    mrpt::poses::CPose2D last_raw, last_plan;
+    double last_time = 0, s = 0, z = 0;
+    for (auto& o : traverse.laser_sequence) {
+        auto odo = std::dynamic_pointer_cast<mrpt::obs::CObservationOdometry>(o);
+        if (!odo) continue;
+        const double time = mrpt::Clock::toDouble(odo->timestamp);
+        const mrpt::poses::CPose2D raw = odo->odometry;
+        if (first) {
+            last_plan = raw;
+            first = false;
+        } else {
+            const mrpt::poses::CPose2D step = raw - last_raw;
+            const auto a = attitude.at(0.5 * (time + last_time), max_gap_s);
+            const mrpt::poses::CPose2D plan = a ? planStep(step, *a) : step;
+            rep.odometry_levelled += a ? 1 : 0;
+            rep.odometry_m += std::hypot(step.x(), step.y());
+            rep.levelled_m += std::hypot(plan.x(), plan.y());
+            last_plan = last_plan + plan;
+            s += plan.x();
+            if (a) z -= step.x() * std::sin(a->pitch);  // positive pitch: nose down
+        }
+        last_raw = raw;
+        last_time = time;
+        odo->odometry = last_plan;
+        if (const auto a = attitude.at(time, max_gap_s); a && odo->hasVelocities) {
+            odo->velocityLocal.vx *= std::cos(a->pitch);
+            odo->velocityLocal.vy *= std::cos(a->roll);
+        }
+        if (stations.empty() || time > stations.back().time_s) stations.push_back({time, s, z});
+        floor.add(s, z);
+    }
+}
+
+/// Makes the returns of `scan` that lie within `margin_m` of the floor ahead or behind invalid
+/// (where the grade changes, the tilted scan plane meets the floor: a wall that is not there).
+std::size_t dropFloorReturns(mrpt::obs::CObservation2DRangeScan& scan, const Attitude& a,
+                             const Station& at, const FloorProfile& floor, double margin_m) {
+    const mrpt::poses::CPose3D levelled =
+        mrpt::poses::CPose3D(0, 0, 0, 0, a.pitch, a.roll) + scan.sensorPose;
+    std::size_t dropped = 0;
+    for (std::size_t i = 0; i < scan.getScanSize(); ++i) {
+        if (!scan.getScanRangeValidity(i)) continue;
+        const double r = scan.getScanRange(i), b = scan.getScanAngle(i);
+        double x, y, z;
+        levelled.composePoint(r * std::cos(b), r * std::sin(b), 0, x, y, z);
+        const auto floor_z = floor.at(at.s + x);
+        if (!floor_z || z - (*floor_z - at.z) >= margin_m) continue;
+        scan.setScanRangeValidity(i, false);
+        ++dropped;
+    }
+    return dropped;
+}
+
 }  // namespace
 
 LevellingReport levelTraverse(TraverseData& traverse, const AttitudeTrack& attitude,
-                              double max_gap_s) {
+                              double max_gap_s, double floor_margin_m) {
     LevellingReport rep;
     rep.imu_records = attitude.size();
     if (attitude.empty()) return rep;
     rep.max_pitch_deg = mrpt::RAD2DEG(attitude.maxAbsPitch());
-    bool first = true;
-    mrpt::poses::CPose2D last_raw, last_plan;
-    double last_time = 0;
+    std::vector<Station> stations;
+    FloorProfile floor;
+    levelOdometry(traverse, attitude, max_gap_s, rep, stations, floor);
     for (auto& o : traverse.laser_sequence) {
-        const double time = mrpt::Clock::toDouble(o->timestamp);
-        if (auto odo = std::dynamic_pointer_cast<mrpt::obs::CObservationOdometry>(o)) {
-            const mrpt::poses::CPose2D raw = odo->odometry;
-            if (first) {
-                last_plan = raw;
-                first = false;
-            } else {
-                const mrpt::poses::CPose2D step = raw - last_raw;
-                const auto a = attitude.at(0.5 * (time + last_time), max_gap_s);
-                const mrpt::poses::CPose2D plan = a ? planStep(step, *a) : step;
-                rep.odometry_levelled += a ? 1 : 0;
-                rep.odometry_m += std::hypot(step.x(), step.y());
-                rep.levelled_m += std::hypot(plan.x(), plan.y());
-                last_plan = last_plan + plan;
-            }
-            last_raw = raw;
-            last_time = time;
-            odo->odometry = last_plan;
-            if (const auto a = attitude.at(time, max_gap_s); a && odo->hasVelocities) {
-                odo->velocityLocal.vx *= std::cos(a->pitch);
-                odo->velocityLocal.vy *= std::cos(a->roll);
-            }
-        } else if (auto scan = std::dynamic_pointer_cast<mrpt::obs::CObservation2DRangeScan>(o)) {
-            const auto a = attitude.at(time, max_gap_s);
-            if (!a) continue;
-            deskewScan(*scan, mrpt::poses::CPose2D(), *a);
-            ++rep.scans_levelled;
+        auto scan = std::dynamic_pointer_cast<mrpt::obs::CObservation2DRangeScan>(o);
+        if (!scan) continue;
+        const double time = mrpt::Clock::toDouble(scan->timestamp);
+        const auto a = attitude.at(time, max_gap_s);
+        if (!a) continue;
+        if (const auto at = stationAt(stations, time); at && floor_margin_m > 0) {
+            rep.floor_returns += dropFloorReturns(*scan, *a, *at, floor, floor_margin_m);
         }
+        deskewScan(*scan, mrpt::poses::CPose2D(), *a);
+        ++rep.scans_levelled;
     }
     return rep;
 }

@@ -24,6 +24,7 @@ void SurveyOptions::declareKeys(common::OptionsTable& t) {
     t.add("lidar_label", lidar_label);
     t.add("odometry_label", odometry_label);
     t.add("imu_label", imu_label);
+    t.add("floor_return_margin_m", floor_return_margin_m, 0.0, 5.0);
     t.add("keyframe_spacing_m", keyframe_spacing_m, common::kPositive);
     t.add("min_sharpness", min_sharpness, 0.0);
     t.add("min_mean_intensity", min_mean_intensity);

@@ -43,13 +43,17 @@ struct LevellingReport {
     double max_pitch_deg = 0;           ///< largest |pitch| read
     double odometry_m = 0;              ///< odometry distance as recorded [m]
     double levelled_m = 0;              ///< ... after projection (plan distance) [m]
+    std::size_t floor_returns = 0;      ///< lidar returns from the floor ahead, dropped
 };
 
 /// Projects `traverse`'s odometry steps and scans onto the horizontal with `attitude` (each at
 /// its time; where the inclinometer has no reading within `max_gap_s` they stay as they are).
 /// Scans are redrawn as by deskewScan, each ray rotated by the vehicle's attitude before its
-/// plan position is taken.
+/// plan position is taken. Where the grade changes, the tilted scan plane meets the floor ahead
+/// (at the foot of a decline) and draws a wall across the tunnel: returns less than
+/// `floor_margin_m` above the floor there (the vehicle's own ground heights along its drive,
+/// from the odometry and the pitch; 0 = keep all) are dropped first.
 LevellingReport levelTraverse(TraverseData& traverse, const AttitudeTrack& attitude,
-                              double max_gap_s);
+                              double max_gap_s, double floor_margin_m);
 
 }  // namespace lookup::survey

@@ -26,6 +26,9 @@ struct SurveyOptions : public common::TableOptions<SurveyOptions> {
     /// CObservationIMU with IMU_PITCH and IMU_ROLL (an inclinometer): odometry and scans are
     /// projected onto the horizontal (levelling.h). Absent from a rawlog: level ground assumed.
     std::string imu_label = "IMU";
+    /// With it, lidar returns less than this above the floor ahead are dropped (levelling.h):
+    /// above the floor's relief, below any scan plane's height [m] (0 = keep all).
+    double floor_return_margin_m = 0.3;
 
     // --- keyframes (paper Sec. III-A: references sampled along the survey) ---------------
     double keyframe_spacing_m = 0.25;    ///< travel between kept references [m]
