@@ -236,7 +236,6 @@ TEST(Decline, AGradedDatasetsGroundTruthDescendsTheRamp) {
     std::string text = kLevelScenario;
     const std::string anchor = "grid_resolution_m = 0.1\n";
     text.insert(text.find(anchor) + anchor.size(), "grade = 3 17 -1:7\ngrade_transition_m = 4\n");
-    text += "\n[imu]\nenabled = true\n";
     {
         std::ofstream f(dir / "graded.ini");
         f << text;
@@ -300,7 +299,8 @@ TEST(Decline, AGradedDatasetsGroundTruthDescendsTheRamp) {
     EXPECT_GT(odometry / plan, k + 0.004);
     const std::string resolved = lookup::test::readText(dir / "out" / "scenario.ini");
     EXPECT_NE(resolved.find("grade = 3 17 -1:7"), std::string::npos);
-    EXPECT_NE(resolved.find("[imu]"), std::string::npos);
+    // The inclinometer is on by default in a graded mine, and the resolved file says so.
+    EXPECT_NE(resolved.find("[imu]\nenabled = true"), std::string::npos) << resolved;
 }
 
 TEST(Decline, GradeKeysRoundTripInTheResolvedScenario) {
@@ -313,6 +313,12 @@ TEST(Decline, GradeKeysRoundTripInTheResolvedScenario) {
     const std::string text = s.toIniText();
     EXPECT_NE(text.find("grade = 10 40 -1:7"), std::string::npos) << text;
     EXPECT_NE(text.find("grade_transition_m"), std::string::npos) << text;
+    EXPECT_NE(text.find("[imu]"), std::string::npos) << text;  // auto: on in a graded mine
+    s.imu.enabled = lookup::sim::ImuOptions::Mode::Off;
+    EXPECT_EQ(s.toIniText().find("[imu]"), std::string::npos);
+    s.world.grade.clear();
+    s.imu.enabled = lookup::sim::ImuOptions::Mode::Auto;
+    EXPECT_EQ(s.toIniText().find("[imu]"), std::string::npos);  // ... off on the level
     const auto ramps = lookup::sim::parseGrade("10 40 -1:7, 50 60 0.1");
     ASSERT_EQ(ramps.size(), 2u);
     EXPECT_NEAR(ramps[0].grade, -kGrade, 1e-12);

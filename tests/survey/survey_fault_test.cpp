@@ -7,6 +7,7 @@
 
 #include <mrpt/config/CConfigFile.h>
 #include <mrpt/obs/CObservation2DRangeScan.h>
+#include <mrpt/obs/CObservationIMU.h>
 #include <mrpt/obs/CObservationImage.h>
 #include <mrpt/obs/CObservationOdometry.h>
 
@@ -135,6 +136,45 @@ TEST(SurveyFault, NonFiniteOdometryRecordsSkippedAndCounted) {
     for (const auto& ref : db.references()) {
         ASSERT_TRUE(std::isfinite(ref.vehicle_pose.x()) && std::isfinite(ref.vehicle_pose.yaw()));
     }
+}
+
+// An inclinometer reading beside every odometry record, level (the fixture's corridor is flat),
+// some without a finite pitch or without a roll: those are counted and skipped, the rest level
+// the drive, which must come out as accurate as without them.
+TEST(SurveyFault, InclinometerReadingsWithoutAFinitePitchAndRollSkippedAndCounted) {
+    const auto dir = lookup::test::freshDir("lookup_survey_fault_imu");
+    const auto f = lookup::test::makeSurveyRawlog(dir.string(), "corridor", 10.0);
+    const std::string with_imu = (dir / "imu.rawlog").string();
+    std::size_t readings = 0;
+    {
+        lookup::common::RawlogReader reader(f.rawlog);
+        lookup::common::RawlogWriter writer(with_imu);
+        mrpt::obs::CObservation::Ptr o;
+        while (reader.next(o)) {
+            writer.write(*o);
+            if (!std::dynamic_pointer_cast<mrpt::obs::CObservationOdometry>(o)) continue;
+            mrpt::obs::CObservationIMU imu;
+            imu.sensorLabel = "IMU";
+            imu.timestamp = o->timestamp;
+            ++readings;
+            imu.set(mrpt::obs::IMU_PITCH, readings == 20 ? kNaN : 0.002);
+            if (readings != 40) imu.set(mrpt::obs::IMU_ROLL, -0.001);
+            writer.write(imu);
+        }
+        writer.close();
+    }
+    const auto r =
+        Survey(shareOptions(), shareIni()).run(inputsFor(with_imu, f.ground_truth, dir / "db"));
+    ASSERT_TRUE(r.ok()) << r.reason;
+    const TraverseReport& t = r.traverses.at(0);
+    EXPECT_EQ(t.skipped.imu, 2u);
+    EXPECT_NE(t.skipped.first.find("IMU: no finite pitch and roll"), std::string::npos)
+        << t.skipped.first;
+    EXPECT_EQ(t.levelling.imu_records, readings - 2);
+    EXPECT_GT(t.levelling.odometry_levelled, readings / 2);
+    EXPECT_GT(t.levelling.scans_levelled, 10u);
+    EXPECT_NEAR(t.levelling.levelled_m, t.levelling.odometry_m, 1e-3 * t.levelling.odometry_m);
+    EXPECT_LT(t.error.max_m, 0.3);
 }
 
 TEST(SurveyFault, UnusableIntrinsicsRefused) {

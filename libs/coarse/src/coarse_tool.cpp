@@ -241,14 +241,12 @@ std::shared_ptr<ReferenceDescriptors> loadReferences(const std::string& descript
 std::optional<double> matchError(const CoarseResult& r, const ReferenceDescriptors& refs,
                                  const mrpt::poses::CPose3DInterpolator& truth, double time_s,
                                  bool want_nearest, std::size_t& nearest) {
-    mrpt::poses::CPose3D truth_pose;
-    bool valid = false;
-    truth.interpolate(mrpt::Clock::fromDouble(time_s), truth_pose, valid);
-    if (!valid) return std::nullopt;
-    if (want_nearest) nearest = refs.nearestInSpace(truth_pose);
+    const auto truth_pose = common::poseAt(truth, time_s);
+    if (!truth_pose) return std::nullopt;
+    if (want_nearest) nearest = refs.nearestInSpace(*truth_pose);
     if (!r.hasMatch()) return std::nullopt;
     const auto& p = refs.pose(r.reference_index);
-    return std::hypot(p.x() - truth_pose.x(), p.y() - truth_pose.y());
+    return std::hypot(p.x() - truth_pose->x(), p.y() - truth_pose->y());
 }
 }  // namespace
 

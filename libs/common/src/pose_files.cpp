@@ -119,4 +119,13 @@ mrpt::poses::CPose3DInterpolator makeInterpolator(const PoseTrack& track, double
     return interp;
 }
 
+std::optional<mrpt::poses::CPose3D> poseAt(const mrpt::poses::CPose3DInterpolator& interp,
+                                           double time_s) {
+    mrpt::poses::CPose3D p;
+    bool valid = false;
+    interp.interpolate(mrpt::Clock::fromDouble(time_s), p, valid);
+    if (!valid) return std::nullopt;
+    return p;
+}
+
 }  // namespace lookup::common

@@ -10,6 +10,7 @@
 #include <optional>
 
 #include "lookup/common/config.h"
+#include "lookup/common/pose_files.h"
 
 namespace lookup::eval {
 
@@ -190,10 +191,9 @@ MethodResult scoreRun(const Run& run, const GroundTruth& gt, const EvalOptions& 
     for (size_t i = 0; i < run.frames.size(); ++i) {
         const FrameRow& f = run.frames[i];
         if (f.status != "dropped" && f.ms > 0) t.frame_ms.push_back(f.ms);
-        mrpt::poses::CPose3D truth;
-        bool valid = false;
-        interp.interpolate(mrpt::Clock::fromDouble(f.time_s), truth, valid);
-        if (!valid) continue;
+        const auto truth_at = common::poseAt(interp, f.time_s);
+        if (!truth_at) continue;
+        const mrpt::poses::CPose3D& truth = *truth_at;
         if (m.frames++ == 0) first_time_s = f.time_s;
         const bool after_fix = m.first_fix_frame >= 0;
         scoreIntegrity(f, i, truth, first_time_s, options, t, m);

@@ -185,7 +185,10 @@ OptionsTable odometryKeys(OdometryOptions& o) {
 
 OptionsTable imuKeys(ImuOptions& o) {
     OptionsTable t;
-    t.add("enabled", o.enabled);
+    t.add("enabled", o.enabled,
+          common::EnumNames<ImuOptions::Mode>{{"auto", ImuOptions::Mode::Auto},
+                                              {"true", ImuOptions::Mode::On},
+                                              {"false", ImuOptions::Mode::Off}});
     t.add("label", o.label);
     t.add("noise_std_deg", o.noise_std_deg);
     t.add("bias_std_deg", o.bias_std_deg);
@@ -773,8 +776,12 @@ void ScenarioOptions::saveToConfigFile(mrpt::config::CConfigFileBase& target,
     cameraKeys(copy.forward_camera).save(target, "forward_camera");
     lidarKeys(copy.lidar).save(target, "lidar");
     odometryKeys(copy.odometry).save(target, "odometry");
-    // Only when on, so that a scenario without one writes the scenario.ini it did.
-    if (copy.imu.enabled) imuKeys(copy.imu).save(target, "imu");
+    // Only when on (and then resolved to true), so that a level scenario without one writes
+    // the scenario.ini it did.
+    if (copy.imu.activeIn(!copy.world.grade.empty())) {
+        copy.imu.enabled = ImuOptions::Mode::On;
+        imuKeys(copy.imu).save(target, "imu");
+    }
     for (std::size_t i = 0; i < copy.traverses.size(); ++i) {
         traverseKeys(copy.traverses[i]).save(target, traverseSection(i));
         forEachOverride(copy.traverses[i], [&](const char* name, auto& opt, auto table) {
@@ -794,7 +801,7 @@ void ScenarioOptions::check() const {
     checkCameraMount(c, forward_camera, "forward_camera", world.ceiling_height_m);
     checkLidar(c, lidar, "lidar", world);
     checkOdometry(c, odometry, "odometry");
-    c.require(!imu.enabled || !imu.label.empty(), "imu.label", "not empty");
+    c.require(!imu.label.empty(), "imu.label", "not empty");
     c.require(imu.noise_std_deg >= 0 && imu.noise_std_deg <= 10, "imu.noise_std_deg", "in [0, 10]");
     c.require(imu.bias_std_deg >= 0 && imu.bias_std_deg <= 10, "imu.bias_std_deg", "in [0, 10]");
     c.require(!traverses.empty(), "traverse_count", ">= 1");

@@ -746,7 +746,7 @@ TraverseSummary Simulator::runTraverse(std::size_t index, const std::string& out
                 obs.timestamp = stamp;
                 writer.write(obs);
                 sum.odometry_records++;
-                if (scenario_.imu.enabled) {
+                if (scenario_.imu.activeIn(world_->graded())) {
                     mrpt::obs::CObservationIMU imu = imuRecord(scenario_.imu, vehicle, ev, seed);
                     imu.timestamp = stamp;
                     writer.write(imu);

@@ -19,6 +19,7 @@
 #include "lookup/common/config.h"
 #include "lookup/common/errors.h"
 #include "lookup/common/options_table.h"
+#include "lookup/common/pose_files.h"
 #include "lookup/common/rawlog_io.h"
 #include "lookup/database/database_writer.h"
 #include "lookup/survey/keyframes.h"
@@ -46,15 +47,6 @@ PoseErrorStats statsOf(std::vector<double> err_m, const std::vector<double>& yaw
     s.p95_m = err_m[std::min(err_m.size() - 1,
                              static_cast<std::size_t>(std::ceil(0.95 * err_m.size())) - 1)];
     return s;
-}
-
-std::optional<mrpt::poses::CPose3D> poseAt(const mrpt::poses::CPose3DInterpolator& interp,
-                                           double t) {
-    mrpt::math::TPose3D p;
-    bool valid = false;
-    interp.interpolate(mrpt::Clock::fromDouble(t), p, valid);
-    if (!valid) return std::nullopt;
-    return mrpt::poses::CPose3D(p);
 }
 
 // Index of the element of sorted `times` nearest to t.
@@ -343,7 +335,7 @@ mrpt::poses::CPose2D groundTruthStart(const SurveyOptions& o, const TraverseData
                                       const mrpt::poses::CPose2D& fallback) {
     if (!o.start_at_ground_truth || !gt) return fallback;
     const double t0 = mrpt::Clock::toDouble(d.laser_sequence.front()->timestamp);
-    if (auto p = poseAt(*gt, t0)) return mrpt::poses::CPose2D(*p);
+    if (auto p = common::poseAt(*gt, t0)) return mrpt::poses::CPose2D(*p);
     return fallback;
 }
 
@@ -561,7 +553,7 @@ struct TrackLookup {
     mrpt::math::CMatrixDouble33 covarianceAt(double t) const {
         mrpt::math::CMatrixDouble33 cov = track.covs[nearestIndex(times, t)];
         constexpr double kSpan_s = 0.05;
-        const auto a = poseAt(interp, t - kSpan_s), b = poseAt(interp, t + kSpan_s);
+        const auto a = common::poseAt(interp, t - kSpan_s), b = common::poseAt(interp, t + kSpan_s);
         if (!a || !b || image_time_sigma_s <= 0) return cov;
         const Eigen::Vector3d rate((b->x() - a->x()) / (2 * kSpan_s),
                                    (b->y() - a->y()) / (2 * kSpan_s),
@@ -589,7 +581,7 @@ PosedFrames posedFrames(const TraverseData& d, const TrackLookup& poses) {
     PosedFrames out;
     for (std::size_t f = 0; f < d.ceiling.size(); ++f) {
         const double t = mrpt::Clock::toDouble(d.ceiling[f]->timestamp);
-        if (auto p = poseAt(poses.interp, t)) {
+        if (auto p = common::poseAt(poses.interp, t)) {
             out.candidates.push_back({t, *p});
             out.frame_of.push_back(f);
         } else {
@@ -714,12 +706,12 @@ ReferenceErrors writeReferences(const TraverseSpec& spec, const TraverseData& d,
         if (auto fi = forward.nearest(candidate.time_s, o.forward_max_dt_s, cameras, rep)) {
             ref.forward = d.forward[*fi];
             ref.forward_vehicle_pose =
-                poseAt(poses.interp, forward.time(*fi)).value_or(ref.vehicle_pose);
+                common::poseAt(poses.interp, forward.time(*fi)).value_or(ref.vehicle_pose);
         }
         if (!ref.forward) ++rep.without_forward;
         writer.add(ref);
         if (gt) {
-            if (auto truth = poseAt(*gt, candidate.time_s)) errors.add(*truth, ref);
+            if (auto truth = common::poseAt(*gt, candidate.time_s)) errors.add(*truth, ref);
         }
     }
     return errors;

@@ -13,6 +13,7 @@
 #include <opencv2/imgproc.hpp>
 #include <opencv2/video/tracking.hpp>
 
+#include "lookup/common/pose_files.h"
 #include "lookup/refine/geometry.h"
 
 namespace lookup::survey {
@@ -32,23 +33,14 @@ struct Pair {
     Motion measured;
 };
 
-std::optional<mrpt::poses::CPose3D> poseAt(const mrpt::poses::CPose3DInterpolator& track,
-                                           double t) {
-    mrpt::math::TPose3D p;
-    bool valid = false;
-    track.interpolate(mrpt::Clock::fromDouble(t), p, valid);
-    if (!valid) return std::nullopt;
-    return mrpt::poses::CPose3D(p);
-}
-
 Motion motionOf(const mrpt::poses::CPose3D& a_to_b) {
     return {a_to_b.x(), a_to_b.y(), a_to_b.yaw()};
 }
 
 // The track's vehicle motion from ti + dt to tj + dt.
 std::optional<Motion> trackMotion(const Pair& p, double dt) {
-    const auto a = poseAt(*p.traverse->poses, p.ti + dt);
-    const auto b = poseAt(*p.traverse->poses, p.tj + dt);
+    const auto a = common::poseAt(*p.traverse->poses, p.ti + dt);
+    const auto b = common::poseAt(*p.traverse->poses, p.tj + dt);
     if (!a || !b) return std::nullopt;
     return motionOf(*b - *a);
 }
@@ -64,14 +56,14 @@ std::vector<Pair> candidatePairs(const CeilingTraverse& t, const SurveyOptions& 
     std::vector<double> travel;
     for (std::size_t k = 0; k < images.size(); ++k) {
         const double s = stampOf(*images[k]);
-        const auto p = poseAt(*t.poses, s);
-        if (!p || !poseAt(*t.poses, s - o.time_offset_max_s) ||
-            !poseAt(*t.poses, s + o.time_offset_max_s)) {
+        const auto p = common::poseAt(*t.poses, s);
+        if (!p || !common::poseAt(*t.poses, s - o.time_offset_max_s) ||
+            !common::poseAt(*t.poses, s + o.time_offset_max_s)) {
             continue;
         }
         double d = 0;
         if (!index.empty()) {
-            const auto q = *poseAt(*t.poses, stampOf(*images[index.back()]));
+            const auto q = *common::poseAt(*t.poses, stampOf(*images[index.back()]));
             d = travel.back() + std::hypot(p->x() - q.x(), p->y() - q.y());
         }
         index.push_back(k);
@@ -409,7 +401,8 @@ TimeOffsetEstimate estimateTimeOffset(const std::vector<CeilingTraverse>& traver
     for (auto& p : selectPairs(std::move(all), std::size_t(o.time_offset_max_pairs))) {
         ++e.pairs_tried;
         const auto& images = *p.traverse->ceiling;
-        const auto a = poseAt(*p.traverse->poses, p.ti), b = poseAt(*p.traverse->poses, p.tj);
+        const auto a = common::poseAt(*p.traverse->poses, p.ti),
+                   b = common::poseAt(*p.traverse->poses, p.tj);
         if (!a || !b) continue;
         std::optional<Motion> m;
         try {

@@ -6,6 +6,7 @@
 #include <mrpt/poses/CPose3D.h>
 #include <mrpt/poses/CPose3DInterpolator.h>
 
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -39,5 +40,9 @@ void writeTumPoseFile(const std::string& path, const PoseTrack& track);
 /// An MRPT interpolator over the track (linear position, slerp rotation) that refuses to
 /// interpolate across gaps longer than `max_gap_s`.
 mrpt::poses::CPose3DInterpolator makeInterpolator(const PoseTrack& track, double max_gap_s);
+
+/// The interpolator's pose at `time_s`; nullopt outside its track or across a gap.
+std::optional<mrpt::poses::CPose3D> poseAt(const mrpt::poses::CPose3DInterpolator& interp,
+                                           double time_s);
 
 }  // namespace lookup::common

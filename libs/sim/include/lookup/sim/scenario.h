@@ -187,10 +187,15 @@ struct OdometryOptions {
 };
 
 /// An inclinometer (the attitude output of the vehicle's IMU): pitch and roll against gravity,
-/// one CObservationIMU (IMU_PITCH, IMU_ROLL) with every odometry record. Off by default: the
-/// level presets' datasets stay as they were; the declines carry one.
+/// one CObservationIMU (IMU_PITCH, IMU_ROLL) with every odometry record.
 struct ImuOptions {
-    bool enabled = false;
+    /// Auto: on in a graded mine, where the survey needs it; off on the level, so that level
+    /// datasets stay byte for byte what they were. On / Off force it.
+    enum class Mode { Auto, On, Off };
+    Mode enabled = Mode::Auto;
+    bool activeIn(bool graded) const {
+        return enabled == Mode::On || (enabled == Mode::Auto && graded);
+    }
     std::string label = "IMU";
     /// An industrial MEMS unit's dynamic attitude accuracy (a few tenths of a degree).
     double noise_std_deg = 0.2;  ///< noise per record on pitch and roll [deg]
