@@ -301,6 +301,8 @@ TEST(Decline, AGradedDatasetsGroundTruthDescendsTheRamp) {
     EXPECT_NE(resolved.find("grade = 3 17 -1:7"), std::string::npos);
     // The inclinometer is on by default in a graded mine, and the resolved file says so.
     EXPECT_NE(resolved.find("[imu]\nenabled = true"), std::string::npos) << resolved;
+    EXPECT_NE(lookup::test::readText(dir / "out" / "dataset.ini").find("imu_label = IMU"),
+              std::string::npos);
 }
 
 TEST(Decline, GradeKeysRoundTripInTheResolvedScenario) {

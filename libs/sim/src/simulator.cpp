@@ -396,6 +396,7 @@ void writeDatasetIni(const std::string& path, const ScenarioOptions& sc,
       << "forward_camera_label = " << sc.forward_camera.label << "\n"
       << "lidar_label = " << sc.lidar.label << "\n"
       << "odometry_label = " << sc.odometry.label << "\n";
+    if (sc.imu.activeIn(!sc.world.grade.empty())) f << "imu_label = " << sc.imu.label << "\n";
     // No ceiling height and no exact start: the survey measures the one and is given the
     // other as an operator would give it.
     bool start_written = false;

@@ -55,6 +55,7 @@ void readDataset(const std::string& path, SurveyInputs& inputs, SurveyOptions& o
         ds.getString("forward_camera_label", options.forward_camera_label);
     options.lidar_label = ds.getString("lidar_label", options.lidar_label);
     options.odometry_label = ds.getString("odometry_label", options.odometry_label);
+    options.imu_label = ds.getString("imu_label", options.imu_label);
     const int count = ds.requireInt("traverse_count");
     for (int i = 0; i < count; ++i) {
         common::IniSection t(cfg, "traverse_" + std::to_string(i), path);
