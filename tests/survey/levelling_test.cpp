@@ -10,11 +10,13 @@
 
 #include "lookup/survey/levelling.h"
 #include "lookup/survey/traverse.h"
+#include "room_scans.h"
 
 namespace {
 
 using lookup::survey::Attitude;
 using lookup::survey::AttitudeTrack;
+using lookup::test::meanWallDistance;
 using mrpt::obs::CObservation2DRangeScan;
 using mrpt::obs::CObservationOdometry;
 using mrpt::poses::CPose2D;
@@ -52,22 +54,6 @@ CObservation2DRangeScan tiltedScan(const Attitude& a) {
         scan.setScanRangeValidity(i, true);
     }
     return scan;
-}
-
-// Mean plan distance from the scan's points, placed as a level scan at the origin, to the walls.
-double meanWallDistance(const CObservation2DRangeScan& scan) {
-    const CPose2D sensor(scan.sensorPose);
-    double sum = 0;
-    int count = 0;
-    for (std::size_t i = 0; i < scan.getScanSize(); ++i) {
-        if (!scan.getScanRangeValidity(i)) continue;
-        double x = 0, y = 0;
-        const double r = scan.getScanRange(i), b = scan.getScanAngle(i);
-        sensor.composePoint(r * std::cos(b), r * std::sin(b), x, y);
-        sum += std::min({std::abs(15 - std::abs(x)), std::abs(4 - std::abs(y))});
-        ++count;
-    }
-    return count ? sum / count : std::numeric_limits<double>::infinity();
 }
 
 AttitudeTrack constantAttitude(const Attitude& a, double from_s, double to_s) {

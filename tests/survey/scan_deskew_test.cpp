@@ -8,8 +8,11 @@
 #include <limits>
 
 #include "lookup/survey/scan_deskew.h"
+#include "room_scans.h"
 
 namespace {
+
+using lookup::test::meanWallDistance;
 
 using lookup::survey::deskewScan;
 using mrpt::obs::CObservation2DRangeScan;
@@ -44,22 +47,6 @@ CObservation2DRangeScan sweep(const CPose2D& start, const CPose2D& motion) {
         scan.setScanRangeValidity(i, true);
     }
     return scan;
-}
-
-// Mean distance from the scan's points (placed at `at`) to the room's walls.
-double meanWallDistance(const CObservation2DRangeScan& scan, const CPose2D& at) {
-    const CPose2D sensor = at + CPose2D(scan.sensorPose);
-    double sum = 0;
-    int count = 0;
-    for (std::size_t i = 0; i < scan.getScanSize(); ++i) {
-        if (!scan.getScanRangeValidity(i)) continue;
-        double x = 0, y = 0;
-        const double r = scan.getScanRange(i), b = scan.getScanAngle(i);
-        sensor.composePoint(r * std::cos(b), r * std::sin(b), x, y);
-        sum += std::min({std::abs(15 - std::abs(x)), std::abs(4 - std::abs(y))});
-        ++count;
-    }
-    return count ? sum / count : std::numeric_limits<double>::infinity();
 }
 
 TEST(ScanDeskew, RedrawsAMovingSweepAsSeenFromItsFirstRay) {
