@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <limits>
+#include <memory>
 
 #include "lookup/survey/levelling.h"
 #include "lookup/survey/traverse.h"
@@ -87,7 +88,7 @@ TEST(Levelling, ATiltedScanShowsThePlanDistancesToTheWalls) {
     lookup::survey::TraverseData traverse;
     traverse.laser_sequence.push_back(scan);
     const auto rep =
-        lookup::survey::levelTraverse(traverse, constantAttitude(a, kT0, kT0 + 1), 1.0, 0.3);
+        lookup::survey::levelTraverse(traverse, constantAttitude(a, kT0, kT0 + 1), 1.0, 0.3, 1.0);
     EXPECT_EQ(rep.scans_levelled, 1u);
     EXPECT_LT(meanWallDistance(*scan), 0.01) << "before " << tilted;
 }
@@ -104,7 +105,7 @@ TEST(Levelling, OdometryOnTheRampBecomesPlanMotion) {
     }
     // The inclinometer covers the first second only: the rest stays as recorded.
     const auto rep = lookup::survey::levelTraverse(
-        traverse, constantAttitude({kPitch, 0}, kT0, kT0 + 1.0), 1.0, 0.3);
+        traverse, constantAttitude({kPitch, 0}, kT0, kT0 + 1.0), 1.0, 0.3, 1.0);
     EXPECT_EQ(rep.odometry_levelled, 50u);
     EXPECT_NEAR(rep.max_pitch_deg, mrpt::RAD2DEG(kPitch), 1e-9);
     EXPECT_NEAR(rep.odometry_m, 10.0, 1e-9);
@@ -118,70 +119,87 @@ TEST(Levelling, OdometryOnTheRampBecomesPlanMotion) {
     EXPECT_NEAR(at(90)->velocityLocal.vx, 5, 1e-9);
 }
 
-// A vehicle 2 m before the foot of a 1:7 decline, still nose down: its scan ahead meets the
-// level floor beyond the foot; the returns from the side walls stay.
-TEST(Levelling, ReturnsFromTheFloorAtTheFootOfADeclineAreDropped) {
-    const double tan_g = std::tan(kPitch), step = 0.1;  // slope distance per record [m]
-    const auto floorAt = [&](double s) { return -std::min(s, 10.0) * tan_g; };  // plan s
+// A drive over a ramp of `pitch` (positive: descending) that ends at plan s = 10 m, in a
+// tunnel 8 m wide with its roof 3 m above the floor; one scan at s = 8 m, still on the ramp.
+struct GradeChange {
     lookup::survey::TraverseData traverse;
     AttitudeTrack attitude;
+    std::shared_ptr<CObservation2DRangeScan> scan;
+};
+
+GradeChange driveOverGradeChange(double pitch) {
+    const double tan_g = std::tan(pitch), step = 0.1;  // slope distance per record [m]
+    const auto floorAt = [&](double s) { return -std::min(s, 10.0) * tan_g; };  // plan s
+    GradeChange g;
     double s = 0;
-    std::size_t scan_record = 0;
-    for (int k = 0; k <= 200; ++k) {
+    for (int k = 0; k <= 400; ++k) {  // to s = 40 m: the floor beyond every return is known
         const double t = kT0 + 0.02 * k;
         const bool on_ramp = s < 10;
-        attitude.add(t, {on_ramp ? kPitch : 0.0, 0.0});
+        g.attitude.add(t, {on_ramp ? pitch : 0.0, 0.0});
         auto odo = CObservationOdometry::Create();
         odo->timestamp = mrpt::Clock::fromDouble(t);
         odo->odometry = CPose2D(step * k, 0, 0);
-        traverse.laser_sequence.push_back(odo);
+        g.traverse.laser_sequence.push_back(odo);
         if (k == 81) {  // plan s = 8.0 m
-            auto scan = CObservation2DRangeScan::Create();
-            scan->aperture = float(M_PI * 1.5);
-            scan->rightToLeft = true;
-            scan->maxRange = 40.0f;
-            scan->sensorPose = CPose3D(1.9, 0, 1.2, 0, 0, 0);
-            scan->resizeScan(541);
-            scan->timestamp = mrpt::Clock::fromDouble(t);
-            const CPose3D sensor = CPose3D(s, 0, floorAt(s), 0, kPitch, 0) + scan->sensorPose;
-            for (std::size_t i = 0; i < scan->getScanSize(); ++i) {
-                const double b = scan->getScanAngle(i);
+            g.scan = CObservation2DRangeScan::Create();
+            g.scan->aperture = float(M_PI * 1.5);
+            g.scan->rightToLeft = true;
+            g.scan->maxRange = 40.0f;
+            g.scan->sensorPose = CPose3D(1.9, 0, 1.2, 0, 0, 0);
+            g.scan->resizeScan(541);
+            g.scan->timestamp = mrpt::Clock::fromDouble(t);
+            const CPose3D sensor = CPose3D(s, 0, floorAt(s), 0, pitch, 0) + g.scan->sensorPose;
+            for (std::size_t i = 0; i < g.scan->getScanSize(); ++i) {
+                const double b = g.scan->getScanAngle(i);
                 double x, y, z;
                 float range = 0;
                 for (double r = 0.05; r < 39.9 && range == 0; r += 0.01) {
                     sensor.composePoint(r * std::cos(b), r * std::sin(b), 0, x, y, z);
-                    if (std::abs(y) > 4 || z < floorAt(x) || std::abs(x) > 60) range = float(r);
+                    const bool outside = z < floorAt(x) || z > floorAt(x) + 3;
+                    if (std::abs(y) > 4 || outside || std::abs(x) > 60) range = float(r);
                 }
-                scan->setScanRange(i, range);
-                scan->setScanRangeValidity(i, range > 0);
+                g.scan->setScanRange(i, range);
+                g.scan->setScanRangeValidity(i, range > 0);
             }
-            traverse.laser_sequence.push_back(scan);
-            scan_record = traverse.laser_sequence.size() - 1;
+            g.traverse.laser_sequence.push_back(g.scan);
         }
-        s += step * std::cos(on_ramp ? kPitch : 0.0);
+        s += step * std::cos(on_ramp ? pitch : 0.0);
     }
-    auto copy = traverse;  // its own odometry records: levelling rewrites them in place
-    for (auto& o : copy.laser_sequence) {
-        if (auto odo = std::dynamic_pointer_cast<CObservationOdometry>(o)) {
-            o = CObservationOdometry::Create(*odo);
-        }
-    }
-    auto scan =
-        std::dynamic_pointer_cast<CObservation2DRangeScan>(traverse.laser_sequence[scan_record]);
-    copy.laser_sequence[scan_record] = CObservation2DRangeScan::Create(*scan);
-    const std::size_t ahead = 270, left = 450;
-    ASSERT_GT(scan->getScanRange(ahead), 5.0f);  // the floor, beyond the foot
-    ASSERT_LT(scan->getScanRange(ahead), 12.0f);
-    const auto rep = lookup::survey::levelTraverse(traverse, attitude, 1.0, 0.3);
+    return g;
+}
+
+constexpr std::size_t kAhead = 270, kLeft = 450;  // rays at 0 and +90 deg
+
+// 2 m before the foot of a 1:7 decline, still nose down: the scan ahead meets the level floor
+// beyond the foot; the returns from the side walls stay.
+TEST(Levelling, ReturnsFromTheFloorAtTheFootOfADeclineAreDropped) {
+    GradeChange g = driveOverGradeChange(kPitch);
+    ASSERT_GT(g.scan->getScanRange(kAhead), 5.0f);  // the floor, beyond the foot
+    ASSERT_LT(g.scan->getScanRange(kAhead), 12.0f);
+    const auto rep = lookup::survey::levelTraverse(g.traverse, g.attitude, 1.0, 0.3, 1.0);
     EXPECT_GT(rep.floor_returns, 5u);
     EXPECT_LT(rep.floor_returns, 200u);  // the side walls stay
-    EXPECT_FALSE(scan->getScanRangeValidity(ahead));
-    EXPECT_TRUE(scan->getScanRangeValidity(left));
-    // Margin 0: nothing dropped, the floor drawn as a wall ahead.
-    const auto kept = lookup::survey::levelTraverse(copy, attitude, 1.0, 0.0);
-    EXPECT_EQ(kept.floor_returns, 0u);
-    EXPECT_TRUE(std::dynamic_pointer_cast<CObservation2DRangeScan>(copy.laser_sequence[scan_record])
-                    ->getScanRangeValidity(ahead));
+    EXPECT_EQ(rep.roof_returns, 0u);
+    EXPECT_FALSE(g.scan->getScanRangeValidity(kAhead));
+    EXPECT_TRUE(g.scan->getScanRangeValidity(kLeft));
+    // Margins 0: nothing dropped, the floor drawn as a wall ahead.
+    GradeChange kept = driveOverGradeChange(kPitch);
+    const auto none = lookup::survey::levelTraverse(kept.traverse, kept.attitude, 1.0, 0.0, 0.0);
+    EXPECT_EQ(none.floor_returns + none.roof_returns, 0u);
+    EXPECT_TRUE(kept.scan->getScanRangeValidity(kAhead));
+}
+
+// 2 m before the top of a 1:7 incline, still nose up: the scan ahead meets the level roof past
+// the crest.
+TEST(Levelling, ReturnsFromTheRoofPastTheCrestOfAnInclineAreDropped) {
+    GradeChange g = driveOverGradeChange(-kPitch);
+    ASSERT_GT(g.scan->getScanRange(kAhead), 8.0f);  // the roof, past the crest
+    ASSERT_LT(g.scan->getScanRange(kAhead), 25.0f);
+    const auto rep = lookup::survey::levelTraverse(g.traverse, g.attitude, 1.0, 0.3, 1.0);
+    EXPECT_GT(rep.roof_returns, 5u);
+    EXPECT_LT(rep.roof_returns, 200u);
+    EXPECT_FALSE(g.scan->getScanRangeValidity(kAhead));
+    EXPECT_TRUE(g.scan->getScanRangeValidity(kLeft));
 }
 
 TEST(Levelling, WithoutAnInclinometerNothingChanges) {
@@ -190,7 +208,7 @@ TEST(Levelling, WithoutAnInclinometerNothingChanges) {
     scan->timestamp = mrpt::Clock::fromDouble(kT0);
     traverse.laser_sequence.push_back(scan);
     const float before = scan->getScanRange(270);
-    const auto rep = lookup::survey::levelTraverse(traverse, AttitudeTrack(), 1.0, 0.3);
+    const auto rep = lookup::survey::levelTraverse(traverse, AttitudeTrack(), 1.0, 0.3, 1.0);
     EXPECT_EQ(rep.imu_records, 0u);
     EXPECT_EQ(rep.scans_levelled, 0u);
     EXPECT_EQ(scan->getScanRange(270), before);

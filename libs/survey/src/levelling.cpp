@@ -121,30 +121,35 @@ void levelOdometry(TraverseData& traverse, const AttitudeTrack& attitude, double
     }
 }
 
-/// Makes the returns of `scan` that lie within `margin_m` of the floor ahead or behind invalid
-/// (where the grade changes, the tilted scan plane meets the floor: a wall that is not there).
-std::size_t dropFloorReturns(mrpt::obs::CObservation2DRangeScan& scan, const Attitude& a,
-                             const Station& at, const FloorProfile& floor, double margin_m) {
+/// Makes invalid the returns of `scan` less than `floor_margin_m` above the floor where they
+/// lie, or more than `roof_margin_m` above the scanner's own height over the floor: where the
+/// grade changes, the tilted scan plane meets the floor or the roof ahead, walls that are not
+/// there.
+void dropOffSliceReturns(mrpt::obs::CObservation2DRangeScan& scan, const Attitude& a,
+                         const Station& at, const FloorProfile& floor, double floor_margin_m,
+                         double roof_margin_m, LevellingReport& rep) {
     const mrpt::poses::CPose3D levelled =
         mrpt::poses::CPose3D(0, 0, 0, 0, a.pitch, a.roll) + scan.sensorPose;
-    std::size_t dropped = 0;
     for (std::size_t i = 0; i < scan.getScanSize(); ++i) {
         if (!scan.getScanRangeValidity(i)) continue;
         const double r = scan.getScanRange(i), b = scan.getScanAngle(i);
         double x, y, z;
         levelled.composePoint(r * std::cos(b), r * std::sin(b), 0, x, y, z);
         const auto floor_z = floor.at(at.s + x);
-        if (!floor_z || z - (*floor_z - at.z) >= margin_m) continue;
+        if (!floor_z) continue;
+        const double above_floor = z - (*floor_z - at.z);
+        const bool on_floor = above_floor < floor_margin_m;
+        const bool on_roof = roof_margin_m > 0 && above_floor > levelled.z() + roof_margin_m;
+        if (!on_floor && !on_roof) continue;
         scan.setScanRangeValidity(i, false);
-        ++dropped;
+        ++(on_floor ? rep.floor_returns : rep.roof_returns);
     }
-    return dropped;
 }
 
 }  // namespace
 
 LevellingReport levelTraverse(TraverseData& traverse, const AttitudeTrack& attitude,
-                              double max_gap_s, double floor_margin_m) {
+                              double max_gap_s, double floor_margin_m, double roof_margin_m) {
     LevellingReport rep;
     rep.imu_records = attitude.size();
     if (attitude.empty()) return rep;
@@ -158,8 +163,8 @@ LevellingReport levelTraverse(TraverseData& traverse, const AttitudeTrack& attit
         const double time = mrpt::Clock::toDouble(scan->timestamp);
         const auto a = attitude.at(time, max_gap_s);
         if (!a) continue;
-        if (const auto at = stationAt(stations, time); at && floor_margin_m > 0) {
-            rep.floor_returns += dropFloorReturns(*scan, *a, *at, floor, floor_margin_m);
+        if (const auto at = stationAt(stations, time); at) {
+            dropOffSliceReturns(*scan, *a, *at, floor, floor_margin_m, roof_margin_m, rep);
         }
         deskewScan(*scan, mrpt::poses::CPose2D(), *a);
         ++rep.scans_levelled;

@@ -233,7 +233,8 @@ nlohmann::ordered_json traverseJson(const TraverseReport& t) {
                       {"max_pitch_deg", l.max_pitch_deg},
                       {"odometry_m", l.odometry_m},
                       {"levelled_m", l.levelled_m},
-                      {"floor_returns", l.floor_returns}};
+                      {"floor_returns", l.floor_returns},
+                      {"roof_returns", l.roof_returns}};
     j["localisation_time_s"] = t.localisation_time_s;
     if (!t.start_source.empty()) {
         j["start"] = {{"source", t.start_source},

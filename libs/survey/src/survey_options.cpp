@@ -25,6 +25,7 @@ void SurveyOptions::declareKeys(common::OptionsTable& t) {
     t.add("odometry_label", odometry_label);
     t.add("imu_label", imu_label);
     t.add("floor_return_margin_m", floor_return_margin_m, 0.0, 5.0);
+    t.add("roof_return_margin_m", roof_return_margin_m, 0.0, 20.0);
     t.add("keyframe_spacing_m", keyframe_spacing_m, common::kPositive);
     t.add("min_sharpness", min_sharpness, 0.0);
     t.add("min_mean_intensity", min_mean_intensity);

@@ -200,7 +200,8 @@ TraverseData readTraverse(const std::string& rawlog, const SurveyOptions& option
                                               options.odometry_label +
                                               "' (labels present: " + listLabels(t.labels) + ")");
     }
-    t.levelling = levelTraverse(t, attitude, options.max_pose_gap_s, options.floor_return_margin_m);
+    t.levelling = levelTraverse(t, attitude, options.max_pose_gap_s, options.floor_return_margin_m,
+                                options.roof_return_margin_m);
     t.scans_deskewed = deskewTraverse(t, 1e-3 * options.lidar_sweep_ms);
     return t;
 }

@@ -44,16 +44,19 @@ struct LevellingReport {
     double odometry_m = 0;              ///< odometry distance as recorded [m]
     double levelled_m = 0;              ///< ... after projection (plan distance) [m]
     std::size_t floor_returns = 0;      ///< lidar returns from the floor ahead, dropped
+    std::size_t roof_returns = 0;       ///< ... from the roof ahead, dropped
 };
 
 /// Projects `traverse`'s odometry steps and scans onto the horizontal with `attitude` (each at
 /// its time; where the inclinometer has no reading within `max_gap_s` they stay as they are).
 /// Scans are redrawn as by deskewScan, each ray rotated by the vehicle's attitude before its
-/// plan position is taken. Where the grade changes, the tilted scan plane meets the floor ahead
-/// (at the foot of a decline) and draws a wall across the tunnel: returns less than
-/// `floor_margin_m` above the floor there (the vehicle's own ground heights along its drive,
-/// from the odometry and the pitch; 0 = keep all) are dropped first.
+/// plan position is taken. Where the grade changes, the tilted scan plane meets the floor (at
+/// the foot of a decline) or the roof (past the crest of an incline) ahead and draws a wall
+/// across the tunnel: returns less than `floor_margin_m` above the floor where they lie (the
+/// vehicle's own ground heights along its drive, from the odometry and the pitch; 0 = keep
+/// them), or more than `roof_margin_m` above the scanner's own height over the floor (0 = keep
+/// them), are dropped first.
 LevellingReport levelTraverse(TraverseData& traverse, const AttitudeTrack& attitude,
-                              double max_gap_s, double floor_margin_m);
+                              double max_gap_s, double floor_margin_m, double roof_margin_m);
 
 }  // namespace lookup::survey

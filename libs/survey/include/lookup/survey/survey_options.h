@@ -29,6 +29,11 @@ struct SurveyOptions : public common::TableOptions<SurveyOptions> {
     /// With it, lidar returns less than this above the floor ahead are dropped (levelling.h):
     /// above the floor's relief, below any scan plane's height [m] (0 = keep all).
     double floor_return_margin_m = 0.3;
+    /// ... and returns more than this above the scanner's own height over the floor (the scan
+    /// plane meeting the roof ahead): on a constant grade every wall return lies at that height
+    /// within the floor's relief; 1 m keeps the walls up to ~12 m ahead in a 10 m vertical curve
+    /// of 8° [m] (0 = keep all).
+    double roof_return_margin_m = 1.0;
 
     // --- keyframes (paper Sec. III-A: references sampled along the survey) ---------------
     double keyframe_spacing_m = 0.25;    ///< travel between kept references [m]
