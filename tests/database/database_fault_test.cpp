@@ -112,7 +112,7 @@ TEST(DatabaseFault, FlippedByteInAnyFileRefusedNamingIt) {
     writeDatabase(dir / "db", 4);
     ASSERT_EQ(loadError(dir / "db"), "");
     for (const std::string rel :
-         {"refs.rawlog", "refs_Images/ceiling_000002.png", "db.ini", "refs.tum"}) {
+         {"refs.rawlog", "refs_Images/ceiling_000002.pgm", "db.ini", "refs.tum"}) {
         writeDatabase(dir / "db", 4);
         const fs::path file = dir / "db" / rel;
         flipByte(file, fs::file_size(file) / 2);
@@ -226,19 +226,19 @@ TEST(DatabaseFault, KillAtEveryStepOfTheReplacementLosesNothing) {
 TEST(DatabaseFault, FullDiskIsAWriteErrorAndKeepsTheOldDatabase) {
     const auto dir = lookup::test::freshDir("lookup_database_fault_full");
     const fs::path db = dir / "db";
-    writeDatabase(dir / "probe", 60);
-    const auto png = fs::file_size(dir / "probe" / "refs_Images" / "ceiling_000000.png");
+    writeDatabase(dir / "probe", 120);
+    const auto image = fs::file_size(dir / "probe" / "refs_Images" / "ceiling_000000.pgm");
     const auto rawlog = fs::file_size(dir / "probe" / "refs.rawlog");
-    ASSERT_GT(rawlog, 2 * png);
+    ASSERT_GT(rawlog, 2 * image);
     fs::remove_all(dir / "probe");
     writeDatabase(db, 3);
     // The first image fails, or the rawlog half-way.
-    for (const rlim_t limit : {rlim_t(png / 2), rlim_t(rawlog / 2)}) {
+    for (const rlim_t limit : {rlim_t(image / 2), rlim_t(rawlog / 2)}) {
         const int status = inChild([&] {
             signal(SIGXFSZ, SIG_IGN);
             const rlimit r{limit, limit};
             setrlimit(RLIMIT_FSIZE, &r);
-            writeDatabase(db, 60);
+            writeDatabase(db, 120);
             return 0;
         });
         ASSERT_TRUE(WIFEXITED(status)) << limit;

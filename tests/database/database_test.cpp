@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "lookup/database/database_writer.h"
 #include "lookup/database/reference_database.h"
@@ -96,6 +98,68 @@ TEST(Database, RoundTripPosesIntrinsicsAndLazyBoundedImages) {
     EXPECT_TRUE(fs::exists(dir / "db" / "refs.tum"));
 }
 
+TEST(Database, ImagesStoredAsTheGreyPixelsTheLocaliserReads) {
+    // The survey's rawlogs may hold PNG, JPEG or colour images; the database keeps what the
+    // localiser reads (8-bit grey) uncompressed, pixel for pixel, so nothing is lost and nothing
+    // is decoded twice.
+    const auto dir = lookup::test::freshDir("lookup_database_pgm");
+    cv::Mat texture(24, 32, CV_8UC3);
+    cv::randu(texture, 0, 255);
+    cv::Mat expected_grey;
+    cv::cvtColor(texture, expected_grey, cv::COLOR_BGR2GRAY);
+    const fs::path png = dir / "colour.png";
+    ASSERT_TRUE(cv::imwrite(png.string(), texture));
+    const cv::Mat png_grey = cv::imread(png.string(), cv::IMREAD_GRAYSCALE);
+
+    mrpt::img::TCamera cam;
+    cam.ncols = 32;
+    cam.nrows = 24;
+    cam.fx(300);
+    cam.fy(300);
+    DatabaseWriter w((dir / "db").string());
+    for (int i = 0; i < 2; ++i) {
+        ReferenceInput in;
+        in.traverse = "a";
+        in.ceiling = mrpt::obs::CObservationImage::Create();
+        in.ceiling->timestamp = mrpt::Clock::fromDouble(10.0 + i);
+        in.ceiling->cameraParams = cam;
+        if (i == 0) {
+            in.ceiling->image.setExternalStorage(png.string());  // an external colour PNG
+        } else {
+            in.ceiling->image = mrpt::img::CImage(texture, mrpt::img::DEEP_COPY);  // in memory
+        }
+        in.vehicle_pose = poseOf(i);
+        in.vehicle_cov.setIdentity();
+        w.add(in);
+    }
+    DatabaseInfo info;
+    info.ceiling_camera = cam;
+    w.commit(info);
+
+    auto db = ReferenceDatabase::load((dir / "db").string());
+    for (int i = 0; i < 2; ++i) {
+        EXPECT_EQ(fs::path(db.reference(i).ceiling_image_path).extension(), ".pgm");
+        const cv::Mat stored = db.ceilingImage(i);
+        ASSERT_EQ(stored.type(), CV_8UC1);
+        const cv::Mat& want = i == 0 ? png_grey : expected_grey;
+        EXPECT_EQ(cv::norm(stored, want, cv::NORM_INF), 0.0) << "reference " << i;
+    }
+    // A source image that cannot be read is a write error naming the target, not a hole.
+    DatabaseWriter bad((dir / "db2").string());
+    ReferenceInput in;
+    in.ceiling = mrpt::obs::CObservationImage::Create();
+    in.ceiling->cameraParams = cam;
+    in.ceiling->image.setExternalStorage((dir / "missing.png").string());
+    in.vehicle_cov.setIdentity();
+    try {
+        bad.add(in);
+        FAIL() << "an unreadable source image was stored";
+    } catch (const std::exception& e) {
+        EXPECT_NE(std::string(e.what()).find("ceiling_000000.pgm"), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find("missing.png"), std::string::npos) << e.what();
+    }
+}
+
 TEST(Database, SpatialAndTimeQueriesMatchBruteForce) {
     const auto dir = lookup::test::freshDir("lookup_database_queries");
     writeDatabase(dir / "db", 60);
@@ -156,13 +220,13 @@ TEST(Database, UncommittedWriterLeavesNothingAndKeepsExistingDatabase) {
 TEST(Database, MissingImageAndMissingFolderNamed) {
     const auto dir = lookup::test::freshDir("lookup_database_broken");
     writeDatabase(dir / "db", 3);
-    fs::remove(dir / "db" / "refs_Images" / "ceiling_000001.png");
+    fs::remove(dir / "db" / "refs_Images" / "ceiling_000001.pgm");
     try {
         ReferenceDatabase::load((dir / "db").string());
         FAIL() << "missing image accepted";
     } catch (const DatabaseError& e) {
         const std::string m = e.what();
-        EXPECT_NE(m.find("ceiling_000001.png"), std::string::npos) << m;
+        EXPECT_NE(m.find("ceiling_000001.pgm"), std::string::npos) << m;
         EXPECT_NE(m.find("manifest.crc32"), std::string::npos) << m;
     }
     // Without the manifest (older databases) the record that refers to it is named.
@@ -172,7 +236,7 @@ TEST(Database, MissingImageAndMissingFolderNamed) {
         FAIL() << "missing image accepted";
     } catch (const DatabaseError& e) {
         const std::string m = e.what();
-        EXPECT_NE(m.find("ceiling_000001.png"), std::string::npos) << m;
+        EXPECT_NE(m.find("ceiling_000001.pgm"), std::string::npos) << m;
         EXPECT_NE(m.find("refs.rawlog: record"), std::string::npos) << m;
     }
     EXPECT_THROW(ReferenceDatabase::load((dir / "nothing").string()), DatabaseError);

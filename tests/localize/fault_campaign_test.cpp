@@ -262,7 +262,7 @@ void localizeDatabaseCases(const Data& d, const Refuse& refuse) {
     const std::vector<std::pair<std::string, std::function<void(std::string&)>>> damage = {
         {"refs.rawlog", flipAt(0.5)},    {"refs.rawlog", cutAt(0.5)},
         {"db.ini", flipAt(0.3)},         {"refs.tum", flipAt(0.5)},
-        {"manifest.crc32", flipAt(0.6)}, {"refs_Images/ceiling_000003.png", flipAt(0.5)}};
+        {"manifest.crc32", flipAt(0.6)}, {"refs_Images/ceiling_000003.pgm", flipAt(0.5)}};
     for (const auto& [file, spoil] : damage) {
         const fs::path bad_db = d.dir / "db_bad";
         fs::remove_all(bad_db);

@@ -17,6 +17,8 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "lookup/common/camera_params.h"
 #include "lookup/common/errors.h"
@@ -35,26 +37,50 @@ std::string normalised(const std::string& dir) {
     return p.string();
 }
 
-std::string extensionOf(const std::string& path, const char* fallback) {
-    const std::string ext = fs::path(path).extension().string();
-    return ext.empty() ? fallback : ext;
+// The pixels the localiser reads: 8-bit grey, as ImageCache loads them.
+cv::Mat greyPixels(const mrpt::obs::CObservationImage& src, const std::string& target) {
+    cv::Mat grey;
+    try {
+        if (src.image.isExternallyStored()) {
+            grey = cv::imread(src.image.getExternalStorageFileAbsolutePath(), cv::IMREAD_GRAYSCALE);
+        } else {
+            const cv::Mat& m = src.image.asCvMatRef();
+            if (m.channels() == 3) {
+                cv::cvtColor(m, grey, cv::COLOR_BGR2GRAY);
+            } else if (m.channels() == 1) {
+                grey = m;
+            }
+            if (!grey.empty() && grey.depth() != CV_8U) grey.convertTo(grey, CV_8U);
+        }
+    } catch (const std::exception& e) {
+        throw common::WriteError(target, std::string("cannot read the source image: ") + e.what());
+    }
+    if (grey.empty()) {
+        const std::string from = src.image.isExternallyStored()
+                                     ? src.image.getExternalStorageFileAbsolutePath()
+                                     : std::string("an in-memory image");
+        throw common::WriteError(target, "cannot read the source image " + from);
+    }
+    return grey;
 }
 
-// Puts the image of `src` into `images_dir/name` (copying the file when it is external) and
-// returns an observation that refers to it by `name`, leaving `src` untouched (CImage copies
-// share their pixels and external path).
-mrpt::obs::CObservationImage::Ptr externalCopy(const mrpt::obs::CObservationImage& src,
-                                               const std::string& images_dir,
-                                               const std::string& name) {
+// Stores the image of `src` as `images_dir/name`, an uncompressed 8-bit grey PGM, and returns
+// an observation that refers to it by `name`, leaving `src` untouched (CImage copies share
+// their pixels and external path). Uncompressed because a lost vehicle reads dozens of
+// references per frame: PGM decodes about 100 times faster than PNG (docs/benchmarks.md,
+// "Reference images stored uncompressed").
+mrpt::obs::CObservationImage::Ptr storedCopy(const mrpt::obs::CObservationImage& src,
+                                             const std::string& images_dir,
+                                             const std::string& name) {
     const std::string target = images_dir + "/" + name;
-    if (src.image.isExternallyStored()) {
-        const std::string from = src.image.getExternalStorageFileAbsolutePath();
-        std::error_code ec;
-        fs::copy_file(from, target, fs::copy_options::overwrite_existing, ec);
-        if (ec) throw common::WriteError(target, "cannot copy image " + from + ": " + ec.message());
-    } else if (!src.image.saveToFile(target)) {
-        throw common::WriteError(target, "cannot write image");
+    std::vector<uchar> pgm;
+    if (!cv::imencode(".pgm", greyPixels(src, target), pgm)) {
+        throw common::WriteError(target, "cannot encode image");
     }
+    std::ofstream file(target, std::ios::binary);
+    file.write(reinterpret_cast<const char*>(pgm.data()), static_cast<std::streamsize>(pgm.size()));
+    file.close();
+    if (!file) throw common::WriteError(target, "cannot write image");
     auto out = mrpt::obs::CObservationImage::Create();
     out->sensorLabel = src.sensorLabel;
     out->timestamp = src.timestamp;
@@ -131,11 +157,8 @@ void checkStorable(const ReferenceInput& in, const std::string& out_dir, std::si
     }
 }
 
-// "<prefix><stem><ext>", the extension of the image's external file (PNG when in memory).
-std::string imageName(const char* prefix, const char* stem, const mrpt::obs::CObservationImage& o) {
-    const std::string external =
-        o.image.isExternallyStored() ? o.image.getExternalStorageFile() : "";
-    return std::string(prefix) + stem + extensionOf(external, ".png");
+std::string imageName(const char* prefix, const char* stem) {
+    return std::string(prefix) + stem + ".pgm";
 }
 
 // The in-memory reference, without its image paths.
@@ -280,13 +303,13 @@ uint32_t DatabaseWriter::add(const ReferenceInput& in) {
     const std::string images_dir = rawlog_->imagesDirectory();
 
     Reference ref = referenceOf(in, id);
-    const std::string ceiling_name = imageName("ceiling_", stem, *in.ceiling);
-    writeRecord(*externalCopy(*in.ceiling, images_dir, ceiling_name));
+    const std::string ceiling_name = imageName("ceiling_", stem);
+    writeRecord(*storedCopy(*in.ceiling, images_dir, ceiling_name));
     ref.ceiling_image_path = images_dir + "/" + ceiling_name;
     std::string forward_name;
     if (in.forward) {
-        forward_name = imageName("forward_", stem, *in.forward);
-        writeRecord(*externalCopy(*in.forward, images_dir, forward_name));
+        forward_name = imageName("forward_", stem);
+        writeRecord(*storedCopy(*in.forward, images_dir, forward_name));
         ref.forward_image_path = images_dir + "/" + forward_name;
     }
     writeRecord(poseRecord(in));

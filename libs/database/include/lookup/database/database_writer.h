@@ -54,7 +54,8 @@ class DatabaseWriter {
     DatabaseWriter(const DatabaseWriter&) = delete;
     DatabaseWriter& operator=(const DatabaseWriter&) = delete;
 
-    /// Appends one reference (copies its images into refs_Images/); returns its id.
+    /// Appends one reference (its images stored as 8-bit grey PGM in refs_Images/); returns its
+    /// id.
     uint32_t add(const ReferenceInput& in);
     /// Stores the map as map.gridmap.gz and map.png.
     void setMap(const mrpt::maps::COccupancyGridMap2D& map);
