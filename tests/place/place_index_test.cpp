@@ -55,6 +55,53 @@ TEST(PlaceIndex, FindsThePlaceAnywhereAtAnyHeadingFromOneImage) {
     EXPECT_GE(right, tried * 95 / 100) << right << " of " << tried;
 }
 
+// The query under other light: the tunnel lamps off, only the vehicle's cone lighting the
+// middle of the view, a darker exposure.
+cv::Mat underOtherLight(const cv::Mat& image) {
+    cv::Mat out(image.size(), CV_8UC1);
+    const double cx = 0.5 * image.cols, cy = 0.5 * image.rows;
+    for (int v = 0; v < image.rows; ++v) {
+        for (int u = 0; u < image.cols; ++u) {
+            const double r2 = ((u - cx) * (u - cx) + (v - cy) * (v - cy)) / (cx * cx);
+            const double light = 0.12 + 0.5 * std::exp(-1.5 * r2);
+            out.at<uchar>(v, u) = cv::saturate_cast<uchar>(image.at<uchar>(v, u) * light);
+        }
+    }
+    return out;
+}
+
+TEST(PlaceIndex, FindsThePlaceUnderOtherLightOnTheIlluminationFreeImage) {
+    const auto dir = lookup::test::freshDir("lookup_localize_place_other_light");
+    const auto scene = sceneWithDatabase(dir);
+    const auto db = database::ReferenceDatabase::load((dir / "db").string());
+    place::PlaceIndexOptions raw;
+    raw.illumination_sigma_px = 0;
+    const auto on_texture = place::PlaceIndex::build(db, place::PlaceIndexOptions());
+    const auto on_raw = place::PlaceIndex::build(db, raw);
+    const auto countRight = [&](const place::PlaceIndex& index) {
+        int right = 0;
+        for (double x = -7; x <= 7; x += 1.0) {
+            for (double yaw_deg : {0.0, 90.0, 180.0}) {
+                const CPose3D vehicle(x, 0.2, 0, mrpt::DEG2RAD(yaw_deg), 0, 0);
+                const auto obs = scene.image(vehicle, 0);
+                const auto candidates = index.query(underOtherLight(grey(*obs)));
+                if (candidates.empty()) continue;
+                const auto& c = candidates.front();
+                const auto& ref = db.reference(c.reference);
+                const auto pose = place::vehiclePose(
+                    c, db.info().ceiling_camera, ref.vehicle_pose, ref.ceiling_camera_mount,
+                    {scene.camera, scene.mount}, db.info().ceiling_height_m);
+                if (pose && std::hypot(pose->x() - x, pose->y() - 0.2) < 0.15) ++right;
+            }
+        }
+        return right;
+    };
+    const int tried = 15 * 3;
+    const int right = countRight(on_texture), right_raw = countRight(on_raw);
+    EXPECT_GE(right, tried * 9 / 10) << right << " of " << tried;
+    EXPECT_GT(right, right_raw) << "raw image: " << right_raw << " of " << tried;
+}
+
 TEST(PlaceIndex, NoCandidateOnAnImageWithoutTexture) {
     const auto dir = lookup::test::freshDir("lookup_localize_place_flat");
     sceneWithDatabase(dir);

@@ -11,6 +11,7 @@
 
 #include "lookup/database/reference_database.h"
 #include "lookup/refine/rectifier.h"
+#include "lookup/refine/types.h"
 #include "place_index_impl.h"
 
 namespace lookup::place {
@@ -42,19 +43,26 @@ cv::Ptr<cv::Feature2D> makeDetector(FeatureType type, int n) {
     return {};
 }
 
-void detect(const cv::Mat& grey, FeatureType type, int n, std::vector<cv::KeyPoint>& keypoints,
-            cv::Mat& descriptors) {
+void detect(const cv::Mat& grey, FeatureType type, int n, double illumination_sigma_px,
+            std::vector<cv::KeyPoint>& keypoints, cv::Mat& descriptors) {
     keypoints.clear();
     descriptors.release();
     if (grey.empty()) return;
+    // The ceiling's texture without the light on it, at one contrast: lamps switched off, the
+    // vehicle's own light cone and another camera's exposure move the corners and their
+    // strengths, not the rock (docs/benchmarks.md, "Place index on the ceiling's texture").
+    const cv::Mat image =
+        illumination_sigma_px > 0
+            ? refine::ImagePyramid::build(grey, 0, true, illumination_sigma_px).levels.front()
+            : grey;
     auto detector = makeDetector(type, n);
-    detector->detect(grey, keypoints);
+    detector->detect(image, keypoints);
     // AKAZE has no feature budget: keep the strongest n, as ORB and SIFT do.
     if (static_cast<int>(keypoints.size()) > n) {
         cv::KeyPointsFilter::retainBest(keypoints, n);
         keypoints.resize(static_cast<std::size_t>(n));
     }
-    if (!keypoints.empty()) detector->compute(grey, keypoints, descriptors);
+    if (!keypoints.empty()) detector->compute(image, keypoints, descriptors);
 }
 
 bool isBinary(FeatureType type) { return type != FeatureType::Sift; }
@@ -122,7 +130,8 @@ PlaceIndex PlaceIndex::build(const database::ReferenceDatabase& db, const PlaceI
         cv::Mat descriptors;
         const cv::Mat image =
             rectifier.rectify(db.ceilingImage(chosen[k]), db.reference(chosen[k]).ceiling_camera);
-        detail::detect(image, o.features, o.features_per_reference, keypoints, descriptors);
+        detail::detect(image, o.features, o.features_per_reference, o.illumination_sigma_px,
+                       keypoints, descriptors);
         for (const auto& kp : keypoints) {
             impl.features.push_back({static_cast<std::uint32_t>(chosen[k]), kp.pt.x, kp.pt.y});
         }
@@ -143,7 +152,8 @@ std::vector<PlaceCandidate> PlaceIndex::query(const cv::Mat& grey, PlaceQueryTim
     mrpt::system::CTicTac timer;
     std::vector<cv::KeyPoint> keypoints;
     cv::Mat descriptors;
-    detail::detect(grey, o.features, o.query_features, keypoints, descriptors);
+    detail::detect(grey, o.features, o.query_features, o.illumination_sigma_px, keypoints,
+                   descriptors);
     t.query_features = static_cast<int>(keypoints.size());
     t.features_ms = 1e3 * timer.Tac();
     if (keypoints.empty() || !detail::hasSearch(impl)) return {};

@@ -17,7 +17,9 @@ namespace lookup::place {
 namespace {
 
 constexpr char kMagic[8] = {'L', 'K', 'U', 'P', 'P', 'L', 'C', 'E'};
-constexpr std::uint32_t kFormatVersion = 1;
+// 2: features detected on the illumination-free image (illumination_sigma_px); format 1
+// files are still read, as built on the raw image.
+constexpr std::uint32_t kFormatVersion = 2;
 
 class Writer {
   public:
@@ -133,8 +135,9 @@ PlaceIndex PlaceIndex::load(const std::string& path, const database::ReferenceDa
     Reader r(verifiedPayload(readWholeFile(path), path), path);
     char magic[sizeof kMagic];
     r.getBytes(magic, sizeof magic);
-    if (const auto version = r.get<std::uint32_t>(); version != kFormatVersion) {
-        r.fail("format version " + std::to_string(version) + ", this program reads " +
+    const auto version = r.get<std::uint32_t>();
+    if (version != kFormatVersion && version != 1) {
+        r.fail("format version " + std::to_string(version) + ", this program reads 1 to " +
                std::to_string(kFormatVersion));
     }
     query.check();
@@ -155,6 +158,7 @@ PlaceIndex PlaceIndex::load(const std::string& path, const database::ReferenceDa
     impl.options.features = built.features;
     impl.options.features_per_reference = built.features_per_reference;
     impl.options.reference_spacing_m = built.reference_spacing_m;
+    impl.options.illumination_sigma_px = version == 1 ? 0.0 : built.illumination_sigma_px;
     const auto n = r.get<std::uint64_t>();
     const auto cols = r.get<std::int32_t>();
     const auto type = r.get<std::int32_t>();

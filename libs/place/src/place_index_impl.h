@@ -35,8 +35,10 @@ struct Votes {
     std::map<std::uint32_t, std::vector<std::pair<cv::Point2f, cv::Point2f>>> by_reference;
 };
 
-void detect(const cv::Mat& grey, FeatureType type, int n, std::vector<cv::KeyPoint>& keypoints,
-            cv::Mat& descriptors);
+/// The strongest `n` features of `grey`, after the illumination is removed at
+/// `illumination_sigma_px` (0: the image as it is), as index and query both detect them.
+void detect(const cv::Mat& grey, FeatureType type, int n, double illumination_sigma_px,
+            std::vector<cv::KeyPoint>& keypoints, cv::Mat& descriptors);
 bool isBinary(FeatureType type);
 void buildSearch(Impl& impl);
 bool hasSearch(const Impl& impl);

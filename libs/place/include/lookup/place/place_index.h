@@ -51,6 +51,10 @@ struct PlaceIndexOptions : public common::TableOptions<PlaceIndexOptions> {
     /// References are indexed at most this close along their traverse [m]: neighbours overlap
     /// by most of the image, and the SAD refinement uses the nearest references anyway.
     double reference_spacing_m = 0.75;
+    /// Features are detected on the ceiling image with its illumination removed at this
+    /// scale [px of the database's camera] and its contrast normalised, as the SAD matcher
+    /// sees it (0: on the raw image, as indexes of format 1 were built).
+    double illumination_sigma_px = 20;
     // --- query -------------------------------------------------------------------------
     int query_features = 500;          ///< features detected in the query image
     int neighbours = 2;                ///< database features per query feature (votes)
