@@ -272,6 +272,40 @@ TEST(Localize, FixesThatKeepDisagreeingWithOdometryDropTheTrack) {
               1u);
 }
 
+// A wheel that slips once: from frame 8 the odometry reads 0.6 m farther along than the
+// vehicle went, so the prediction lies beyond the SAD window. A tracked frame that fails
+// searches the references around its prediction (tracking_acquisition_sigmas) and fixes
+// again at once; without that search it waits for the coarse stage or the tracking gap.
+TEST(Localize, AFailedTrackedFrameSearchesAroundItsPrediction) {
+    const auto slipped = [](int i, mrpt::obs::CObservationImage&,
+                            mrpt::obs::CObservationOdometry& odo) {
+        if (i >= 8) odo.odometry.x(odo.odometry.x() + 0.6);
+    };
+    const auto run = [&](const std::string& name, const std::string& ini_text) {
+        const auto dir = lookup::test::freshDir("lookup_localize_tracked_search_" + name);
+        auto req = planarRun(dir, slipped, 14);
+        req.ini_file = (dir / "localize.ini").string();
+        std::ofstream(req.ini_file) << ini_text;
+        localize::runLocalization(req);
+        return eval::loadRun(req.out_dir);
+    };
+    const auto searched = run("on", "[localizer]\n");
+    const auto waited = run("off", "[localizer]\ntracking_acquisition_sigmas = 0\n");
+    ASSERT_EQ(searched.frames.size(), 14u);
+    ASSERT_EQ(searched.frames[7].status, "refined") << searched.frames[7].reason;
+    int refined_after_slip = 0, waited_refined = 0;
+    for (int i = 8; i < 14; ++i) {
+        const auto& f = searched.frames[i];
+        if (f.status != "refined") continue;
+        ++refined_after_slip;
+        EXPECT_LT(std::hypot(f.x - (-5 + 0.3 * i), f.y - 0.4), 0.05) << i;
+    }
+    for (int i = 8; i < 14; ++i) waited_refined += waited.frames[i].status == "refined";
+    EXPECT_EQ(searched.frames[8].status, "refined") << searched.frames[8].reason;
+    EXPECT_GE(refined_after_slip, 5);
+    EXPECT_LT(waited_refined, refined_after_slip) << waited.frames[8].reason;
+}
+
 // A pose at the image's time is as uncertain as that time: 3 m/s along x with the stamps
 // uncertain by 0.1 s adds (0.3 m)^2 along the motion to every emitted pose, nothing across it.
 TEST(Localize, AnUncertainImageTimeWidensThePoseAlongTheMotion) {
@@ -390,7 +424,8 @@ TEST(Localize, AcquisitionCandidatesCoverEveryNearbyTraverse) {
     options.acquisition_step_m = 0.5;
     const localize::Localizer localizer(db, options, refine::RefinerOptions{}, nullptr, false);
 
-    const auto candidates = localizer.acquisitionCandidates(mrpt::poses::CPose2D(-4.0, 0.0, 0));
+    const auto candidates =
+        localizer.acquisitionCandidates(mrpt::poses::CPose2D(-4.0, 0.0, 0), 2.0);
     std::map<std::string, std::vector<double>> along;  // x of the candidates, per traverse
     for (std::size_t i : candidates) {
         const auto& ref = db.reference(i);

@@ -203,7 +203,7 @@ void Localizer::offerHypothesis(const mrpt::poses::CPosePDFGaussian& pose) {
 
 std::shared_ptr<const refine::RefineResult> Localizer::tryHypothesis(
     const mrpt::obs::CObservationImage& query, FrameResult& out) {
-    auto result = acquire(query, hypothesis_->mean, nullptr, out);
+    auto result = acquire(query, candidatesAround(hypothesis_->mean), nullptr, out);
     if (result && result->accepted()) {
         hypothesis_.reset();
         return result;
@@ -477,14 +477,14 @@ std::vector<std::size_t> Localizer::referencesNear(const mrpt::poses::CPose2D& p
     return out;
 }
 
-std::vector<std::size_t> Localizer::acquisitionCandidates(const mrpt::poses::CPose2D& pose) const {
+std::vector<std::size_t> Localizer::acquisitionCandidates(const mrpt::poses::CPose2D& pose,
+                                                          double radius_m) const {
     // Nearest first, keeping candidates of one traverse at least acquisition_step_m apart.
     // Thinning across traverses would leave lateral gaps: on mine-a a query 0.2 m beside one
     // traverse got only candidates 0.6 m beside it (another traverse's, 0.4 m nearer the seed),
     // beyond the SAD window, and start-up took 15 forward frames longer.
     std::vector<std::size_t> out;
-    for (const auto& n : db_.withinRadius(mrpt::math::TPoint2D(pose.x(), pose.y()),
-                                          options_.acquisition_radius_m)) {
+    for (const auto& n : db_.withinRadius(mrpt::math::TPoint2D(pose.x(), pose.y()), radius_m)) {
         const auto& ref = db_.reference(n.index);
         const auto& p = ref.vehicle_pose;
         bool far_enough = true;
@@ -586,11 +586,46 @@ std::shared_ptr<const refine::RefineResult> Localizer::refineAgainst(
     return result;
 }
 
+std::vector<Localizer::Candidate> Localizer::candidatesAround(const mrpt::poses::CPose2D& pose) const {
+    std::vector<Candidate> out;
+    for (std::size_t i : acquisitionCandidates(pose, options_.acquisition_radius_m)) {
+        out.push_back({i, toPose2D(db_.reference(i).vehicle_pose)});
+    }
+    return out;
+}
+
+std::vector<Localizer::Candidate> Localizer::candidatesAlongTrack(
+    const Prediction& prediction) const {
+    // A slipping wheel or a late clock moves the prediction along the motion, not across it:
+    // hypotheses at acquisition_step_m along the heading, both ways, nearest first, out to
+    // tracking_acquisition_sigmas of the prediction's sigma.
+    std::vector<Candidate> out;
+    if (options_.tracking_acquisition_sigmas <= 0 || options_.acquisition_radius_m <= 0 ||
+        refiner_.options().correspondence.method == refine::CorrespondenceMethod::Ecc) {
+        return out;
+    }
+    auto dead = refiner_.acceptance().deadReckoned(prediction.pose, prediction.motion);
+    dead.cov += last_fix_->cov;
+    const double sigma_m = std::sqrt(std::max(dead.cov(0, 0), dead.cov(1, 1)));
+    const double reach_m = std::min(options_.tracking_acquisition_sigmas * sigma_m,
+                                    options_.acquisition_radius_m);
+    const double step = options_.acquisition_step_m;
+    for (int k = 1; k * step <= std::max(reach_m, step) + 1e-9; ++k) {
+        for (const double along : {k * step, -k * step}) {
+            const mrpt::poses::CPose2D hint = prediction.pose + mrpt::poses::CPose2D(along, 0, 0);
+            const auto nearest =
+                db_.nearest(mrpt::math::TPoint2D(hint.x(), hint.y()), /*count=*/1);
+            if (!nearest.empty()) out.push_back({nearest.front().index, hint});
+        }
+    }
+    return out;
+}
+
 std::shared_ptr<const refine::RefineResult> Localizer::acquire(
-    const mrpt::obs::CObservationImage& query, const mrpt::poses::CPose2D& coarse,
+    const mrpt::obs::CObservationImage& query, const std::vector<Candidate>& candidates,
     std::shared_ptr<const refine::RefineResult> failed, FrameResult& out) {
-    // The SAD window covers only +-L_SR/2 pixels: refine against each reference around the
-    // coarse match, keep the best by inlier share, refuse it when a distant candidate scores
+    // The SAD window covers only +-L_SR/2 pixels: refine against each candidate's reference
+    // from its hint, keep the best by inlier share, refuse it when a distant candidate scores
     // nearly as well (aliased texture), then confirm it against the fix's neighbours.
     struct Scored {
         std::shared_ptr<const refine::RefineResult> result;
@@ -607,10 +642,12 @@ std::shared_ptr<const refine::RefineResult> Localizer::acquire(
     };
     const std::vector<std::size_t> failed_refs = out.reference_indices;
     std::vector<Scored> accepted;
-    for (std::size_t candidate : acquisitionCandidates(coarse)) {
-        const auto cand_pose = toPose2D(db_.reference(candidate).vehicle_pose);
-        auto single = refineAgainst(query, {candidate}, cand_pose, out, /*probe=*/true);
-        if (single->accepted()) accepted.push_back({single, single->pose.mean, candidate});
+    for (const auto& candidate : candidates) {
+        auto single =
+            refineAgainst(query, {candidate.reference}, candidate.hint, out, /*probe=*/true);
+        if (single->accepted()) {
+            accepted.push_back({single, single->pose.mean, candidate.reference});
+        }
     }
     if (accepted.empty()) return failed ? report(failed, failed_refs) : nullptr;
     const auto best = std::max_element(accepted.begin(), accepted.end(), [](auto& a, auto& b) {
@@ -817,6 +854,11 @@ Localizer::Attempt Localizer::locate(const mrpt::obs::CObservationImage& query,
     const auto refined = [&a] { return a.result && a.result->accepted(); };
     if (prediction) {
         a.result = refineAgainst(query, referencesNear(prediction->pose), prediction->pose, out);
+        if (!refined()) {
+            if (auto along = candidatesAlongTrack(*prediction); !along.empty()) {
+                a.result = acquire(query, along, a.result, out);
+            }
+        }
     }
     if (hypothesis_ && last_fix_) hypothesis_.reset();  // a fix supersedes it
     if (hypothesis_ && !prediction) a.result = tryHypothesis(query, out);
@@ -835,7 +877,7 @@ Localizer::Attempt Localizer::locate(const mrpt::obs::CObservationImage& query,
         // fix a failed frame is a bad view (pipes, blur), not a lost vehicle, and searching
         // would cost tens of milliseconds for nothing.
         if (!a.result->accepted() && !prediction && options_.acquisition_radius_m > 0) {
-            a.result = acquire(query, *out.coarse_pose, a.result, out);
+            a.result = acquire(query, candidatesAround(*out.coarse_pose), a.result, out);
         }
     }
     if (!a.result && !coarse_fix) a.result = trySeeds(query, out, a.note);
@@ -862,7 +904,7 @@ std::shared_ptr<const refine::RefineResult> Localizer::trySeeds(
     if (seeds.empty()) return nullptr;
     last_startup_seed_ = last_coarse_->query_index;
     const auto& seed = seeds[seed_turn_++ % seeds.size()];
-    auto result = acquire(query, seed.pose, nullptr, out);
+    auto result = acquire(query, candidatesAround(seed.pose), nullptr, out);
     if (!result) {
         note = "; no ceiling match around its match from " +
                std::to_string(last_coarse_->query_index + 1) + " frames" + note;

@@ -22,6 +22,7 @@ void LocalizerOptions::declareKeys(common::OptionsTable& t) {
     t.add("image_time_sigma_s", image_time_sigma_s, 0.0, 1.0);
     t.add("acquisition_radius_m", acquisition_radius_m, 0.0);
     t.add("acquisition_step_m", acquisition_step_m, common::kPositive);
+    t.add("tracking_acquisition_sigmas", tracking_acquisition_sigmas, 0.0, 100.0);
     t.add("acquisition_ambiguity_margin", acquisition_ambiguity_margin);
     t.add("acquisition_ambiguity_distance_m", acquisition_ambiguity_distance_m, common::kPositive);
     t.add("acquisition_probe_points", acquisition_probe_points, 0, 100000);

@@ -137,7 +137,8 @@ class Localizer {
     /// References an acquisition around `pose` refines against, one by one: those within
     /// acquisition_radius_m, nearest first, each survey traverse thinned to
     /// acquisition_step_m along itself.
-    std::vector<std::size_t> acquisitionCandidates(const mrpt::poses::CPose2D& pose) const;
+    std::vector<std::size_t> acquisitionCandidates(const mrpt::poses::CPose2D& pose,
+                                                   double radius_m) const;
 
   private:
     struct Prediction {
@@ -200,8 +201,19 @@ class Localizer {
     std::optional<refine::VehicleMotion> velocityAt(double time_s) const;
     std::vector<std::size_t> referencesNearTime(double time_s) const;
     std::vector<std::size_t> referencesNear(const mrpt::poses::CPose2D& pose) const;
+    /// One place an acquisition tries: a reference and the vehicle pose to refine from.
+    struct Candidate {
+        std::size_t reference = 0;
+        mrpt::poses::CPose2D hint;
+    };
+    /// The acquisition candidates around a coarse pose: each reference from its own pose.
+    std::vector<Candidate> candidatesAround(const mrpt::poses::CPose2D& pose) const;
+    /// A failed tracked frame's candidates along its prediction's heading (none when off).
+    std::vector<Candidate> candidatesAlongTrack(const Prediction& prediction) const;
+    /// Refines against each candidate, keeps the best unless ambiguous, confirms it against
+    /// the fix's neighbours; else `failed` (or nothing).
     std::shared_ptr<const refine::RefineResult> acquire(
-        const mrpt::obs::CObservationImage& query, const mrpt::poses::CPose2D& coarse,
+        const mrpt::obs::CObservationImage& query, const std::vector<Candidate>& candidates,
         std::shared_ptr<const refine::RefineResult> failed, FrameResult& out);
     std::shared_ptr<const refine::RefineResult> refineAgainst(
         const mrpt::obs::CObservationImage& query, const std::vector<std::size_t>& refs,

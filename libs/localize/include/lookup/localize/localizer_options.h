@@ -45,6 +45,12 @@ struct LocalizerOptions : public common::TableOptions<LocalizerOptions> {
     /// Spacing of the acquisition candidates along each survey traverse [m] (traverses are
     /// thinned apart: side by side they cover different lateral offsets).
     double acquisition_step_m = 0.5;
+    /// Tracking: a frame that fails at its prediction is acquired from hypotheses every
+    /// acquisition_step_m along its heading, both ways, out to this many sigmas of the
+    /// prediction's position uncertainty (at least one step, at most acquisition_radius_m),
+    /// before it falls back to dead reckoning: a slipping wheel moves the prediction along
+    /// the motion past the SAD window while its sigma still grows. 0 = off.
+    double tracking_acquisition_sigmas = 3.0;
     /// Acquisition refines against every candidate and keeps the best by inlier share; it is
     /// refused as ambiguous when a candidate more than acquisition_ambiguity_distance_m away
     /// from the best fix scores within this margin of it (aliasing: rock-bolt grids, mesh).
