@@ -45,6 +45,10 @@ void readReference(benchmark::State& state) {
     for (auto _ : state) benchmark::DoNotOptimize(cache.get(paths[k++ % 2]));
     std::filesystem::remove_all(dir);
 }
-BENCHMARK(readReference)->Name("ReferenceImageRead_png_pgm")->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond);
+BENCHMARK(readReference)
+    ->Name("ReferenceImageRead_png_pgm")
+    ->Arg(0)
+    ->Arg(1)
+    ->Unit(benchmark::kMicrosecond);
 
 }  // namespace

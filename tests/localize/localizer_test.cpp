@@ -424,8 +424,7 @@ TEST(Localize, AcquisitionCandidatesCoverEveryNearbyTraverse) {
     options.acquisition_step_m = 0.5;
     const localize::Localizer localizer(db, options, refine::RefinerOptions{}, nullptr, false);
 
-    const auto candidates =
-        localizer.acquisitionCandidates(mrpt::poses::CPose2D(-4.0, 0.0, 0), 2.0);
+    const auto candidates = localizer.acquisitionCandidates(mrpt::poses::CPose2D(-4.0, 0.0, 0));
     std::map<std::string, std::vector<double>> along;  // x of the candidates, per traverse
     for (std::size_t i : candidates) {
         const auto& ref = db.reference(i);

@@ -18,9 +18,9 @@ const std::vector<std::string> kShare{LOOKUP_SOURCE_SHARE_DIR};
 std::string writeSuite(const std::string& name, const std::string& text) {
     // One folder per test: ctest runs this binary's tests side by side, and a shared folder
     // emptied by one test's freshDir loses another's file.
-    static const fs::path dir = lookup::test::freshDir(
-        std::string("lookup_suite_options_") +
-        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    static const fs::path dir =
+        lookup::test::freshDir(std::string("lookup_suite_options_") +
+                               ::testing::UnitTest::GetInstance()->current_test_info()->name());
     const fs::path path = dir / (name + ".ini");
     std::ofstream(path) << text;
     return path.string();

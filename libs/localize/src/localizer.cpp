@@ -477,14 +477,14 @@ std::vector<std::size_t> Localizer::referencesNear(const mrpt::poses::CPose2D& p
     return out;
 }
 
-std::vector<std::size_t> Localizer::acquisitionCandidates(const mrpt::poses::CPose2D& pose,
-                                                          double radius_m) const {
+std::vector<std::size_t> Localizer::acquisitionCandidates(const mrpt::poses::CPose2D& pose) const {
     // Nearest first, keeping candidates of one traverse at least acquisition_step_m apart.
     // Thinning across traverses would leave lateral gaps: on mine-a a query 0.2 m beside one
     // traverse got only candidates 0.6 m beside it (another traverse's, 0.4 m nearer the seed),
     // beyond the SAD window, and start-up took 15 forward frames longer.
     std::vector<std::size_t> out;
-    for (const auto& n : db_.withinRadius(mrpt::math::TPoint2D(pose.x(), pose.y()), radius_m)) {
+    for (const auto& n : db_.withinRadius(mrpt::math::TPoint2D(pose.x(), pose.y()),
+                                          options_.acquisition_radius_m)) {
         const auto& ref = db_.reference(n.index);
         const auto& p = ref.vehicle_pose;
         bool far_enough = true;
@@ -586,9 +586,10 @@ std::shared_ptr<const refine::RefineResult> Localizer::refineAgainst(
     return result;
 }
 
-std::vector<Localizer::Candidate> Localizer::candidatesAround(const mrpt::poses::CPose2D& pose) const {
+std::vector<Localizer::Candidate> Localizer::candidatesAround(
+    const mrpt::poses::CPose2D& pose) const {
     std::vector<Candidate> out;
-    for (std::size_t i : acquisitionCandidates(pose, options_.acquisition_radius_m)) {
+    for (std::size_t i : acquisitionCandidates(pose)) {
         out.push_back({i, toPose2D(db_.reference(i).vehicle_pose)});
     }
     return out;
@@ -600,21 +601,16 @@ std::vector<Localizer::Candidate> Localizer::candidatesAlongTrack(
     // hypotheses at acquisition_step_m along the heading, both ways, nearest first, out to
     // tracking_acquisition_sigmas of the prediction's sigma.
     std::vector<Candidate> out;
-    if (options_.tracking_acquisition_sigmas <= 0 || options_.acquisition_radius_m <= 0 ||
-        refiner_.options().correspondence.method == refine::CorrespondenceMethod::Ecc) {
-        return out;
-    }
-    auto dead = refiner_.acceptance().deadReckoned(prediction.pose, prediction.motion);
-    dead.cov += last_fix_->cov;
-    const double sigma_m = std::sqrt(std::max(dead.cov(0, 0), dead.cov(1, 1)));
-    const double reach_m = std::min(options_.tracking_acquisition_sigmas * sigma_m,
-                                    options_.acquisition_radius_m);
+    if (options_.tracking_acquisition_sigmas <= 0 || !acquisitionAllowed()) return out;
+    const auto predicted = predictedPose(prediction);
+    const double sigma_m = std::sqrt(std::max(predicted.cov(0, 0), predicted.cov(1, 1)));
+    const double reach_m =
+        std::min(options_.tracking_acquisition_sigmas * sigma_m, options_.acquisition_radius_m);
     const double step = options_.acquisition_step_m;
     for (int k = 1; k * step <= std::max(reach_m, step) + 1e-9; ++k) {
         for (const double along : {k * step, -k * step}) {
             const mrpt::poses::CPose2D hint = prediction.pose + mrpt::poses::CPose2D(along, 0, 0);
-            const auto nearest =
-                db_.nearest(mrpt::math::TPoint2D(hint.x(), hint.y()), /*count=*/1);
+            const auto nearest = db_.nearest(mrpt::math::TPoint2D(hint.x(), hint.y()), /*count=*/1);
             if (!nearest.empty()) out.push_back({nearest.front().index, hint});
         }
     }
@@ -888,12 +884,8 @@ std::shared_ptr<const refine::RefineResult> Localizer::trySeeds(
     const mrpt::obs::CObservationImage& query, FrameResult& out, std::string& note) {
     // Start-up, before the coarse sequence is full, or a coarse global match not confirmed yet:
     // a verified ceiling match around that match, or nothing (it is not reported as a coarse
-    // pose). ECC is left out: its "inliers" all sample one dense warp, so an inlier share
-    // cannot tell a wrong seed's place from the right one (demo: fixes 45 m off).
-    if (refiner_.options().correspondence.method == refine::CorrespondenceMethod::Ecc ||
-        options_.acquisition_radius_m <= 0) {
-        return nullptr;
-    }
+    // pose).
+    if (!acquisitionAllowed()) return nullptr;
     // Seeds are refreshed once per forward frame (ceiling frames come twice as often): a seed
     // already tried waits for the coarse stage's next frame. One acquisition per forward
     // frame, taking the traverses' seeds in turn (most trusted first): trying all of them at
@@ -985,15 +977,24 @@ void Localizer::emit(const Attempt& a, const std::optional<Prediction>& predicti
     }
 }
 
+mrpt::poses::CPosePDFGaussian Localizer::predictedPose(const Prediction& prediction) const {
+    // Dead reckoning starts from the last fix, as uncertain as that was.
+    auto pose = refiner_.acceptance().deadReckoned(prediction.pose, prediction.motion);
+    pose.cov += last_fix_->cov;
+    return pose;
+}
+
+bool Localizer::acquisitionAllowed() const {
+    // ECC is left out: its "inliers" all sample one dense warp, so an inlier share cannot tell
+    // a wrong candidate's place from the right one (demo: fixes 45 m off).
+    return refiner_.options().correspondence.method != refine::CorrespondenceMethod::Ecc &&
+           options_.acquisition_radius_m > 0;
+}
+
 std::optional<mrpt::poses::CPosePDFGaussian> Localizer::deadReckonedFallback(
     const std::optional<Prediction>& prediction, const FrameResult& out) const {
-    // Dead reckoning starts from the last fix, as uncertain as that was.
     const auto& policy = refiner_.acceptance();
-    if (prediction) {
-        auto pose = policy.deadReckoned(prediction->pose, prediction->motion);
-        pose.cov += last_fix_->cov;
-        return pose;
-    }
+    if (prediction) return predictedPose(*prediction);
     if (!options_.use_tracking) return std::nullopt;
     const auto dead = deadReckon(out.time_s);
     if (!dead || !dead->motion.velocity_known) return std::nullopt;

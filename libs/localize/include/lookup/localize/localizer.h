@@ -137,8 +137,7 @@ class Localizer {
     /// References an acquisition around `pose` refines against, one by one: those within
     /// acquisition_radius_m, nearest first, each survey traverse thinned to
     /// acquisition_step_m along itself.
-    std::vector<std::size_t> acquisitionCandidates(const mrpt::poses::CPose2D& pose,
-                                                   double radius_m) const;
+    std::vector<std::size_t> acquisitionCandidates(const mrpt::poses::CPose2D& pose) const;
 
   private:
     struct Prediction {
@@ -201,6 +200,10 @@ class Localizer {
     std::optional<refine::VehicleMotion> velocityAt(double time_s) const;
     std::vector<std::size_t> referencesNearTime(double time_s) const;
     std::vector<std::size_t> referencesNear(const mrpt::poses::CPose2D& pose) const;
+    /// The prediction with its uncertainty: the last fix's plus the dead reckoning's since.
+    mrpt::poses::CPosePDFGaussian predictedPose(const Prediction& prediction) const;
+    /// Whether this run may acquire at all (a search radius, not the ECC baseline).
+    bool acquisitionAllowed() const;
     /// One place an acquisition tries: a reference and the vehicle pose to refine from.
     struct Candidate {
         std::size_t reference = 0;
