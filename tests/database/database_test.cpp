@@ -177,6 +177,19 @@ TEST(Database, SpatialAndTimeQueriesMatchBruteForce) {
         const auto k = db.nearest(p, 5);
         ASSERT_EQ(k.size(), 5u);
         for (int j = 0; j < 5; ++j) EXPECT_NEAR(k[j].distance, brute[j].first, 1e-9);
+        // The cameras stand 0.5 m ahead of the vehicles, turned with them.
+        std::vector<std::pair<double, std::size_t>> cameras;
+        for (std::size_t i = 0; i < db.size(); ++i) {
+            const auto c = db.reference(i).vehicle_pose + mrpt::poses::CPose3D(0.5, 0, 2, 0, 0, 0);
+            cameras.push_back({std::hypot(c.x() - p.x, c.y() - p.y), i});
+        }
+        std::sort(cameras.begin(), cameras.end());
+        const auto kc = db.nearestCameras(p, 5);
+        ASSERT_EQ(kc.size(), 5u);
+        for (int j = 0; j < 5; ++j) {
+            EXPECT_EQ(kc[j].index, cameras[j].second);
+            EXPECT_NEAR(kc[j].distance, cameras[j].first, 1e-9);
+        }
         const double r = rng.drawUniform(0.5, 3);
         const auto within = db.withinRadius(p, r);
         const auto expected =

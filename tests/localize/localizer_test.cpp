@@ -306,6 +306,48 @@ TEST(Localize, AFailedTrackedFrameSearchesAroundItsPrediction) {
     EXPECT_LT(waited_refined, refined_after_slip) << waited.frames[8].reason;
 }
 
+// The survey vehicle driven back against its own survey, its camera 3 m ahead of its base:
+// the references whose vehicles stood nearest saw the ceiling 6 m from the one the camera sees
+// now; the references whose cameras stood nearest saw the same ceiling.
+TEST(Localize, DrivingAgainstTheSurveyTheReferencesAreThoseWhoseCamerasSawTheCeiling) {
+    const auto dir = lookup::test::freshDir("lookup_localize_against_survey");
+    Scene scene;
+    scene.mount = mrpt::poses::CPose3D(3.0, 0, 0, 0, 0, 0) + scene.mount;
+    writeDatabase(scene, (dir / "db").string(), {{"survey", 65, 100.0}});
+    common::PoseTrack coarse;
+    common::RawlogWriter rawlog((dir / "query.rawlog").string());
+    const int frames = 10;
+    for (int i = 0; i < frames; ++i) {
+        const double t = kT0 + 0.1 * i;
+        const mrpt::poses::CPose3D vehicle(3 - 0.3 * i, 0.3, 0, M_PI + 0.05, 0, 0);
+        coarse.push_back({t, vehicle + mrpt::poses::CPose3D(0.3, -0.2, 0, -0.03, 0, 0)});
+        auto img = scene.image(vehicle, t);
+        mrpt::obs::CObservationOdometry odo;
+        odo.sensorLabel = "ODOMETRY";
+        odo.timestamp = img->timestamp;
+        odo.odometry = mrpt::poses::CPose2D(vehicle.x(), vehicle.y(), vehicle.yaw());
+        rawlog.write(odo);
+        rawlog.writeWithExternalImage(*img, "ceiling_" + std::to_string(i) + ".png");
+    }
+    rawlog.close();
+    common::writeTumPoseFile((dir / "coarse.tum").string(), coarse);
+    localize::LocalizeRequest req;
+    req.db_dir = (dir / "db").string();
+    req.rawlog = (dir / "query.rawlog").string();
+    req.out_dir = (dir / "run").string();
+    req.coarse_poses = (dir / "coarse.tum").string();
+    req.sampling = "grid";
+    req.progress = false;
+    localize::runLocalization(req);
+    const auto run = eval::loadRun(req.out_dir);
+    ASSERT_EQ(run.frames.size(), std::size_t(frames));
+    for (int i = 0; i < frames; ++i) {
+        const auto& f = run.frames[i];
+        ASSERT_EQ(f.status, "refined") << i << ": " << f.reason;
+        EXPECT_LT(std::hypot(f.x - (3 - 0.3 * i), f.y - 0.3), 0.05) << i;
+    }
+}
+
 // A pose at the image's time is as uncertain as that time: 3 m/s along x with the stamps
 // uncertain by 0.1 s adds (0.3 m)^2 along the motion to every emitted pose, nothing across it.
 TEST(Localize, AnUncertainImageTimeWidensThePoseAlongTheMotion) {

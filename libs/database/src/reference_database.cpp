@@ -126,6 +126,33 @@ PointCloud2D positionsOf(const std::vector<Reference>& refs) {
     return cloud;
 }
 
+PointCloud2D cameraPositionsOf(const std::vector<Reference>& refs) {
+    PointCloud2D cloud;
+    for (const auto& r : refs) {
+        cloud.points.push_back({r.ceiling_camera_pose.x(), r.ceiling_camera_pose.y()});
+    }
+    return cloud;
+}
+
+std::unique_ptr<KdTree> treeOver(const PointCloud2D& cloud) {
+    auto tree = std::make_unique<KdTree>(2, cloud, nanoflann::KDTreeSingleIndexAdaptorParams(10));
+    tree->buildIndex();
+    return tree;
+}
+
+std::vector<Neighbour> nearestIn(const KdTree& tree, std::size_t size,
+                                 const mrpt::math::TPoint2D& p, std::size_t k) {
+    k = std::min(k, size);
+    if (k == 0) return {};
+    std::vector<std::size_t> idx(k);
+    std::vector<double> d2(k);
+    const double query[2] = {p.x, p.y};
+    k = tree.knnSearch(query, k, idx.data(), d2.data());
+    std::vector<Neighbour> out(k);
+    for (std::size_t i = 0; i < k; ++i) out[i] = {idx[i], std::sqrt(d2[i])};
+    return out;
+}
+
 // Reference indices by time_s (stable: equal times keep id order).
 std::vector<std::size_t> timeOrder(const std::vector<Reference>& refs) {
     std::vector<std::size_t> order(refs.size());
@@ -153,8 +180,8 @@ struct ReferenceDatabase::Impl {
     std::string dir;
     DatabaseInfo info;
     std::vector<Reference> refs;
-    PointCloud2D cloud;
-    std::unique_ptr<KdTree> tree;
+    PointCloud2D cloud, camera_cloud;
+    std::unique_ptr<KdTree> tree, camera_tree;
     std::vector<std::size_t> by_time;  // reference indices sorted by time_s
     std::vector<std::size_t> forward_sequence;
     std::unique_ptr<ImageCache> cache;
@@ -176,9 +203,9 @@ ReferenceDatabase ReferenceDatabase::load(const std::string& dir, std::size_t ca
     impl->refs = readReferences(impl->dir + "/" + kRefsRawlog, impl->info);
 
     impl->cloud = positionsOf(impl->refs);
-    impl->tree =
-        std::make_unique<KdTree>(2, impl->cloud, nanoflann::KDTreeSingleIndexAdaptorParams(10));
-    impl->tree->buildIndex();
+    impl->tree = treeOver(impl->cloud);
+    impl->camera_cloud = cameraPositionsOf(impl->refs);
+    impl->camera_tree = treeOver(impl->camera_cloud);
     impl->by_time = timeOrder(impl->refs);
     impl->forward_sequence = forwardOrder(impl->refs);
     impl->cache = std::make_unique<ImageCache>(std::max<std::size_t>(1, cache_capacity));
@@ -193,15 +220,12 @@ const std::vector<Reference>& ReferenceDatabase::references() const { return imp
 
 std::vector<Neighbour> ReferenceDatabase::nearest(const mrpt::math::TPoint2D& p,
                                                   std::size_t k) const {
-    k = std::min(k, impl_->refs.size());
-    if (k == 0) return {};
-    std::vector<std::size_t> idx(k);
-    std::vector<double> d2(k);
-    const double query[2] = {p.x, p.y};
-    k = impl_->tree->knnSearch(query, k, idx.data(), d2.data());
-    std::vector<Neighbour> out(k);
-    for (std::size_t i = 0; i < k; ++i) out[i] = {idx[i], std::sqrt(d2[i])};
-    return out;
+    return nearestIn(*impl_->tree, impl_->refs.size(), p, k);
+}
+
+std::vector<Neighbour> ReferenceDatabase::nearestCameras(const mrpt::math::TPoint2D& p,
+                                                         std::size_t k) const {
+    return nearestIn(*impl_->camera_tree, impl_->refs.size(), p, k);
 }
 
 std::vector<Neighbour> ReferenceDatabase::nearest(const mrpt::poses::CPose3D& pose,

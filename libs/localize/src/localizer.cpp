@@ -453,10 +453,7 @@ std::optional<Localizer::CoarseFix> Localizer::fixFromMatch(const coarse::Coarse
         return CoarseFix{toPose2D(db_.reference(nearest.front().index).vehicle_pose),
                          referencesNearTime(*reference_time)};
     }
-    if (c.coarse_pose) {
-        const auto pose = toPose2D(*c.coarse_pose);
-        return CoarseFix{pose, referencesNear(pose)};
-    }
+    if (c.coarse_pose) return CoarseFix{toPose2D(*c.coarse_pose), {}};
     return std::nullopt;
 }
 
@@ -468,10 +465,15 @@ std::vector<std::size_t> Localizer::referencesNearTime(double time_s) const {
     return out;
 }
 
-std::vector<std::size_t> Localizer::referencesNear(const mrpt::poses::CPose2D& pose) const {
+std::vector<std::size_t> Localizer::referencesNear(const mrpt::poses::CPose2D& pose,
+                                                   const mrpt::poses::CPose3D& camera_on_vehicle,
+                                                   std::size_t count) const {
+    // Nearest by camera, not by vehicle: a vehicle driving against the survey, or with its
+    // camera mounted elsewhere, sees the ceiling of references whose vehicles stood metres away.
+    if (count == 0) count = static_cast<std::size_t>(options_.references_per_query);
+    const auto camera = mrpt::poses::CPose3D(pose) + camera_on_vehicle;
     std::vector<std::size_t> out;
-    for (const auto& n :
-         db_.nearest(mrpt::math::TPoint2D(pose.x(), pose.y()), options_.references_per_query)) {
+    for (const auto& n : db_.nearestCameras(mrpt::math::TPoint2D(camera.x(), camera.y()), count)) {
         out.push_back(n.index);
     }
     return out;
@@ -596,7 +598,7 @@ std::vector<Localizer::Candidate> Localizer::candidatesAround(
 }
 
 std::vector<Localizer::Candidate> Localizer::candidatesAlongTrack(
-    const Prediction& prediction) const {
+    const Prediction& prediction, const mrpt::poses::CPose3D& camera_on_vehicle) const {
     // A slipping wheel or a late clock moves the prediction along the motion, not across it:
     // hypotheses at acquisition_step_m along the heading, both ways, nearest first, out to
     // tracking_acquisition_sigmas of the prediction's sigma.
@@ -610,8 +612,8 @@ std::vector<Localizer::Candidate> Localizer::candidatesAlongTrack(
     for (int k = 1; k * step <= std::max(reach_m, step) + 1e-9; ++k) {
         for (const double along : {k * step, -k * step}) {
             const mrpt::poses::CPose2D hint = prediction.pose + mrpt::poses::CPose2D(along, 0, 0);
-            const auto nearest = db_.nearest(mrpt::math::TPoint2D(hint.x(), hint.y()), /*count=*/1);
-            if (!nearest.empty()) out.push_back({nearest.front().index, hint});
+            const auto nearest = referencesNear(hint, camera_on_vehicle, /*count=*/1);
+            if (!nearest.empty()) out.push_back({nearest.front(), hint});
         }
     }
     return out;
@@ -664,7 +666,7 @@ std::shared_ptr<const refine::RefineResult> Localizer::acquire(
         }
     }
     const mrpt::poses::CPose2D fix = best->fix;
-    auto confirmed = refineAgainst(query, referencesNear(fix), fix, out);
+    auto confirmed = refineAgainst(query, referencesNear(fix, query.cameraPose), fix, out);
     return confirmed->accepted() ? confirmed : report(best->result, {best->reference});
 }
 
@@ -683,7 +685,7 @@ Localizer::GlobalOutcome Localizer::acquireGlobally(const mrpt::obs::CObservatio
         auto single = refineAgainst(query, {place.reference}, place.vehicle_pose, out, true);
         if (!single->accepted()) continue;
         const mrpt::poses::CPose2D fix = single->pose.mean;
-        auto confirmed = refineAgainst(query, referencesNear(fix), fix, out);
+        auto confirmed = refineAgainst(query, referencesNear(fix, query.cameraPose), fix, out);
         if (confirmed->accepted()) {
             verified.push_back({confirmed, out.reference_indices});
         } else {
@@ -709,7 +711,7 @@ Localizer::GlobalOutcome Localizer::separatePlaces(const mrpt::obs::CObservation
         const auto then = odometryAt(open.time_s);
         const mrpt::poses::CPose2D moved =
             now && then ? open.pose + (now->pose - then->pose) : open.pose;
-        auto r = refineAgainst(query, referencesNear(moved), moved, out);
+        auto r = refineAgainst(query, referencesNear(moved, query.cameraPose), moved, out);
         if (r->accepted()) alive.push_back({r, out.reference_indices});
     }
     open_places_.clear();
@@ -849,9 +851,10 @@ Localizer::Attempt Localizer::locate(const mrpt::obs::CObservationImage& query,
     Attempt a;
     const auto refined = [&a] { return a.result && a.result->accepted(); };
     if (prediction) {
-        a.result = refineAgainst(query, referencesNear(prediction->pose), prediction->pose, out);
+        a.result = refineAgainst(query, referencesNear(prediction->pose, query.cameraPose),
+                                 prediction->pose, out);
         if (!refined()) {
-            if (auto along = candidatesAlongTrack(*prediction); !along.empty()) {
+            if (auto along = candidatesAlongTrack(*prediction, query.cameraPose); !along.empty()) {
                 a.result = acquire(query, along, a.result, out);
             }
         }
@@ -868,7 +871,10 @@ Localizer::Attempt Localizer::locate(const mrpt::obs::CObservationImage& query,
     }
     if (a.ambiguous) return a;
     if (!refined() && coarse_fix) {
-        a.result = refineAgainst(query, coarse_fix->references, coarse_fix->pose, out);
+        const auto refs = coarse_fix->references.empty()
+                              ? referencesNear(coarse_fix->pose, query.cameraPose)
+                              : coarse_fix->references;
+        a.result = refineAgainst(query, refs, coarse_fix->pose, out);
         // Acquisition searches around the coarse match only when not tracking: with a recent
         // fix a failed frame is a bad view (pipes, blur), not a lost vehicle, and searching
         // would cost tens of milliseconds for nothing.

@@ -1,7 +1,7 @@
 #pragma once
 // Read access to a reference database folder written by lookup-survey (DatabaseWriter):
-// reference metadata in memory, a KD-tree (nanoflann) over reference vehicle positions, a
-// time index, and images read lazily through a bounded LRU cache.
+// reference metadata in memory, KD-trees (nanoflann) over reference vehicle and ceiling camera
+// positions, a time index, and images read lazily through a bounded LRU cache.
 
 #include <mrpt/math/TPoint2D.h>
 #include <mrpt/poses/CPose3D.h>
@@ -43,6 +43,11 @@ class ReferenceDatabase {
     /// nearest first (fewer if the database is smaller).
     std::vector<Neighbour> nearest(const mrpt::math::TPoint2D& position, std::size_t k) const;
     std::vector<Neighbour> nearest(const mrpt::poses::CPose3D& pose, std::size_t k) const;
+    /// The `k` references whose ceiling cameras are nearest to `camera_position` (map frame, m),
+    /// nearest first: the references that saw most of the ceiling a camera there sees, whatever
+    /// the vehicle's heading and camera mount.
+    std::vector<Neighbour> nearestCameras(const mrpt::math::TPoint2D& camera_position,
+                                          std::size_t k) const;
     /// All references whose vehicle positions lie within `radius_m` of `position`, nearest
     /// first.
     std::vector<Neighbour> withinRadius(const mrpt::math::TPoint2D& position,

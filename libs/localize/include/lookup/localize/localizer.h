@@ -178,7 +178,8 @@ class Localizer {
     void processOdometry(const mrpt::obs::CObservation& odo);
     struct CoarseFix {
         mrpt::poses::CPose2D pose;            ///< pose of the matched reference (or given)
-        std::vector<std::size_t> references;  ///< ceiling references for that match
+        std::vector<std::size_t> references;  ///< ceiling references for that match (none:
+                                              ///< those seen from `pose`)
     };
     std::optional<CoarseFix> coarseFix() const;
     /// Coarse matches not trusted (yet), one per place, from every traverse's sequence: from a
@@ -199,7 +200,11 @@ class Localizer {
     /// The vehicle's velocity from the odometry just before `time_s` (rolling shutter).
     std::optional<refine::VehicleMotion> velocityAt(double time_s) const;
     std::vector<std::size_t> referencesNearTime(double time_s) const;
-    std::vector<std::size_t> referencesNear(const mrpt::poses::CPose2D& pose) const;
+    /// The `count` references (0: references_per_query) whose ceiling cameras stood nearest to
+    /// where a camera `camera_on_vehicle` is with the vehicle at `pose`.
+    std::vector<std::size_t> referencesNear(const mrpt::poses::CPose2D& pose,
+                                            const mrpt::poses::CPose3D& camera_on_vehicle,
+                                            std::size_t count = 0) const;
     /// The prediction with its uncertainty: the last fix's plus the dead reckoning's since.
     mrpt::poses::CPosePDFGaussian predictedPose(const Prediction& prediction) const;
     /// Whether this run may acquire at all (a search radius, not the ECC baseline).
@@ -212,7 +217,8 @@ class Localizer {
     /// The acquisition candidates around a coarse pose: each reference from its own pose.
     std::vector<Candidate> candidatesAround(const mrpt::poses::CPose2D& pose) const;
     /// A failed tracked frame's candidates along its prediction's heading (none when off).
-    std::vector<Candidate> candidatesAlongTrack(const Prediction& prediction) const;
+    std::vector<Candidate> candidatesAlongTrack(
+        const Prediction& prediction, const mrpt::poses::CPose3D& camera_on_vehicle) const;
     /// Refines against each candidate, keeps the best unless ambiguous, confirms it against
     /// the fix's neighbours; else `failed` (or nothing).
     std::shared_ptr<const refine::RefineResult> acquire(
