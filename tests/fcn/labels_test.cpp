@@ -4,6 +4,8 @@
 
 #include <gtest/gtest.h>
 
+#include <opencv2/imgproc.hpp>
+
 #include "fixture.h"
 #include "lookup/database/reference_database.h"
 #include "lookup/fcn/labels.h"
@@ -53,17 +55,16 @@ TEST(Labels, PipesAreOutliersAndTheCeilingInliers) {
     ASSERT_TRUE(refine::pinholeFrom(sc.camera, cam, nullptr));
     const cv::Matx33d H = refine::ceilingHomography(cam, ref_pose + sc.mount, cam,
                                                     query_pose + sc.mount, fixture::kCeilingHeight);
-    refine::HomographyResult fit;
-    const auto matches = labelPair(ref, query, options, &H, &fit);
-    ASSERT_TRUE(fit.ok) << fit.reason;
-    const Shares s = sharesByRegion(matches, sc.pipeMask(ref_pose));
+    const auto labels = labelPair(ref, query, options, &H);
+    ASSERT_TRUE(labels.fit.ok) << labels.fit.reason;
+    const Shares s = sharesByRegion(labels.matches, sc.pipeMask(ref_pose));
     ASSERT_GT(s.in_pipes, 10);
     ASSERT_GT(s.on_ceiling, 10);
     EXPECT_LT(s.inlier_in_pipes, 0.2);
     EXPECT_GT(s.inlier_on_ceiling, 0.7);
 
     // Same grid and the same labels as refine::labelGridPoints when the prior is zero motion.
-    const auto plain = labelPair(ref, query, options, nullptr);
+    const auto plain = labelPair(ref, query, options, nullptr).matches;
     const auto reference_impl = refine::labelGridPoints(ref, query, options.grid_step_px,
                                                         options.matcher, options.homography);
     ASSERT_EQ(plain.size(), reference_impl.size());
@@ -71,6 +72,61 @@ TEST(Labels, PipesAreOutliersAndTheCeilingInliers) {
         EXPECT_EQ(plain[i].reference_px, reference_impl[i].reference_px);
         EXPECT_EQ(plain[i].inlier, reference_impl[i].inlier);
     }
+}
+
+// `image` of the scene's pinhole camera as `lens` (its intrinsics with distortion) takes it.
+cv::Mat throughLens(const cv::Mat& image, const mrpt::img::TCamera& lens) {
+    std::vector<cv::Point2f> raw;
+    for (int y = 0; y < image.rows; ++y)
+        for (int x = 0; x < image.cols; ++x) raw.emplace_back(float(x), float(y));
+    const auto pinhole = refine::undistortPixels(raw, lens);
+    cv::Mat map_x(image.size(), CV_32FC1), map_y(image.size(), CV_32FC1);
+    for (std::size_t i = 0; i < raw.size(); ++i) {
+        map_x.at<float>(raw[i]) = float(pinhole[i].x);
+        map_y.at<float>(raw[i]) = float(pinhole[i].y);
+    }
+    cv::Mat out;
+    cv::remap(image, out, map_x, map_y, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+    return out;
+}
+
+// Through a strong barrel lens the raw pixels of the ceiling seen twice are no homography:
+// labelled on the raw images, most of the ceiling away from the image's centre is labelled off
+// the plane; on the rectified images, as the localiser matches them, much less.
+TEST(Labels, ThroughADistortingLensTheCeilingIsLabelledOnRectifiedImages) {
+    const auto& sc = fixture::scene();
+    mrpt::img::TCamera lens = sc.camera;
+    lens.setDistortionPlumbBob(-0.35, 0.1, 0, 0, 0);
+    const mrpt::poses::CPose3D ref_pose(1.0, 0, 0, 0, 0, 0), query_pose(1.4, 0.2, 0, 0.03, 0, 0);
+    const cv::Mat ref = throughLens(sc.render(ref_pose), lens);
+    const cv::Mat query = throughLens(sc.render(query_pose), lens);
+    auto options = fixture::smallOptions().labels;
+    options.precise_inlier_px = 0.75;
+    refine::Pinhole cam;
+    ASSERT_TRUE(refine::pinholeFrom(sc.camera, cam, nullptr));
+    const cv::Matx33d H = refine::ceilingHomography(cam, ref_pose + sc.mount, cam,
+                                                    query_pose + sc.mount, fixture::kCeilingHeight);
+    const cv::Mat pipes = throughLens(sc.pipeMask(ref_pose), lens);
+    const auto ceiling_targets = [&](const fcn::PairLabels& labels) {
+        int ceiling = 0, targets = 0;
+        for (std::size_t i = 0; i < labels.matches.size(); ++i) {
+            const auto& m = labels.matches[i];
+            if (!m.matched() || pipes.at<std::uint8_t>(cv::Point(m.reference_px)) != 0) continue;
+            ++ceiling;
+            targets += m.inlier && labels.residual_px[i] <= options.precise_inlier_px;
+        }
+        return ceiling > 20 ? double(targets) / ceiling : 0.0;
+    };
+    const fcn::PairCameras cameras{lens, lens};
+    const auto raw = labelPair(ref, query, options, &H);
+    const auto rectified = labelPair(ref, query, options, &H, &cameras);
+    ASSERT_TRUE(rectified.fit.ok) << rectified.fit.reason;
+    for (const auto& m : rectified.matches) {  // reference points are raw pixels, inside
+        EXPECT_GE(m.reference_px.x, options.matcher.patch_px / 2);
+        EXPECT_LT(m.reference_px.x, ref.cols - options.matcher.patch_px / 2);
+    }
+    EXPECT_GT(ceiling_targets(rectified), ceiling_targets(raw) + 0.15)
+        << "raw " << ceiling_targets(raw) << ", rectified " << ceiling_targets(rectified);
 }
 
 TEST(Labels, GeneratedFromRawlogsWithATimeSplit) {

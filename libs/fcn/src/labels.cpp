@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <chrono>
 #include <filesystem>
+#include <limits>
 #include <opencv2/imgproc.hpp>
 #include <stdexcept>
 
@@ -12,6 +13,7 @@
 #include "lookup/common/rawlog_io.h"
 #include "lookup/refine/geometry.h"
 #include "lookup/refine/matcher.h"
+#include "lookup/refine/rectifier.h"
 
 namespace lookup::fcn {
 namespace {
@@ -85,25 +87,52 @@ std::vector<QueryFrame> readQueryFrames(const std::string& rawlog, const std::st
 
 // A RANSAC inlier within `precise_px` of the fitted homography (any inlier if 0): the points
 // that match precisely and lie on the plane, so that the network learns to prefer them.
-bool isTarget(const refine::PointMatch& m, const refine::HomographyResult& fit, double precise_px) {
-    if (!m.inlier) return false;
-    if (precise_px <= 0) return true;
-    if (!fit.ok) return false;
-    cv::Point2d predicted;
-    if (!refine::applyHomography(fit.H, cv::Point2d(m.reference_px), predicted)) return false;
-    return cv::norm(predicted - cv::Point2d(m.query_px)) <= precise_px;
+bool isTarget(const refine::PointMatch& m, double residual_px, double precise_px) {
+    return m.inlier && (precise_px <= 0 || residual_px <= precise_px);
+}
+
+// Whether the pair must be labelled on rectified images.
+bool distorting(const PairCameras* cameras) {
+    return cameras &&
+           (refine::hasDistortion(cameras->reference) || refine::hasDistortion(cameras->query));
+}
+
+// Reference points of the rectified image moved to where the raw reference records them;
+// those whose patch would leave the raw image are dropped (the network scores raw pixels).
+void toRawReference(std::vector<refine::PointMatch>& matches, std::vector<double>& residual_px,
+                    const mrpt::img::TCamera& camera, int margin_px) {
+    std::vector<cv::Point2f> rectified;
+    for (const auto& m : matches) rectified.push_back(m.reference_px);
+    const auto raw = refine::distortPixels(rectified, camera);
+    std::size_t kept = 0;
+    for (std::size_t i = 0; i < matches.size(); ++i) {
+        const cv::Point2d& p = raw[i];
+        if (!(p.x >= margin_px && p.y >= margin_px && p.x < int(camera.ncols) - margin_px &&
+              p.y < int(camera.nrows) - margin_px)) {
+            continue;
+        }
+        matches[kept] = matches[i];
+        matches[kept].reference_px = cv::Point2f(p);
+        residual_px[kept++] = residual_px[i];
+    }
+    matches.resize(kept);
+    residual_px.resize(kept);
 }
 
 }  // namespace
 
-std::vector<refine::PointMatch> labelPair(const cv::Mat& reference, const cv::Mat& query,
-                                          const LabelOptions& options,
-                                          const cv::Matx33d* reference_to_query,
-                                          refine::HomographyResult* result) {
+PairLabels labelPair(const cv::Mat& reference, const cv::Mat& query, const LabelOptions& options,
+                     const cv::Matx33d* reference_to_query, const PairCameras* cameras) {
     CV_Assert(reference.type() == CV_8UC1 && query.type() == CV_8UC1);
+    const bool rectify = distorting(cameras);
     const int levels = refine::effectivePyramidLevels(options.matcher);
-    const auto ref = refine::ImagePyramid::build(reference, levels, options.matcher);
-    const auto qry = refine::ImagePyramid::build(query, levels, options.matcher);
+    const auto ref = refine::ImagePyramid::build(
+        rectify ? refine::Rectifier(cameras->reference).rectify(reference, cameras->reference)
+                : reference,
+        levels, options.matcher);
+    const auto qry = refine::ImagePyramid::build(
+        rectify ? refine::Rectifier(cameras->query).rectify(query, cameras->query) : query, levels,
+        options.matcher);
     std::vector<cv::Point2f> points;
     const int margin = options.matcher.patch_px / 2;
     for (int y = margin; y + margin < reference.rows; y += options.grid_step_px) {
@@ -121,10 +150,20 @@ std::vector<refine::PointMatch> labelPair(const cv::Mat& reference, const cv::Ma
                             : cv::Point2f(0, 0));
         }
     }
-    auto matches = refine::matchPoints(ref, qry, points, offsets, options.matcher);
-    const auto fit = refine::estimateHomography(matches, options.homography);
-    if (result) *result = fit;
-    return matches;
+    PairLabels out;
+    out.matches = refine::matchPoints(ref, qry, points, offsets, options.matcher);
+    out.fit = refine::estimateHomography(out.matches, options.homography);
+    out.residual_px.assign(out.matches.size(), std::numeric_limits<double>::infinity());
+    for (std::size_t i = 0; i < out.matches.size(); ++i) {
+        const auto& m = out.matches[i];
+        cv::Point2d predicted;
+        if (out.fit.ok && m.matched() &&
+            refine::applyHomography(out.fit.H, cv::Point2d(m.reference_px), predicted)) {
+            out.residual_px[i] = cv::norm(predicted - cv::Point2d(m.query_px));
+        }
+    }
+    if (rectify) toRawReference(out.matches, out.residual_px, cameras->reference, margin);
+    return out;
 }
 
 LabelSet generateLabels(const database::ReferenceDatabase& db,
@@ -195,13 +234,16 @@ LabelSet generateLabels(const database::ReferenceDatabase& db,
                 pair.held_out = job.held_out;
                 const cv::Matx33d H = refine::ceilingHomography(
                     ref_camera, ref.ceiling_camera_pose, query_camera, query_camera_in_map, h);
-                refine::HomographyResult fit;
-                const auto matches = labelPair(ref_image, query, options,
-                                               options.use_pose_prior ? &H : nullptr, &fit);
-                for (const auto& m : matches) {
+                const PairCameras cameras{ref.ceiling_camera, f.obs->cameraParams};
+                const auto labels = labelPair(ref_image, query, options,
+                                              options.use_pose_prior ? &H : nullptr, &cameras);
+                const auto& fit = labels.fit;
+                for (std::size_t i = 0; i < labels.matches.size(); ++i) {
+                    const auto& m = labels.matches[i];
                     pair.points.push_back(m.reference_px);
                     pair.inlier.push_back(m.inlier ? 1 : 0);
-                    pair.target.push_back(isTarget(m, fit, options.precise_inlier_px) ? 1 : 0);
+                    pair.target.push_back(
+                        isTarget(m, labels.residual_px[i], options.precise_inlier_px) ? 1 : 0);
                     pair.inliers += m.inlier ? 1 : 0;
                     pair.targets += pair.target.back();
                 }

@@ -3,6 +3,7 @@
 #include "lookup/refine/rolling_shutter.h"
 
 #include <cmath>
+#include <opencv2/calib3d.hpp>
 
 namespace lookup::refine {
 
@@ -26,6 +27,48 @@ bool hasDistortion(const mrpt::img::TCamera& camera) {
         if (d != 0.0) return true;
     }
     return false;
+}
+
+std::vector<cv::Point2d> undistortPixels(const std::vector<cv::Point2f>& px,
+                                         const mrpt::img::TCamera& camera) {
+    std::vector<cv::Point2d> out(px.begin(), px.end());
+    if (px.empty() || !hasDistortion(camera)) return out;
+    const cv::Mat K(cv::Matx33d(camera.fx(), 0, camera.cx(), 0, camera.fy(), camera.cy(), 0, 0, 1));
+    std::vector<cv::Point2f> undistorted;
+    if (camera.distortion == mrpt::img::DistortionModel::kannala_brandt) {
+        const cv::Vec4d d(camera.k1(), camera.k2(), camera.k3(), camera.k4());
+        cv::fisheye::undistortPoints(px, undistorted, K, d, cv::noArray(), K);
+    } else {
+        const std::vector<double> d(camera.dist.begin(), camera.dist.end());
+        cv::undistortPoints(px, undistorted, K, d, cv::noArray(), K);
+    }
+    return {undistorted.begin(), undistorted.end()};
+}
+
+std::vector<cv::Point2d> distortPixels(const std::vector<cv::Point2f>& px,
+                                       const mrpt::img::TCamera& camera) {
+    std::vector<cv::Point2d> out(px.begin(), px.end());
+    if (px.empty() || !hasDistortion(camera)) return out;
+    const cv::Matx33d K(camera.fx(), 0, camera.cx(), 0, camera.fy(), camera.cy(), 0, 0, 1);
+    std::vector<cv::Point2d> distorted;
+    if (camera.distortion == mrpt::img::DistortionModel::kannala_brandt) {
+        std::vector<cv::Point2d> normalised;
+        for (const auto& p : px) {
+            normalised.emplace_back((p.x - camera.cx()) / camera.fx(),
+                                    (p.y - camera.cy()) / camera.fy());
+        }
+        const cv::Vec4d d(camera.k1(), camera.k2(), camera.k3(), camera.k4());
+        cv::fisheye::distortPoints(normalised, distorted, K, d);
+    } else {
+        std::vector<cv::Point3d> rays;
+        for (const auto& p : px) {
+            rays.emplace_back((p.x - camera.cx()) / camera.fx(), (p.y - camera.cy()) / camera.fy(),
+                              1.0);
+        }
+        const std::vector<double> d(camera.dist.begin(), camera.dist.end());
+        cv::projectPoints(rays, cv::Vec3d(0, 0, 0), cv::Vec3d(0, 0, 0), K, d, distorted);
+    }
+    return distorted;
 }
 
 std::optional<cv::Point3d> backProjectToCeiling(const Pinhole& c,

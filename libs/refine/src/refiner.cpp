@@ -6,7 +6,6 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
-#include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 #include <optional>
 
@@ -69,23 +68,6 @@ std::string matchStatusSummary(const std::vector<ReferenceOutcome>& references) 
         out += (out.empty() ? " (" : ", ") + std::to_string(n) + " " + toString(status);
     }
     return out.empty() ? out : out + ")";
-}
-
-// Rectified pixels for the estimator (matching runs on the raw images).
-std::vector<cv::Point2d> rectify(const std::vector<cv::Point2f>& px,
-                                 const mrpt::img::TCamera& camera, const Pinhole& pinhole) {
-    std::vector<cv::Point2d> out(px.begin(), px.end());
-    if (px.empty() || !hasDistortion(camera)) return out;
-    const cv::Mat K(pinhole.K());
-    std::vector<cv::Point2f> undistorted;
-    if (camera.distortion == mrpt::img::DistortionModel::kannala_brandt) {
-        const cv::Vec4d d(camera.k1(), camera.k2(), camera.k3(), camera.k4());
-        cv::fisheye::undistortPoints(px, undistorted, K, d, cv::noArray(), K);
-    } else {
-        const std::vector<double> d(camera.dist.begin(), camera.dist.end());
-        cv::undistortPoints(px, undistorted, K, d, cv::noArray(), K);
-    }
-    return {undistorted.begin(), undistorted.end()};
 }
 
 /// The references the hint asks for whose intrinsics, image and heat map are usable.
@@ -252,8 +234,8 @@ void addInliers(const ReferenceOutcome& outcome, const ReferenceImage& ref, cons
     ReferenceView view;
     view.camera = ref_cam;
     view.camera_in_map = ref.cameraInMap();
-    view.reference_px = rectify(ref_px, ref.camera, ref_cam);
-    view.query_px = rectify(query_px, *q.intrinsics, q.camera);
+    view.reference_px = undistortPixels(ref_px, ref.camera);
+    view.query_px = undistortPixels(query_px, *q.intrinsics);
     view.timing = ref.timing;
     if (view.timing.rows == 0) view.timing.rows = ref.image.rows;
     view.camera_on_vehicle = ref.camera_on_vehicle;

@@ -55,15 +55,31 @@ struct LabelSet {
     LabelStats stats;
 };
 
+/// The two cameras of a pair, lens distortion included.
+struct PairCameras {
+    mrpt::img::TCamera reference, query;
+};
+
+/// One labelled pair: the matches (`inlier` set by the fit), the homography fitted to them, and
+/// each match's distance to it [px] (infinite where unmatched or not mapped). Reference points
+/// are raw pixels of the reference image; with rectified images (see labelPair) query points and
+/// the homography are in the rectified images.
+struct PairLabels {
+    std::vector<refine::PointMatch> matches;
+    refine::HomographyResult fit;
+    std::vector<double> residual_px;
+};
+
 /// Labels one pair: dense grid (spacing grid_step_px, patch_px / 2 from the borders) ->
 /// matcher -> RANSAC homography, as refine::labelGridPoints. With `reference_to_query` (the
 /// ceiling-plane homography predicted from known poses) each search window is centred on the
 /// predicted position instead of the same pixel, so pairs farther apart than L_SR / 2 can be
-/// labelled. Images are CV_8UC1.
-std::vector<refine::PointMatch> labelPair(const cv::Mat& reference, const cv::Mat& query,
-                                          const LabelOptions& options,
-                                          const cv::Matx33d* reference_to_query,
-                                          refine::HomographyResult* result = nullptr);
+/// labelled. With `cameras` of which one distorts, both images are first rectified into their
+/// ideal pinhole twins, as the localiser matches them (`reference_to_query` then relates the
+/// twins): through a distorting lens the raw pixels of a plane seen twice are no homography, and
+/// the rim of the image would be labelled off the plane. Images are CV_8UC1.
+PairLabels labelPair(const cv::Mat& reference, const cv::Mat& query, const LabelOptions& options,
+                     const cv::Matx33d* reference_to_query, const PairCameras* cameras = nullptr);
 
 /// Called with (done, total) during label generation.
 using ProgressFn = std::function<void(std::size_t done, std::size_t total)>;

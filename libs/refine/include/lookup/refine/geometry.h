@@ -9,6 +9,7 @@
 #include <opencv2/core.hpp>
 #include <optional>
 #include <string>
+#include <vector>
 
 namespace lookup::refine {
 
@@ -23,6 +24,14 @@ bool pinholeFrom(const mrpt::img::TCamera& camera, Pinhole& out, std::string* wh
 
 /// True when `camera` has non-zero lens distortion coefficients.
 bool hasDistortion(const mrpt::img::TCamera& camera);
+
+/// Pixels `px` of `camera` (lens distortion included) in its ideal pinhole twin (the same
+/// intrinsics, no distortion); unchanged when `camera` has none.
+std::vector<cv::Point2d> undistortPixels(const std::vector<cv::Point2f>& px,
+                                         const mrpt::img::TCamera& camera);
+/// The inverse: pixels `px` of `camera`'s ideal pinhole twin where `camera` records them.
+std::vector<cv::Point2d> distortPixels(const std::vector<cv::Point2f>& px,
+                                       const mrpt::img::TCamera& camera);
 
 /// Point of the plane z = h seen at pixel `px` by a camera at `camera_in_map`; empty when the
 /// ray does not meet the plane in front of the camera.
