@@ -93,8 +93,10 @@ void writeQuery(const std::string& rawlog, const common::PoseTrack& track) {
         writer.writeWithExternalImage(*obs, "ceiling_" + std::to_string(i) + ".png");
     }
     writer.close();
-    common::writeMrptPoseFile(rawlog + ".GT.txt", track);
+    common::writeMrptPoseFile(posesFile(rawlog), track);
 }
+
+std::string posesFile(const std::string& rawlog) { return rawlog + ".poses.txt"; }
 
 common::PoseTrack drive(double x0, double x1, double step, double y) {
     common::PoseTrack track;

@@ -34,8 +34,10 @@ const PipeScene& scene();
 
 /// A database of references along y = 0 at the given x [m] (survey times 100 + 0.1 k s).
 void writeDatabase(const std::string& dir, const std::vector<double>& xs);
-/// A query rawlog (ceiling images labelled CEILING_CAM) and its .GT.txt.
+/// A query rawlog (ceiling images labelled CEILING_CAM) and its poses, posesFile(rawlog).
 void writeQuery(const std::string& rawlog, const common::PoseTrack& track);
+/// Where writeQuery writes the drive's poses (MRPT pose file).
+std::string posesFile(const std::string& rawlog);
 /// A straight query drive along y = `y` from x0 to x1 every `step` m, 10 frames/s from kT0.
 common::PoseTrack drive(double x0, double x1, double step, double y);
 

@@ -140,7 +140,8 @@ TEST(Labels, GeneratedFromRawlogsWithATimeSplit) {
     const auto db = database::ReferenceDatabase::load((dir / "db").string());
     auto options = fixture::smallOptions().labels;
     std::size_t calls = 0;
-    const auto set = generateLabels(db, {(dir / "q.rawlog").string()}, options,
+    const std::string q = (dir / "q.rawlog").string();
+    const auto set = generateLabels(db, {q}, {fixture::posesFile(q)}, options,
                                     [&](std::size_t, std::size_t) { ++calls; });
     EXPECT_EQ(set.stats.query_frames, track.size());
     EXPECT_EQ(calls, track.size());
@@ -163,7 +164,7 @@ TEST(Labels, GeneratedFromRawlogsWithATimeSplit) {
 
     // References surveyed at the query's own time are skipped (a traverse in the database).
     options.min_time_gap_s = 1e12;
-    const auto none = generateLabels(db, {(dir / "q.rawlog").string()}, options);
+    const auto none = generateLabels(db, {q}, {fixture::posesFile(q)}, options);
     EXPECT_EQ(none.stats.pairs, 0u);
     EXPECT_EQ(none.stats.frames_without_reference, track.size());
 }
@@ -173,20 +174,21 @@ TEST(Labels, PreciseTargetsAreTheInliersThatFitTheHomographyClosely) {
     std::vector<double> xs;
     for (double x = -2; x <= 2.01; x += 0.5) xs.push_back(x);
     fixture::writeDatabase((dir / "db").string(), xs);
-    fixture::writeQuery((dir / "q.rawlog").string(), fixture::drive(-1.6, 1.6, 0.2, 0.15));
+    const std::string q = (dir / "q.rawlog").string();
+    fixture::writeQuery(q, fixture::drive(-1.6, 1.6, 0.2, 0.15));
     const auto db = database::ReferenceDatabase::load((dir / "db").string());
     auto options = fixture::smallOptions().labels;
 
     // 0: the paper's labels, the targets are the RANSAC inliers.
     options.precise_inlier_px = 0;
-    const auto paper = generateLabels(db, {(dir / "q.rawlog").string()}, options);
+    const auto paper = generateLabels(db, {q}, {fixture::posesFile(q)}, options);
     ASSERT_GT(paper.stats.inlier_points, 0u);
     EXPECT_EQ(paper.stats.target_points, paper.stats.inlier_points);
     for (const auto& p : paper.pairs) EXPECT_EQ(p.target, p.inlier);
 
     // A tight residual keeps a subset of the inliers (and the same inliers for the metric).
     options.precise_inlier_px = 0.3;
-    const auto precise = generateLabels(db, {(dir / "q.rawlog").string()}, options);
+    const auto precise = generateLabels(db, {q}, {fixture::posesFile(q)}, options);
     ASSERT_EQ(precise.pairs.size(), paper.pairs.size());
     EXPECT_EQ(precise.stats.inlier_points, paper.stats.inlier_points);
     EXPECT_GT(precise.stats.target_points, 0u);
@@ -200,18 +202,52 @@ TEST(Labels, PreciseTargetsAreTheInliersThatFitTheHomographyClosely) {
     EXPECT_THROW(options.check(), std::runtime_error);
 }
 
-TEST(Labels, MissingGroundTruthAndWrongCameraLabelAreRefusedNamingTheFile) {
+// A survey traverse needs no pose file: its frames take the survey's own poses (here the
+// frames are the references, so each frame's nearest reference is its own, 0 m away).
+TEST(Labels, ASurveyTraverseTrainsOnTheSurveysOwnPoses) {
+    const auto dir = lookup::test::freshDir("lookup_fcn_labels_survey");
+    const std::vector<double> xs = {-1.0, -0.5, 0.0, 0.5, 1.0, 1.5};
+    fixture::writeDatabase((dir / "db").string(), xs);
+    common::PoseTrack survey;
+    for (std::size_t k = 0; k < xs.size(); ++k) {
+        survey.push_back({100.0 + 0.1 * k, mrpt::poses::CPose3D(xs[k], 0, 0, 0, 0, 0)});
+    }
+    const std::string rawlog = (dir / "survey.rawlog").string();
+    fixture::writeQuery(rawlog, survey);
+    fs::remove(fixture::posesFile(rawlog));
+    const auto db = database::ReferenceDatabase::load((dir / "db").string());
+    auto options = fixture::smallOptions().labels;
+    options.min_time_gap_s = 0;
+    options.references_per_query = 1;
+    const auto set = generateLabels(db, {rawlog}, {}, options);
+    EXPECT_EQ(set.stats.query_frames, xs.size());
+    ASSERT_EQ(set.pairs.size(), xs.size());
+    for (const auto& p : set.pairs) EXPECT_LT(p.distance_m, 1e-6);
+}
+
+TEST(Labels, UnknownPosesAndWrongCameraLabelAreRefusedNamingTheFile) {
     const auto dir = lookup::test::freshDir("lookup_fcn_labels_bad");
     fixture::writeDatabase((dir / "db").string(), {0.0, 0.5});
-    fixture::writeQuery((dir / "q.rawlog").string(), fixture::drive(0, 0.4, 0.2, 0.1));
+    const std::string q = (dir / "q.rawlog").string();
+    fixture::writeQuery(q, fixture::drive(0, 0.4, 0.2, 0.1));
     const auto db = database::ReferenceDatabase::load((dir / "db").string());
     const auto options = fixture::smallOptions().labels;
-    fs::remove(dir / "q.rawlog.GT.txt");
-    try {
-        generateLabels(db, {(dir / "q.rawlog").string()}, options);
-        FAIL() << "a rawlog without ground truth was accepted";
-    } catch (const std::runtime_error& e) {
-        EXPECT_NE(std::string(e.what()).find("q.rawlog.GT.txt"), std::string::npos) << e.what();
-    }
-    EXPECT_THROW(generateLabels(db, {(dir / "missing.rawlog").string()}, options), std::exception);
+    const auto refusal = [&](const std::vector<std::string>& poses) -> std::string {
+        try {
+            generateLabels(db, {q}, poses, options);
+        } catch (const std::runtime_error& e) {
+            return e.what();
+        }
+        return "";
+    };
+    // Driven at another time than the survey, without poses: they are unknown.
+    const std::string unknown = refusal({});
+    EXPECT_NE(unknown.find("q.rawlog"), std::string::npos) << unknown;
+    EXPECT_NE(unknown.find("--train-poses"), std::string::npos) << unknown;
+    const std::string missing = refusal({(dir / "nowhere.tum").string()});
+    EXPECT_NE(missing.find("nowhere.tum"), std::string::npos) << missing;
+    EXPECT_NE(refusal({fixture::posesFile(q), fixture::posesFile(q)}).find("2 pose files for 1"),
+              std::string::npos);
+    EXPECT_THROW(generateLabels(db, {(dir / "missing.rawlog").string()}, {}, options),
+                 std::exception);
 }

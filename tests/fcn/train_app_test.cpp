@@ -48,6 +48,7 @@ TrainSetup makeSetup(const std::string& name) {
     fixture::writeQuery((s.dir / "q.rawlog").string(), fixture::drive(-2.6, 2.6, 0.2, 0.15));
     s.req.db_dir = s.db;
     s.req.train_rawlogs = {(s.dir / "q.rawlog").string()};
+    s.req.train_poses = {fixture::posesFile(s.req.train_rawlogs.front())};
     s.req.report_dir = (s.dir / "report").string();
     s.req.progress = false;
     s.options.training.epochs = 4;
@@ -102,6 +103,7 @@ TEST(TrainApp, AQueryWithNoOverlapFailsAndLeavesTheDatabaseUntouched) {
     // A query drive 8 m away from every reference.
     fixture::writeQuery((s.dir / "far.rawlog").string(), fixture::drive(-2, 2, 0.2, 8.0));
     s.req.train_rawlogs = {(s.dir / "far.rawlog").string()};
+    s.req.train_poses = {fixture::posesFile(s.req.train_rawlogs.front())};
     expectThrowNaming(s, "far.rawlog", "too few usable pairs");
     EXPECT_EQ(snapshot(s.db), before);
 }
@@ -181,14 +183,15 @@ TEST(TrainApp, FlagsFillTheRequestAndTheOptionsComeFromTheIni) {
     const std::string ini = writeIni(dir / "train.ini", o);
     TrainApp app;
     std::string err;
-    ASSERT_TRUE(
-        initialize(app,
-                   {"--db", "D", "--train", "a.rawlog,,b.rawlog", "--out-model", "M.pt", "--out",
-                    "R", "--init-model", "I.pt", "--no-heatmaps", "--quiet", "--ini", ini},
-                   &err))
+    ASSERT_TRUE(initialize(app,
+                           {"--db", "D", "--train", "a.rawlog,,b.rawlog", "--train-poses",
+                            "a.tum,b.tum", "--out-model", "M.pt", "--out", "R", "--init-model",
+                            "I.pt", "--no-heatmaps", "--quiet", "--ini", ini},
+                           &err))
         << err;
     EXPECT_EQ(app.request().db_dir, "D");
     EXPECT_EQ(app.request().train_rawlogs, (std::vector<std::string>{"a.rawlog", "b.rawlog"}));
+    EXPECT_EQ(app.request().train_poses, (std::vector<std::string>{"a.tum", "b.tum"}));
     EXPECT_EQ(app.request().out_model, "M.pt");
     EXPECT_EQ(app.request().report_dir, "R");
     EXPECT_EQ(app.request().init_model, "I.pt");
@@ -230,9 +233,10 @@ TEST(TrainApp, RunTrainsThenDrawsTheFigureOfAReference) {
     s.options.training.epochs = 1;
     const std::string ini = writeIni(s.dir / "train.ini", s.options);
     TrainApp train;
-    const auto r = lookup::test::runApp("lookup-train", train,
-                                        {"--db", s.db, "--train", s.req.train_rawlogs[0], "--out",
-                                         s.req.report_dir, "--ini", ini, "--quiet"});
+    const auto r = lookup::test::runApp(
+        "lookup-train", train,
+        {"--db", s.db, "--train", s.req.train_rawlogs[0], "--train-poses", s.req.train_poses[0],
+         "--out", s.req.report_dir, "--ini", ini, "--quiet"});
     ASSERT_EQ(r.code, 0) << r.err;
     EXPECT_NE(r.out.find("model: " + s.db + "/fcn_model.pt\n"), std::string::npos) << r.out;
     EXPECT_TRUE(fs::is_regular_file(s.dir / "report" / "train_report.json"));

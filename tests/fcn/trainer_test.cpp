@@ -24,7 +24,7 @@ struct Data {
 Data makeData(const database::ReferenceDatabase& db, const TrainOptions& o,
               const std::string& rawlog) {
     Data d;
-    d.labels = generateLabels(db, {rawlog}, o.labels);
+    d.labels = generateLabels(db, {rawlog}, {fixture::posesFile(rawlog)}, o.labels);
     const auto image_of = [&db](std::size_t i) { return db.ceilingImage(i).clone(); };
     d.train = samplesFromPairs(d.labels.pairs, false, image_of);
     d.val = samplesFromPairs(d.labels.pairs, true, image_of);

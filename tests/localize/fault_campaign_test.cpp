@@ -580,7 +580,9 @@ void trainCases(const Data& d, Tally& t) {
         {{"--db", d.req.db_dir, "--heatmaps-only", model}, model},
         {{"--db", d.req.db_dir, "--train", d.req.rawlog, "--ini", bin}, bin},
         {{"--db", d.req.db_dir, "--train", d.req.rawlog, "--ini", section}, section},
-        {{"--db", d.req.db_dir, "--train", "/nonexistent/t.rawlog"}, "/nonexistent/t.rawlog"}};
+        {{"--db", d.req.db_dir, "--train", "/nonexistent/t.rawlog"}, "/nonexistent/t.rawlog"},
+        {{"--db", d.req.db_dir, "--train", d.req.rawlog, "--train-poses", "/nonexistent/p.tum"},
+         "/nonexistent/p.tum"}};
     const std::string manifest = lookup::test::readText(fs::path(d.req.db_dir) / "manifest.crc32");
     for (const auto& [args, names] : cases) {
         Case c{"lookup-train", "bad input or command line", args, names};

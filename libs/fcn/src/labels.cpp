@@ -6,6 +6,7 @@
 #include <chrono>
 #include <filesystem>
 #include <limits>
+#include <map>
 #include <opencv2/imgproc.hpp>
 #include <stdexcept>
 
@@ -43,22 +44,13 @@ cv::Mat greyOf(const mrpt::obs::CObservationImage& obs, const std::string& where
     return grey;
 }
 
-// Ceiling frames of one training rawlog with their ground-truth vehicle poses.
+// Every `stride`-th ceiling frame of one training rawlog, without its pose yet.
 std::vector<QueryFrame> readQueryFrames(const std::string& rawlog, const std::string& label,
                                         int stride) {
-    const std::string gt_path = rawlog + ".GT.txt";
-    if (!std::filesystem::is_regular_file(gt_path)) {
-        throw std::runtime_error(rawlog + ": no ground truth " + gt_path +
-                                 " (training needs the query poses)");
-    }
-    const common::PoseTrack truth = common::readPoseFile(gt_path);
-    if (truth.size() < 2) throw std::runtime_error(gt_path + ": fewer than 2 poses");
-    const auto interp = common::makeInterpolator(truth, 1.0);
-
     std::vector<QueryFrame> frames;
     common::RawlogReader reader(rawlog);
     mrpt::obs::CObservation::Ptr obs;
-    std::size_t ceiling = 0, without_pose = 0;
+    std::size_t ceiling = 0;
     while (reader.next(obs)) {
         auto img = std::dynamic_pointer_cast<mrpt::obs::CObservationImage>(obs);
         if (!img || img->sensorLabel != label) continue;
@@ -66,23 +58,60 @@ std::vector<QueryFrame> readQueryFrames(const std::string& rawlog, const std::st
         QueryFrame f;
         f.record = reader.recordIndex();
         f.time_s = mrpt::Clock::toDouble(img->timestamp);
-        bool valid = false;
-        interp.interpolate(img->timestamp, f.vehicle_in_map, valid);
-        if (!valid) {
-            ++without_pose;
-            continue;
-        }
         f.obs = img;
         frames.push_back(std::move(f));
     }
-    if (ceiling == 0) {
+    if (frames.empty()) {
         throw std::runtime_error(rawlog + ": no ceiling images labelled '" + label + "'");
     }
-    if (frames.empty()) {
-        throw std::runtime_error(rawlog + ": none of its " + std::to_string(ceiling) +
-                                 " ceiling images lies within the time span of " + gt_path);
-    }
     return frames;
+}
+
+// The survey's own poses of the traverse recorded while `frames` were: the references of the
+// database's traverse with the most references in their time span.
+common::PoseTrack surveyPoses(const database::ReferenceDatabase& db,
+                              const std::vector<QueryFrame>& frames, std::string& traverse) {
+    const double t0 = frames.front().time_s, t1 = frames.back().time_s;
+    std::map<std::string, common::PoseTrack> by_traverse;
+    for (const auto& r : db.references()) {
+        if (r.time_s >= t0 && r.time_s <= t1)
+            by_traverse[r.traverse].push_back({r.time_s, r.vehicle_pose});
+    }
+    common::PoseTrack best;
+    for (auto& [name, track] : by_traverse) {
+        if (track.size() > best.size()) best = std::move(track), traverse = name;
+    }
+    std::sort(best.begin(), best.end(),
+              [](const auto& a, const auto& b) { return a.time_s < b.time_s; });
+    return best;
+}
+
+// Gives each frame its vehicle pose: from `pose_file` (TUM or MRPT) when given, else from the
+// survey of the traverse recorded during the rawlog. Frames without one are dropped.
+void attachPoses(std::vector<QueryFrame>& frames, const database::ReferenceDatabase& db,
+                 const std::string& rawlog, const std::string& pose_file) {
+    std::string source = pose_file, traverse;
+    const common::PoseTrack track =
+        pose_file.empty() ? surveyPoses(db, frames, traverse) : common::readPoseFile(pose_file);
+    if (pose_file.empty()) source = db.directory() + " traverse '" + traverse + "'";
+    if (track.size() < 2) {
+        throw std::runtime_error(
+            rawlog + ": its poses are unknown: no survey traverse of " + db.directory() +
+            " was recorded during it and no pose file was given (--train-poses)" +
+            (pose_file.empty() ? "" : "; " + pose_file + " has fewer than 2 poses"));
+    }
+    const auto interp = common::makeInterpolator(track, 1.0);
+    std::vector<QueryFrame> posed;
+    for (auto& f : frames) {
+        bool valid = false;
+        interp.interpolate(f.obs->timestamp, f.vehicle_in_map, valid);
+        if (valid) posed.push_back(std::move(f));
+    }
+    if (posed.empty()) {
+        throw std::runtime_error(rawlog + ": none of its " + std::to_string(frames.size()) +
+                                 " ceiling images lies within the time span of " + source);
+    }
+    frames = std::move(posed);
 }
 
 // A RANSAC inlier within `precise_px` of the fitted homography (any inlier if 0): the points
@@ -167,7 +196,8 @@ PairLabels labelPair(const cv::Mat& reference, const cv::Mat& query, const Label
 }
 
 LabelSet generateLabels(const database::ReferenceDatabase& db,
-                        const std::vector<std::string>& rawlogs, const LabelOptions& options,
+                        const std::vector<std::string>& rawlogs,
+                        const std::vector<std::string>& pose_files, const LabelOptions& options,
                         const ProgressFn& progress) {
     const auto t0 = std::chrono::steady_clock::now();
     options.check();
@@ -186,9 +216,14 @@ LabelSet generateLabels(const database::ReferenceDatabase& db,
     };
     std::vector<std::vector<QueryFrame>> all_frames;
     std::vector<Job> jobs;
-    for (const auto& rawlog : rawlogs) {
+    if (!pose_files.empty() && pose_files.size() != rawlogs.size()) {
+        throw std::runtime_error(std::to_string(pose_files.size()) + " pose files for " +
+                                 std::to_string(rawlogs.size()) + " training rawlogs");
+    }
+    for (std::size_t r = 0; r < rawlogs.size(); ++r) {
         all_frames.push_back(
-            readQueryFrames(rawlog, db.info().ceiling_camera_label, options.query_stride));
+            readQueryFrames(rawlogs[r], db.info().ceiling_camera_label, options.query_stride));
+        attachPoses(all_frames.back(), db, rawlogs[r], pose_files.empty() ? "" : pose_files[r]);
     }
     for (std::size_t r = 0; r < rawlogs.size(); ++r) {
         auto& frames = all_frames[r];

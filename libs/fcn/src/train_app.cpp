@@ -140,10 +140,10 @@ TrainReport runTraining(const TrainRequest& req, const TrainOptions& options) {
     const ImageOf image_of = [&db](std::size_t i) { return db.ceilingImage(i).clone(); };
 
     // 1. Labels (paper Sec. III-B), split by time into training and held-out frames.
-    const LabelSet labels =
-        generateLabels(db, req.train_rawlogs, options.labels, [&](std::size_t d, std::size_t n) {
-            if (req.progress) bar("labels", d, n, "");
-        });
+    const LabelSet labels = generateLabels(db, req.train_rawlogs, req.train_poses, options.labels,
+                                           [&](std::size_t d, std::size_t n) {
+                                               if (req.progress) bar("labels", d, n, "");
+                                           });
     report.labels = labels.stats;
     const std::string rawlog_list = joined(req.train_rawlogs);
     checkEnoughPairs(labels.stats, options.labels, rawlog_list, req.db_dir);
@@ -194,6 +194,7 @@ void writeTrainReport(const TrainReport& r, const TrainRequest& req, const Train
     json j = {
         {"db", req.db_dir},
         {"train_rawlogs", req.train_rawlogs},
+        {"train_poses", req.train_poses},
         {"split",
          "by time: the last held_out_share of each training rawlog is held out "
          "(validation loss and evaluation); the rest is trained on"},

@@ -57,11 +57,16 @@ bool TrainApp::initialize(int argc, const char* const* argv) {
                        ' ', "0.1");
     ValueArg<std::string> db("", "db", "reference database folder", true, "", "DB", cmd);
     ValueArg<std::string> train("", "train",
-                                "training query rawlogs, comma separated (each with "
-                                "its .GT.txt); the last held_out_share of each is "
-                                "held out for evaluation (required unless "
+                                "training rawlogs, comma separated; the last held_out_share "
+                                "of each is held out for evaluation (required unless "
                                 "--heatmaps-only)",
                                 false, "", "FILES", cmd);
+    ValueArg<std::string> train_poses(
+        "", "train-poses",
+        "vehicle poses of the training rawlogs (TUM or MRPT pose files, comma separated, one "
+        "per rawlog, e.g. lookup-localize runs' poses.tum); default: the survey's poses of the "
+        "database's traverse recorded during each rawlog",
+        false, "", "FILES", cmd);
     ValueArg<std::string> heat_only(
         "", "heatmaps-only",
         "no training: write the heat maps of DB's references with this trained model "
@@ -91,6 +96,7 @@ bool TrainApp::initialize(int argc, const char* const* argv) {
 
     request_.db_dir = db.getValue();
     request_.train_rawlogs = splitList(train.getValue());
+    request_.train_poses = splitList(train_poses.getValue());
     request_.out_model = out_model.getValue();
     request_.report_dir = out.getValue();
     request_.init_model = init.getValue();

@@ -84,12 +84,16 @@ PairLabels labelPair(const cv::Mat& reference, const cv::Mat& query, const Label
 /// Called with (done, total) during label generation.
 using ProgressFn = std::function<void(std::size_t done, std::size_t total)>;
 
-/// Labels every training rawlog against the database. Each rawlog needs its ground truth
-/// `<rawlog>.GT.txt` beside it (training is offline; the pose picks the references). Throws
-/// std::runtime_error naming the file and reason for an unreadable rawlog, a missing or
-/// non-overlapping ground truth, or a rawlog without ceiling images (label of db.ini).
+/// Labels every training rawlog against the database. A frame's vehicle pose (it picks the
+/// references and predicts the search windows) comes from `pose_files` (one TUM or MRPT pose
+/// file per rawlog, e.g. a lookup-localize run's poses.tum; empty = none), else from the
+/// database: the survey's poses of the traverse recorded during the rawlog. Throws
+/// std::runtime_error naming the file and reason for an unreadable rawlog or pose file, a
+/// rawlog whose poses are unknown or do not overlap it, or one without ceiling images (label
+/// of db.ini).
 LabelSet generateLabels(const database::ReferenceDatabase& db,
-                        const std::vector<std::string>& rawlogs, const LabelOptions& options,
+                        const std::vector<std::string>& rawlogs,
+                        const std::vector<std::string>& pose_files, const LabelOptions& options,
                         const ProgressFn& progress = {});
 
 }  // namespace lookup::fcn

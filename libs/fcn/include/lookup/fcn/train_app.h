@@ -16,10 +16,13 @@ namespace lookup::fcn {
 
 struct TrainRequest {
     std::string db_dir;                      ///< reference database folder (lookup-survey)
-    std::vector<std::string> train_rawlogs;  ///< training query rawlogs (with .GT.txt beside)
-    std::string out_model;                   ///< "" = <db_dir>/fcn_model.pt
-    std::string report_dir;                  ///< "" = db_dir: train_report.json, train_curve.png
-    std::string init_model;                  ///< optional model to start from (same architecture)
+    std::vector<std::string> train_rawlogs;  ///< training rawlogs
+    /// One pose file per training rawlog; empty = the survey's poses of the database's traverse
+    /// recorded during each (generateLabels).
+    std::vector<std::string> train_poses;
+    std::string out_model;   ///< "" = <db_dir>/fcn_model.pt
+    std::string report_dir;  ///< "" = db_dir: train_report.json, train_curve.png
+    std::string init_model;  ///< optional model to start from (same architecture)
     bool write_heat_maps = true;
     bool progress = true;  ///< progress bars on stderr
 };
