@@ -79,7 +79,10 @@ common::PoseTrack surveyPoses(const database::ReferenceDatabase& db,
     }
     common::PoseTrack best;
     for (auto& [name, track] : by_traverse) {
-        if (track.size() > best.size()) best = std::move(track), traverse = name;
+        if (track.size() > best.size()) {
+            best = std::move(track);
+            traverse = name;
+        }
     }
     std::sort(best.begin(), best.end(),
               [](const auto& a, const auto& b) { return a.time_s < b.time_s; });
@@ -94,11 +97,14 @@ void attachPoses(std::vector<QueryFrame>& frames, const database::ReferenceDatab
     const common::PoseTrack track =
         pose_file.empty() ? surveyPoses(db, frames, traverse) : common::readPoseFile(pose_file);
     if (pose_file.empty()) source = db.directory() + " traverse '" + traverse + "'";
+    if (track.size() < 2 && !pose_file.empty()) {
+        throw std::runtime_error(pose_file + ": fewer than 2 poses (the poses of " + rawlog + ")");
+    }
     if (track.size() < 2) {
-        throw std::runtime_error(
-            rawlog + ": its poses are unknown: no survey traverse of " + db.directory() +
-            " was recorded during it and no pose file was given (--train-poses)" +
-            (pose_file.empty() ? "" : "; " + pose_file + " has fewer than 2 poses"));
+        throw std::runtime_error(rawlog + ": its poses are unknown: no survey traverse of " +
+                                 db.directory() +
+                                 " was recorded during it and no pose file was given "
+                                 "(--train-poses)");
     }
     const auto interp = common::makeInterpolator(track, 1.0);
     std::vector<QueryFrame> posed;
