@@ -125,6 +125,18 @@ inline void writeDatabase(const Scene& scene, const std::string& dir,
 using Spoiler =
     std::function<void(int, mrpt::obs::CObservationImage&, mrpt::obs::CObservationOdometry&)>;
 
+// The run of `dir`'s db, query.rawlog and coarse.tum into run/, grid sampling, quiet.
+inline localize::LocalizeRequest requestIn(const fs::path& dir) {
+    localize::LocalizeRequest req;
+    req.db_dir = (dir / "db").string();
+    req.rawlog = (dir / "query.rawlog").string();
+    req.out_dir = (dir / "run").string();
+    req.coarse_poses = (dir / "coarse.tum").string();
+    req.sampling = "grid";
+    req.progress = false;
+    return req;
+}
+
 inline localize::LocalizeRequest planarRun(const fs::path& dir, const Spoiler& spoil,
                                            int frames = 20) {
     Scene scene;
@@ -150,14 +162,7 @@ inline localize::LocalizeRequest planarRun(const fs::path& dir, const Spoiler& s
     }
     rawlog.close();
     common::writeTumPoseFile((dir / "coarse.tum").string(), coarse);
-    localize::LocalizeRequest req;
-    req.db_dir = (dir / "db").string();
-    req.rawlog = (dir / "query.rawlog").string();
-    req.out_dir = (dir / "run").string();
-    req.coarse_poses = (dir / "coarse.tum").string();
-    req.sampling = "grid";
-    req.progress = false;
-    return req;
+    return requestIn(dir);
 }
 
 // Every number in every line of `path` (after `skip_lines`) is finite.

@@ -331,13 +331,7 @@ TEST(Localize, DrivingAgainstTheSurveyTheReferencesAreThoseWhoseCamerasSawTheCei
     }
     rawlog.close();
     common::writeTumPoseFile((dir / "coarse.tum").string(), coarse);
-    localize::LocalizeRequest req;
-    req.db_dir = (dir / "db").string();
-    req.rawlog = (dir / "query.rawlog").string();
-    req.out_dir = (dir / "run").string();
-    req.coarse_poses = (dir / "coarse.tum").string();
-    req.sampling = "grid";
-    req.progress = false;
+    const auto req = requestIn(dir);
     localize::runLocalization(req);
     const auto run = eval::loadRun(req.out_dir);
     ASSERT_EQ(run.frames.size(), std::size_t(frames));
