@@ -966,7 +966,11 @@ void Localizer::emit(const Attempt& a, const std::optional<Prediction>& predicti
         return;
     }
     out.status = FrameStatus::Fallback;
-    out.reason = a.result ? a.result->reason : "no references to refine against";
+    // Without a result the note says what was searched (seeds around an untrusted coarse match).
+    out.reason =
+        a.result ? a.result->reason
+                 : "no refinement" +
+                       (a.note.empty() ? std::string(": no references to refine against") : a.note);
     if (const auto dead_reckoned = deadReckonedFallback(prediction, out)) {
         out.has_pose = true;
         out.pose_source = "prediction";
