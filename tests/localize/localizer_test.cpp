@@ -393,6 +393,36 @@ TEST(Localize, PastTheTrackingGapOdometryFromTheLastFixStaysTheFallback) {
     }
 }
 
+// Lost for longer than the tracking gap with no coarse stage to seed a search (a stretch of
+// ceiling too flat to match, frames 5-15), while a wheel slips 0.6 m: where the ceiling can be
+// matched again, the search along the dead reckoning finds the vehicle at the next frame.
+TEST(Localize, PastTheTrackingGapTheSearchFollowsTheDeadReckoning) {
+    const auto dir = lookup::test::freshDir("lookup_localize_dead_reckoning_search");
+    const int frames = 22;
+    auto req = planarRun(
+        dir,
+        [](int i, mrpt::obs::CObservationImage& img, mrpt::obs::CObservationOdometry& odo) {
+            if (i >= 10) odo.odometry.x(odo.odometry.x() + 0.6);
+            if (i < 5 || i > 15) return;
+            img.image = mrpt::img::CImage(cv::Mat(240, 320, CV_8UC1, cv::Scalar(128)),
+                                          mrpt::img::DEEP_COPY);
+        },
+        frames);
+    // Coarse poses for the first fix only: after it nothing else would seed a search.
+    auto coarse = common::readPoseFile(req.coarse_poses);
+    coarse.resize(5);
+    common::writeTumPoseFile(req.coarse_poses, coarse);
+    localize::runLocalization(req);
+    const auto run = eval::loadRun(req.out_dir);
+    ASSERT_EQ(run.frames.size(), std::size_t(frames));
+    ASSERT_EQ(run.frames[15].status, "fallback") << run.frames[15].reason;
+    for (int i = 16; i < frames; ++i) {
+        const auto& f = run.frames[i];
+        ASSERT_EQ(f.status, "refined") << i << ": " << f.reason;
+        EXPECT_LT(std::hypot(f.x - (-5 + 0.3 * i), f.y - 0.4), 0.05) << i;
+    }
+}
+
 TEST(Localize, RunsAreNamedAfterTheirSamplerAndMatcher) {
     refine::RefinerOptions o;
     o.sampler.mode = refine::SamplingMode::Auto;

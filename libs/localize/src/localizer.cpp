@@ -882,8 +882,35 @@ Localizer::Attempt Localizer::locate(const mrpt::obs::CObservationImage& query,
             a.result = acquire(query, candidatesAround(*out.coarse_pose), a.result, out);
         }
     }
-    if (!a.result && !coarse_fix) a.result = trySeeds(query, out, a.note);
+    if (!a.result && !coarse_fix) a.result = searchWhileLost(query, prediction, out, a.note);
     return a;
+}
+
+std::shared_ptr<const refine::RefineResult> Localizer::searchWhileLost(
+    const mrpt::obs::CObservationImage& query, const std::optional<Prediction>& prediction,
+    FrameResult& out, std::string& note) {
+    // Past the tracking gap, while the dead reckoning still knows the place better than the
+    // acquisition radius, search along it instead of around untrusted coarse matches.
+    const auto dead = prediction ? std::nullopt : deadReckon(out.time_s);
+    if (dead) {
+        const auto pose = predictedPose(*dead);
+        const double reach = options_.tracking_acquisition_sigmas *
+                             std::sqrt(std::max(pose.cov(0, 0), pose.cov(1, 1)));
+        const auto along = reach < options_.acquisition_radius_m
+                               ? candidatesAlongTrack(*dead, query.cameraPose)
+                               : std::vector<Candidate>{};
+        if (!along.empty()) {
+            auto result = acquire(query, along, nullptr, out);
+            if (!result) {
+                note = "; no ceiling match along the dead reckoning" + note;
+                out.refinement.reset();
+                out.reference_indices.clear();
+                out.inlier_share = 0;
+            }
+            return result;
+        }
+    }
+    return trySeeds(query, out, note);
 }
 
 std::shared_ptr<const refine::RefineResult> Localizer::trySeeds(

@@ -163,6 +163,11 @@ class Localizer {
     Attempt locate(const mrpt::obs::CObservationImage& query,
                    const std::optional<CoarseFix>& coarse_fix,
                    const std::optional<Prediction>& prediction, FrameResult& out);
+    /// A frame with neither a prediction's fix nor a coarse pose: the search along the dead
+    /// reckoning while it is narrower than the acquisition radius, else trySeeds().
+    std::shared_ptr<const refine::RefineResult> searchWhileLost(
+        const mrpt::obs::CObservationImage& query, const std::optional<Prediction>& prediction,
+        FrameResult& out, std::string& note);
     std::shared_ptr<const refine::RefineResult> trySeeds(const mrpt::obs::CObservationImage& query,
                                                          FrameResult& out, std::string& note);
     void auditCoarse(const std::shared_ptr<const refine::RefineResult>& result,
@@ -216,7 +221,8 @@ class Localizer {
     };
     /// The acquisition candidates around a coarse pose: each reference from its own pose.
     std::vector<Candidate> candidatesAround(const mrpt::poses::CPose2D& pose) const;
-    /// A failed tracked frame's candidates along its prediction's heading (none when off).
+    /// Candidates along a prediction's heading (a failed tracked frame's, or the dead
+    /// reckoning's), out to tracking_acquisition_sigmas of its sigma (none when off).
     std::vector<Candidate> candidatesAlongTrack(
         const Prediction& prediction, const mrpt::poses::CPose3D& camera_on_vehicle) const;
     /// Refines against each candidate, keeps the best unless ambiguous, confirms it against
