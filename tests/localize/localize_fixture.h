@@ -137,16 +137,27 @@ inline localize::LocalizeRequest requestIn(const fs::path& dir) {
     return req;
 }
 
+// The query drive of planarRun: frame i's vehicle pose, the coarse poses' error, and how far
+// ahead of the usual mount the camera sits on the vehicle (the survey's and the query's).
+struct PlanarDrive {
+    std::function<mrpt::poses::CPose3D(int)> vehicle = [](int i) {
+        return mrpt::poses::CPose3D(-5 + 0.3 * i, 0.4, 0, 0.05, 0, 0);
+    };
+    mrpt::poses::CPose3D coarse_error{0.6, -0.4, 0, -0.05, 0, 0};
+    mrpt::poses::CPose3D camera_ahead;
+};
+
 inline localize::LocalizeRequest planarRun(const fs::path& dir, const Spoiler& spoil,
-                                           int frames = 20) {
+                                           int frames = 20, const PlanarDrive& drive = {}) {
     Scene scene;
+    scene.mount = drive.camera_ahead + scene.mount;
     writeDatabase(scene, (dir / "db").string(), {{"survey", 65, 100.0}});
     common::PoseTrack coarse;
     common::RawlogWriter rawlog((dir / "query.rawlog").string());
     for (int i = 0; i < frames; ++i) {
         const double t = kT0 + 0.1 * i;
-        const mrpt::poses::CPose3D vehicle(-5 + 0.3 * i, 0.4, 0, 0.05, 0, 0);
-        coarse.push_back({t, vehicle + mrpt::poses::CPose3D(0.6, -0.4, 0, -0.05, 0, 0)});
+        const mrpt::poses::CPose3D vehicle = drive.vehicle(i);
+        coarse.push_back({t, vehicle + drive.coarse_error});
         auto img = scene.image(vehicle, t);
         mrpt::obs::CObservationOdometry odo;
         odo.sensorLabel = "ODOMETRY";

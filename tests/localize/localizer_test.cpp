@@ -311,27 +311,16 @@ TEST(Localize, AFailedTrackedFrameSearchesAroundItsPrediction) {
 // now; the references whose cameras stood nearest saw the same ceiling.
 TEST(Localize, DrivingAgainstTheSurveyTheReferencesAreThoseWhoseCamerasSawTheCeiling) {
     const auto dir = lookup::test::freshDir("lookup_localize_against_survey");
-    Scene scene;
-    scene.mount = mrpt::poses::CPose3D(3.0, 0, 0, 0, 0, 0) + scene.mount;
-    writeDatabase(scene, (dir / "db").string(), {{"survey", 65, 100.0}});
-    common::PoseTrack coarse;
-    common::RawlogWriter rawlog((dir / "query.rawlog").string());
+    PlanarDrive against;
+    against.vehicle = [](int i) {
+        return mrpt::poses::CPose3D(3 - 0.3 * i, 0.3, 0, M_PI + 0.05, 0, 0);
+    };
+    against.coarse_error = mrpt::poses::CPose3D(0.3, -0.2, 0, -0.03, 0, 0);
+    against.camera_ahead = mrpt::poses::CPose3D(3.0, 0, 0, 0, 0, 0);
     const int frames = 10;
-    for (int i = 0; i < frames; ++i) {
-        const double t = kT0 + 0.1 * i;
-        const mrpt::poses::CPose3D vehicle(3 - 0.3 * i, 0.3, 0, M_PI + 0.05, 0, 0);
-        coarse.push_back({t, vehicle + mrpt::poses::CPose3D(0.3, -0.2, 0, -0.03, 0, 0)});
-        auto img = scene.image(vehicle, t);
-        mrpt::obs::CObservationOdometry odo;
-        odo.sensorLabel = "ODOMETRY";
-        odo.timestamp = img->timestamp;
-        odo.odometry = mrpt::poses::CPose2D(vehicle.x(), vehicle.y(), vehicle.yaw());
-        rawlog.write(odo);
-        rawlog.writeWithExternalImage(*img, "ceiling_" + std::to_string(i) + ".png");
-    }
-    rawlog.close();
-    common::writeTumPoseFile((dir / "coarse.tum").string(), coarse);
-    const auto req = requestIn(dir);
+    const auto req = planarRun(
+        dir, [](int, mrpt::obs::CObservationImage&, mrpt::obs::CObservationOdometry&) {}, frames,
+        against);
     localize::runLocalization(req);
     const auto run = eval::loadRun(req.out_dir);
     ASSERT_EQ(run.frames.size(), std::size_t(frames));

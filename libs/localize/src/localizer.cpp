@@ -42,6 +42,13 @@ mrpt::poses::CPose2D toPose2D(const mrpt::poses::CPose3D& p) {
     return mrpt::poses::CPose2D(p.x(), p.y(), p.yaw());
 }
 
+// A search that found nothing leaves no refinement of its last candidate on the frame.
+void forgetRefinement(FrameResult& out) {
+    out.refinement.reset();
+    out.reference_indices.clear();
+    out.inlier_share = 0;
+}
+
 // Odometry and mounts beyond this are garbage (a mine spans kilometres; UTM northings 1e7 m).
 constexpr double kMaxCoordinateM = 1e8;
 
@@ -597,6 +604,12 @@ std::vector<Localizer::Candidate> Localizer::candidatesAround(
     return out;
 }
 
+double Localizer::alongTrackReach(const Prediction& prediction) const {
+    const auto predicted = predictedPose(prediction);
+    return options_.tracking_acquisition_sigmas *
+           std::sqrt(std::max(predicted.cov(0, 0), predicted.cov(1, 1)));
+}
+
 std::vector<Localizer::Candidate> Localizer::candidatesAlongTrack(
     const Prediction& prediction, const mrpt::poses::CPose3D& camera_on_vehicle) const {
     // A slipping wheel or a late clock moves the prediction along the motion, not across it:
@@ -604,10 +617,7 @@ std::vector<Localizer::Candidate> Localizer::candidatesAlongTrack(
     // tracking_acquisition_sigmas of the prediction's sigma.
     std::vector<Candidate> out;
     if (options_.tracking_acquisition_sigmas <= 0 || !acquisitionAllowed()) return out;
-    const auto predicted = predictedPose(prediction);
-    const double sigma_m = std::sqrt(std::max(predicted.cov(0, 0), predicted.cov(1, 1)));
-    const double reach_m =
-        std::min(options_.tracking_acquisition_sigmas * sigma_m, options_.acquisition_radius_m);
+    const double reach_m = std::min(alongTrackReach(prediction), options_.acquisition_radius_m);
     const double step = options_.acquisition_step_m;
     for (int k = 1; k * step <= std::max(reach_m, step) + 1e-9; ++k) {
         for (const double along : {k * step, -k * step}) {
@@ -892,25 +902,16 @@ std::shared_ptr<const refine::RefineResult> Localizer::searchWhileLost(
     // Past the tracking gap, while the dead reckoning still knows the place better than the
     // acquisition radius, search along it instead of around untrusted coarse matches.
     const auto dead = prediction ? std::nullopt : deadReckon(out.time_s);
-    if (dead) {
-        const auto pose = predictedPose(*dead);
-        const double reach = options_.tracking_acquisition_sigmas *
-                             std::sqrt(std::max(pose.cov(0, 0), pose.cov(1, 1)));
-        const auto along = reach < options_.acquisition_radius_m
-                               ? candidatesAlongTrack(*dead, query.cameraPose)
-                               : std::vector<Candidate>{};
-        if (!along.empty()) {
-            auto result = acquire(query, along, nullptr, out);
-            if (!result) {
-                note = "; no ceiling match along the dead reckoning" + note;
-                out.refinement.reset();
-                out.reference_indices.clear();
-                out.inlier_share = 0;
-            }
-            return result;
-        }
+    const auto along = dead && alongTrackReach(*dead) < options_.acquisition_radius_m
+                           ? candidatesAlongTrack(*dead, query.cameraPose)
+                           : std::vector<Candidate>{};
+    if (along.empty()) return trySeeds(query, out, note);
+    auto result = acquire(query, along, nullptr, out);
+    if (!result) {
+        note = "; no ceiling match along the dead reckoning" + note;
+        forgetRefinement(out);
     }
-    return trySeeds(query, out, note);
+    return result;
 }
 
 std::shared_ptr<const refine::RefineResult> Localizer::trySeeds(
@@ -933,9 +934,7 @@ std::shared_ptr<const refine::RefineResult> Localizer::trySeeds(
     if (!result) {
         note = "; no ceiling match around its match from " +
                std::to_string(last_coarse_->query_index + 1) + " frames" + note;
-        out.refinement.reset();
-        out.reference_indices.clear();
-        out.inlier_share = 0;
+        forgetRefinement(out);
     }
     return result;
 }

@@ -221,6 +221,9 @@ class Localizer {
     };
     /// The acquisition candidates around a coarse pose: each reference from its own pose.
     std::vector<Candidate> candidatesAround(const mrpt::poses::CPose2D& pose) const;
+    /// How far along its heading a prediction is searched: tracking_acquisition_sigmas of its
+    /// position sigma [m] (uncapped).
+    double alongTrackReach(const Prediction& prediction) const;
     /// Candidates along a prediction's heading (a failed tracked frame's, or the dead
     /// reckoning's), out to tracking_acquisition_sigmas of its sigma (none when off).
     std::vector<Candidate> candidatesAlongTrack(
