@@ -21,8 +21,9 @@ mrpt::poses::CPose3D poseOf(int i) {
     return {std::cos(i * 0.37) * 5 + i * 0.1, std::sin(i * 0.53) * 3, 0, i * 0.05, 0, 0};
 }
 
-// Writes `n` references whose ceiling image i is filled with grey level i.
-void writeDatabase(const fs::path& out, int n) {
+// Writes `n` references whose ceiling image i is filled with grey level i; with
+// `superseded_every` > 0 every such reference is marked superseded by a drive "today".
+void writeDatabase(const fs::path& out, int n, int superseded_every = 0) {
     DatabaseWriter w(out.string());
     mrpt::img::TCamera cam;
     cam.ncols = 16;
@@ -51,6 +52,7 @@ void writeDatabase(const fs::path& out, int n) {
         in.vehicle_cov *= 0.01 * (i + 1);
         in.forward_vehicle_pose = poseOf(i);
         in.sharpness = 100 + i;
+        if (superseded_every > 0 && i % superseded_every == 0) in.superseded_by = "today";
         w.add(in);
     }
     DatabaseInfo info;
@@ -253,4 +255,36 @@ TEST(Database, MissingImageAndMissingFolderNamed) {
         EXPECT_NE(m.find("refs.rawlog: record"), std::string::npos) << m;
     }
     EXPECT_THROW(ReferenceDatabase::load((dir / "nothing").string()), DatabaseError);
+}
+
+TEST(Database, SupersededReferencesAreKeptButNoSpatialQueryReturnsThem) {
+    const auto dir = lookup::test::freshDir("lookup_database_superseded");
+    writeDatabase(dir / "db", 60, 3);
+    const auto db = ReferenceDatabase::load((dir / "db").string());
+    ASSERT_EQ(db.size(), 60u);
+    for (int i = 0; i < 60; ++i) {
+        EXPECT_EQ(db.reference(i).current(), i % 3 != 0) << i;
+        EXPECT_EQ(db.reference(i).superseded_by, i % 3 == 0 ? "today" : "");
+    }
+    auto& rng = mrpt::random::getRandomGenerator();
+    rng.randomize(11);
+    for (int q = 0; q < 30; ++q) {
+        const mrpt::math::TPoint2D p(rng.drawUniform(-6, 12), rng.drawUniform(-4, 4));
+        // Brute force over the current references only.
+        std::vector<std::pair<double, std::size_t>> brute;
+        for (std::size_t i = 0; i < db.size(); ++i) {
+            if (i % 3 == 0) continue;
+            const auto c = db.reference(i).ceiling_camera_pose;
+            brute.push_back({std::hypot(c.x() - p.x, c.y() - p.y), i});
+        }
+        std::sort(brute.begin(), brute.end());
+        const auto kc = db.nearestCameras(p, 4);
+        ASSERT_EQ(kc.size(), 4u);
+        for (int j = 0; j < 4; ++j) EXPECT_EQ(kc[j].index, brute[j].second);
+        for (const auto& n : db.nearest(p, 10)) EXPECT_NE(n.index % 3, 0u);
+        for (const auto& n : db.withinRadius(p, 3.0)) EXPECT_NE(n.index % 3, 0u);
+    }
+    EXPECT_EQ(db.nearest(mrpt::math::TPoint2D(0, 0), 1000).size(), 40u);
+    // The time line is the survey's: a superseded reference is still found by its time.
+    EXPECT_EQ(db.nearestInTime(100.0, 1).front().index, 0u);
 }

@@ -62,7 +62,8 @@ void writeTwoCameras(const fs::path& out) {
 }
 
 // The bytes of `record` as version 0 wrote them: without the trailing has_ceiling_camera and
-// ceiling_camera, version byte 0 (MRPT: name-length byte, class name, version, data, end flag).
+// ceiling_camera (version 1) nor source and superseded_by (version 2), version byte 0 (MRPT:
+// name-length byte, class name, version, data, end flag).
 std::vector<uint8_t> versionZeroBytes(const lookup::obs::CObservationLookupReference& record) {
     const auto bytes = [](const auto& write) {
         mrpt::io::CMemoryStream m;
@@ -72,10 +73,12 @@ std::vector<uint8_t> versionZeroBytes(const lookup::obs::CObservationLookupRefer
         return std::vector<uint8_t>(p, p + m.getTotalBytesCount());
     };
     auto all = bytes([&](auto& a) { a << record; });
-    const auto tail =
-        bytes([&](auto& a) { a << record.has_ceiling_camera << record.ceiling_camera; });
+    const auto tail = bytes([&](auto& a) {
+        a << record.has_ceiling_camera << record.ceiling_camera << record.source
+          << record.superseded_by;
+    });
     const std::size_t name_length = all.at(0) & 0x7F;
-    EXPECT_EQ(all.at(1 + name_length), 1) << "version byte not where expected";
+    EXPECT_EQ(all.at(1 + name_length), 2) << "version byte not where expected";
     all.at(1 + name_length) = 0;
     all.erase(all.end() - 1 - std::ptrdiff_t(tail.size()), all.end() - 1);
     return all;

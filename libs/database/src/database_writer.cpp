@@ -175,6 +175,8 @@ Reference referenceOf(const ReferenceInput& in, uint32_t id) {
     ref.sharpness = in.sharpness;
     ref.mean_intensity = in.mean_intensity;
     ref.travelled_m = in.travelled_m;
+    ref.source = in.source;
+    ref.superseded_by = in.superseded_by;
     if (in.forward) {
         ref.has_forward = true;
         ref.forward_time_s = mrpt::Clock::toDouble(in.forward->timestamp);
@@ -219,6 +221,8 @@ obs::CObservationLookupReference referenceRecord(const ReferenceInput& in, const
     record.sharpness = in.sharpness;
     record.mean_intensity = in.mean_intensity;
     record.travelled_m = in.travelled_m;
+    record.source = in.source;
+    record.superseded_by = in.superseded_by;
     return record;
 }
 

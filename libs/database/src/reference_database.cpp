@@ -88,6 +88,8 @@ Reference referenceFromRecord(const obs::CObservationLookupReference& rec, const
     r.sharpness = rec.sharpness;
     r.mean_intensity = rec.mean_intensity;
     r.travelled_m = rec.travelled_m;
+    r.source = rec.source;
+    r.superseded_by = rec.superseded_by;
     return r;
 }
 
@@ -120,36 +122,51 @@ std::vector<Reference> readReferences(const std::string& rawlog_path, const Data
     return refs;
 }
 
-PointCloud2D positionsOf(const std::vector<Reference>& refs) {
+// The references the spatial queries return: all but the superseded ones.
+std::vector<std::size_t> currentOf(const std::vector<Reference>& refs) {
+    std::vector<std::size_t> current;
+    for (std::size_t i = 0; i < refs.size(); ++i) {
+        if (refs[i].current()) current.push_back(i);
+    }
+    return current;
+}
+
+PointCloud2D positionsOf(const std::vector<Reference>& refs,
+                         const std::vector<std::size_t>& which) {
     PointCloud2D cloud;
-    for (const auto& r : refs) cloud.points.push_back({r.vehicle_pose.x(), r.vehicle_pose.y()});
+    for (std::size_t i : which) {
+        cloud.points.push_back({refs[i].vehicle_pose.x(), refs[i].vehicle_pose.y()});
+    }
     return cloud;
 }
 
-PointCloud2D cameraPositionsOf(const std::vector<Reference>& refs) {
+PointCloud2D cameraPositionsOf(const std::vector<Reference>& refs,
+                               const std::vector<std::size_t>& which) {
     PointCloud2D cloud;
-    for (const auto& r : refs) {
-        cloud.points.push_back({r.ceiling_camera_pose.x(), r.ceiling_camera_pose.y()});
+    for (std::size_t i : which) {
+        cloud.points.push_back({refs[i].ceiling_camera_pose.x(), refs[i].ceiling_camera_pose.y()});
     }
     return cloud;
 }
 
 std::unique_ptr<KdTree> treeOver(const PointCloud2D& cloud) {
+    if (cloud.points.empty()) return nullptr;  // every reference superseded
     auto tree = std::make_unique<KdTree>(2, cloud, nanoflann::KDTreeSingleIndexAdaptorParams(10));
     tree->buildIndex();
     return tree;
 }
 
-std::vector<Neighbour> nearestIn(const KdTree& tree, std::size_t size,
+// The k nearest in `tree`, whose point j is reference `indices[j]`.
+std::vector<Neighbour> nearestIn(const KdTree* tree, const std::vector<std::size_t>& indices,
                                  const mrpt::math::TPoint2D& p, std::size_t k) {
-    k = std::min(k, size);
-    if (k == 0) return {};
+    k = std::min(k, indices.size());
+    if (k == 0 || !tree) return {};
     std::vector<std::size_t> idx(k);
     std::vector<double> d2(k);
     const double query[2] = {p.x, p.y};
-    k = tree.knnSearch(query, k, idx.data(), d2.data());
+    k = tree->knnSearch(query, k, idx.data(), d2.data());
     std::vector<Neighbour> out(k);
-    for (std::size_t i = 0; i < k; ++i) out[i] = {idx[i], std::sqrt(d2[i])};
+    for (std::size_t i = 0; i < k; ++i) out[i] = {indices[idx[i]], std::sqrt(d2[i])};
     return out;
 }
 
@@ -180,6 +197,7 @@ struct ReferenceDatabase::Impl {
     std::string dir;
     DatabaseInfo info;
     std::vector<Reference> refs;
+    std::vector<std::size_t> current;  // the trees' points: indices of the current references
     PointCloud2D cloud, camera_cloud;
     std::unique_ptr<KdTree> tree, camera_tree;
     std::vector<std::size_t> by_time;  // reference indices sorted by time_s
@@ -202,9 +220,10 @@ ReferenceDatabase ReferenceDatabase::load(const std::string& dir, std::size_t ca
     verifyHeatMaps(impl->dir, impl->info.heatmaps_dir);
     impl->refs = readReferences(impl->dir + "/" + kRefsRawlog, impl->info);
 
-    impl->cloud = positionsOf(impl->refs);
+    impl->current = currentOf(impl->refs);
+    impl->cloud = positionsOf(impl->refs, impl->current);
     impl->tree = treeOver(impl->cloud);
-    impl->camera_cloud = cameraPositionsOf(impl->refs);
+    impl->camera_cloud = cameraPositionsOf(impl->refs, impl->current);
     impl->camera_tree = treeOver(impl->camera_cloud);
     impl->by_time = timeOrder(impl->refs);
     impl->forward_sequence = forwardOrder(impl->refs);
@@ -220,12 +239,12 @@ const std::vector<Reference>& ReferenceDatabase::references() const { return imp
 
 std::vector<Neighbour> ReferenceDatabase::nearest(const mrpt::math::TPoint2D& p,
                                                   std::size_t k) const {
-    return nearestIn(*impl_->tree, impl_->refs.size(), p, k);
+    return nearestIn(impl_->tree.get(), impl_->current, p, k);
 }
 
 std::vector<Neighbour> ReferenceDatabase::nearestCameras(const mrpt::math::TPoint2D& p,
                                                          std::size_t k) const {
-    return nearestIn(*impl_->camera_tree, impl_->refs.size(), p, k);
+    return nearestIn(impl_->camera_tree.get(), impl_->current, p, k);
 }
 
 std::vector<Neighbour> ReferenceDatabase::nearest(const mrpt::poses::CPose3D& pose,
@@ -235,7 +254,7 @@ std::vector<Neighbour> ReferenceDatabase::nearest(const mrpt::poses::CPose3D& po
 
 std::vector<Neighbour> ReferenceDatabase::withinRadius(const mrpt::math::TPoint2D& p,
                                                        double radius_m) const {
-    if (impl_->refs.empty() || !(radius_m >= 0)) return {};
+    if (impl_->current.empty() || !(radius_m >= 0)) return {};
     std::vector<std::pair<std::size_t, double>> matches;
     const double query[2] = {p.x, p.y};
     nanoflann::SearchParams params;
@@ -243,7 +262,7 @@ std::vector<Neighbour> ReferenceDatabase::withinRadius(const mrpt::math::TPoint2
     impl_->tree->radiusSearch(query, radius_m * radius_m, matches, params);
     std::vector<Neighbour> out;
     out.reserve(matches.size());
-    for (const auto& [i, d2] : matches) out.push_back({i, std::sqrt(d2)});
+    for (const auto& [i, d2] : matches) out.push_back({impl_->current[i], std::sqrt(d2)});
     return out;
 }
 

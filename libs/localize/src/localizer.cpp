@@ -467,6 +467,9 @@ std::optional<Localizer::CoarseFix> Localizer::fixFromMatch(const coarse::Coarse
 std::vector<std::size_t> Localizer::referencesNearTime(double time_s) const {
     std::vector<std::size_t> out;
     for (const auto& n : db_.nearestInTime(time_s, options_.references_per_query)) {
+        // Where a refresh found the ceiling changed, the references are those nearest the
+        // camera (filled in by the caller), not the survey's superseded ones.
+        if (!db_.reference(n.index).current()) return {};
         out.push_back(n.index);
     }
     return out;

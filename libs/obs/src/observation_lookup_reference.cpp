@@ -23,7 +23,7 @@ std::string modelName(mrpt::img::DistortionModel m) {
 
 IMPLEMENTS_SERIALIZABLE(CObservationLookupReference, mrpt::obs::CObservation, lookup::obs)
 
-uint8_t CObservationLookupReference::serializeGetVersion() const { return 1; }
+uint8_t CObservationLookupReference::serializeGetVersion() const { return 2; }
 
 void CObservationLookupReference::serializeTo(mrpt::serialization::CArchive& out) const {
     out << timestamp << sensorLabel << sensorPose;
@@ -33,13 +33,15 @@ void CObservationLookupReference::serializeTo(mrpt::serialization::CArchive& out
     out << ceiling_camera_pose << forward_camera_pose << ceiling_image_file << forward_image_file
         << forward_time_s << sharpness << mean_intensity << travelled_m;
     out << has_ceiling_camera << ceiling_camera;
+    out << source << superseded_by;
 }
 
 void CObservationLookupReference::serializeFrom(mrpt::serialization::CArchive& in,
                                                 uint8_t version) {
     switch (version) {
         case 0:
-        case 1: {
+        case 1:
+        case 2: {
             in >> timestamp >> sensorLabel >> sensorPose;
             in >> reference_id >> traverse >> vehicle_pose;
             for (int r = 0; r < 3; ++r)
@@ -49,6 +51,9 @@ void CObservationLookupReference::serializeFrom(mrpt::serialization::CArchive& i
             has_ceiling_camera = false;
             ceiling_camera = mrpt::img::TCamera();
             if (version >= 1) in >> has_ceiling_camera >> ceiling_camera;
+            source = "survey";
+            superseded_by.clear();
+            if (version >= 2) in >> source >> superseded_by;
         } break;
         default:
             MRPT_THROW_UNKNOWN_SERIALIZATION_VERSION(version);
@@ -65,7 +70,11 @@ void CObservationLookupReference::setSensorPose(const mrpt::poses::CPose3D& new_
 
 void CObservationLookupReference::getDescriptionAsText(std::ostream& o) const {
     CObservation::getDescriptionAsText(o);
-    o << "LookUP reference #" << reference_id << " of traverse '" << traverse << "'\n";
+    o << "LookUP reference #" << reference_id << " of traverse '" << traverse << "' (" << source
+      << ")\n";
+    if (!superseded_by.empty()) {
+        o << "Superseded: the ceiling changed here, seen by '" << superseded_by << "'\n";
+    }
     o << "Vehicle pose in map (x y z yaw pitch roll): " << vehicle_pose.asString() << "\n";
     o << "Vehicle pose std: x=" << std::sqrt(vehicle_cov(0, 0))
       << " m, y=" << std::sqrt(vehicle_cov(1, 1))

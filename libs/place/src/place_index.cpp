@@ -93,13 +93,15 @@ PlaceIndex::~PlaceIndex() = default;
 
 namespace {
 
-/// Indices of the references to index: per traverse, at least `spacing_m` apart along it.
+/// Indices of the current references to index: per traverse, at least `spacing_m` apart along
+/// it.
 std::vector<std::size_t> thinnedReferences(const database::ReferenceDatabase& db,
                                            double spacing_m) {
     std::map<std::string, double> last_travelled;
     std::vector<std::size_t> out;
     for (std::size_t i = 0; i < db.size(); ++i) {
         const auto& ref = db.reference(i);
+        if (!ref.current()) continue;
         auto it = last_travelled.find(ref.traverse);
         if (it != last_travelled.end() && std::abs(ref.travelled_m - it->second) < spacing_m) {
             continue;
@@ -193,6 +195,7 @@ std::uint64_t referenceFingerprint(const database::ReferenceDatabase& db) {
         mix(&ref.id, sizeof ref.id);
         mix(values, sizeof values);
         mix(ref.traverse.data(), ref.traverse.size());
+        mix(ref.superseded_by.data(), ref.superseded_by.size());
     }
     return h;
 }

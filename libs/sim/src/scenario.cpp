@@ -505,7 +505,7 @@ void checkTraverseName(common::OptionsCheck& c, const std::vector<TraverseOption
     }
 }
 
-/// `roles`: a non-empty comma list of mapping, reference, query.
+/// `roles`: a non-empty comma list of mapping, reference, query, refresh.
 void checkRoles(common::OptionsCheck& c, const std::string& roles_list, const std::string& p) {
     std::stringstream roles(roles_list);
     std::string role;
@@ -514,8 +514,9 @@ void checkRoles(common::OptionsCheck& c, const std::string& roles_list, const st
         role.erase(0, role.find_first_not_of(" \t"));
         role.erase(role.find_last_not_of(" \t") + 1);
         any = true;
-        c.require(role == "mapping" || role == "reference" || role == "query", p + ".roles",
-                  "a comma list of mapping, reference, query (got '" + role + "')");
+        c.require(role == "mapping" || role == "reference" || role == "query" || role == "refresh",
+                  p + ".roles",
+                  "a comma list of mapping, reference, query, refresh (got '" + role + "')");
     }
     c.require(any, p + ".roles", "non-empty");
 }

@@ -18,6 +18,7 @@ namespace {
 
 struct QueryTraverse {
     std::string name, rawlog, ground_truth;
+    bool refresh = false;  ///< the database is refreshed from this drive for the later ones
 };
 
 void generate(const SuiteOptions& suite, const Condition& c, std::uint64_t seed,
@@ -40,6 +41,22 @@ void survey(const std::string& dataset_ini, const std::string& db_dir,
     if (app.run() != 0) throw std::runtime_error(app.result().reason);
 }
 
+/// The database refreshed from a localised drive (lookup-survey --refresh), as a mine would
+/// after a drive over a changed ceiling.
+void refresh(const std::string& db_dir, const QueryTraverse& q, const std::string& run_dir,
+             const std::string& out_dir, const std::string& survey_ini) {
+    std::vector<const char*> argv = {"lookup-survey",  "--refresh", db_dir.c_str(),  "--rawlogs",
+                                     q.rawlog.c_str(), "--run",     run_dir.c_str(), "--out",
+                                     out_dir.c_str(),  "--quiet"};
+    if (!survey_ini.empty()) argv.insert(argv.end(), {"--ini", survey_ini.c_str()});
+    survey::SurveyApp app;
+    if (!app.initialize(int(argv.size()), argv.data())) {
+        throw std::runtime_error("lookup-survey --refresh refused its arguments (exit code " +
+                                 std::to_string(app.exitCode()) + ")");
+    }
+    if (app.run() != 0) throw std::runtime_error("lookup-survey --refresh failed");
+}
+
 std::vector<QueryTraverse> queryTraverses(const std::string& dataset_ini) {
     mrpt::config::CConfigFile ini(dataset_ini);
     const fs::path dir = fs::path(dataset_ini).parent_path();
@@ -51,9 +68,11 @@ std::vector<QueryTraverse> queryTraverses(const std::string& dataset_ini) {
         if (ini.read_string(section, "roles", "", false).find("query") == std::string::npos) {
             continue;
         }
+        const std::string roles = ini.read_string(section, "roles", "", false);
         queries.push_back({ini.read_string(section, "name", section, false),
                            (dir / ini.read_string(section, "rawlog", "", true)).string(),
-                           (dir / ini.read_string(section, "ground_truth", "", true)).string()});
+                           (dir / ini.read_string(section, "ground_truth", "", true)).string(),
+                           roles.find("refresh") != std::string::npos});
     }
     if (queries.empty()) throw std::runtime_error(dataset_ini + ": no traverse with role query");
     return queries;
@@ -92,9 +111,17 @@ JobResult runJob(const SuiteOptions& suite, const Condition& c, std::uint64_t se
         generate(suite, c, seed, data);
         step = "survey";
         survey(data + "/dataset.ini", db, c.survey_ini);
+        std::string db_now = db;
         for (const auto& q : queryTraverses(data + "/dataset.ini")) {
             step = "localise " + q.name;
-            localiseAndScore(suite, c, q, db, job_dir + "/runs/" + q.name, r.rows);
+            const std::string run = job_dir + "/runs/" + q.name;
+            localiseAndScore(suite, c, q, db_now, run, r.rows);
+            if (q.refresh) {
+                step = "refresh from " + q.name;
+                const std::string refreshed = job_dir + "/db-" + q.name;
+                refresh(db_now, q, run, refreshed, c.survey_ini);
+                db_now = refreshed;
+            }
         }
         r.ok = true;
     } catch (const std::exception& e) {

@@ -92,7 +92,8 @@ std::string pixelProblem(const mrpt::obs::CObservationImage& obs, const cv::Mat&
     return "";
 }
 
-// Quality of a candidate ceiling image; not usable (with `problem` set) when pixelProblem().
+}  // namespace
+
 ImageQuality ceilingQuality(const mrpt::obs::CObservationImage& obs,
                             const mrpt::img::TCamera* expected, std::string& problem) {
     cv::Mat m;
@@ -110,6 +111,8 @@ ImageQuality ceilingQuality(const mrpt::obs::CObservationImage& obs,
     if (m.channels() != 1 && m.channels() != 3) m = loadPixels(obs, cv::IMREAD_GRAYSCALE);
     return measureImageQuality(m);
 }
+
+namespace {
 
 std::uint64_t folderSize(const std::string& dir) {
     std::uint64_t total = 0;

@@ -71,7 +71,7 @@ void readDataset(const std::string& path, SurveyInputs& inputs, SurveyOptions& o
         spec.mapping = std::find(roles.begin(), roles.end(), "mapping") != roles.end();
         spec.reference = std::find(roles.begin(), roles.end(), "reference") != roles.end();
         for (const auto& r : roles) {
-            if (r != "mapping" && r != "reference" && r != "query") {
+            if (r != "mapping" && r != "reference" && r != "query" && r != "refresh") {
                 throw common::ConfigError(t.where("roles") + "unknown role '" + r + "'");
             }
         }
@@ -117,6 +117,17 @@ bool SurveyApp::initialize(int argc, const char* const* argv) {
                                        false, "", "FILE", cmd);
     TCLAP::ValueArg<std::string> map("m", "map", "existing grid map replacing ICP-SLAM", false, "",
                                      "FILE.gridmap[.gz]", cmd);
+    TCLAP::ValueArg<std::string> refresh(
+        "", "refresh",
+        "refresh this database from an operating drive (--rawlogs DRIVE, --run RUN): where the "
+        "drive refined nothing between two fixes the ceiling has changed; its images there are "
+        "added, posed by the fixes and the odometry, the survey's references there superseded; "
+        "written to --out, DB left as it was",
+        false, "", "DB", cmd);
+    TCLAP::ValueArg<std::string> run_dir("", "run",
+                                         "with --refresh: lookup-localize's run folder of the "
+                                         "drive against DB",
+                                         false, "", "RUN", cmd);
     TCLAP::SwitchArg no_index("", "no-place-index",
                               "do not build the ceiling place index (lookup-place builds it later)",
                               cmd, false);
@@ -131,6 +142,15 @@ bool SurveyApp::initialize(int argc, const char* const* argv) {
     try {
         if (dataset.isSet() == rawlogs.isSet()) {
             throw common::ConfigError("give exactly one of --dataset and --rawlogs");
+        }
+        if (refresh.isSet() != run_dir.isSet()) {
+            throw common::ConfigError("--refresh and --run go together");
+        }
+        if (refresh.isSet() && (dataset.isSet() || splitList(rawlogs.getValue()).size() != 1 ||
+                                poses.isSet() || map.isSet())) {
+            throw common::ConfigError(
+                "--refresh takes one drive (--rawlogs DRIVE.rawlog) and "
+                "neither --dataset, --poses nor --map");
         }
         const std::string ini_path = ini.isSet() ? ini.getValue() : defaultSurveyIni();
         if (!ini_path.empty()) {
@@ -162,6 +182,10 @@ bool SurveyApp::initialize(int argc, const char* const* argv) {
         inputs_.show_progress = !quiet.getValue();
         verbose_ = verbose.getValue();
         build_place_index_ = !no_index.getValue();
+        if (refresh.isSet()) {
+            refresh_ = RefreshInputs{refresh.getValue(), rawlogs.getValue(), run_dir.getValue(),
+                                     out.getValue(), ""};
+        }
     } catch (const std::exception& e) {
         std::cerr << "lookup-survey: " << common::errorText(e, verbose.getValue()) << "\n";
         exit_code_ = common::exitCodeFor(e);
@@ -171,6 +195,7 @@ bool SurveyApp::initialize(int argc, const char* const* argv) {
 }
 
 int SurveyApp::run() {
+    if (refresh_) return runRefresh();
     try {
         const Survey survey(options_, config_);
         result_ = survey.run(inputs_);
@@ -197,6 +222,22 @@ int SurveyApp::run() {
                   << std::endl;
         exit_code_ = result_.exit_code != 0 ? result_.exit_code : common::kExitBadInput;
     }
+    return exit_code_;
+}
+
+int SurveyApp::runRefresh() {
+    try {
+        refresh_result_ = refreshDatabase(*refresh_, options_);
+    } catch (const std::exception& e) {
+        std::cerr << "lookup-survey: refresh FAILED: " << common::errorText(e, verbose_) << "\n";
+        return exit_code_ = common::exitCodeFor(e);
+    }
+    for (const auto& w : refresh_result_.warnings) {
+        std::cerr << "lookup-survey: warning: " << w << "\n";
+    }
+    std::cout << refresh_result_.summaryLine() << std::endl;
+    exit_code_ = common::checkedStdout("lookup-survey", common::kExitOk);
+    if (exit_code_ == common::kExitOk) buildIndex();
     return exit_code_;
 }
 

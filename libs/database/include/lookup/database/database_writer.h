@@ -33,6 +33,8 @@ struct ReferenceInput {
     double sharpness = 0;
     double mean_intensity = 0;
     double travelled_m = 0;
+    std::string source = "survey";  ///< Reference::source
+    std::string superseded_by;      ///< Reference::superseded_by
 };
 
 /// Restores or removes what interrupted writers of `out_dir` left beside it (only those of

@@ -54,6 +54,14 @@ struct Reference {
     double sharpness = 0;                      ///< variance of the Laplacian of the ceiling image
     double mean_intensity = 0;                 ///< mean grey level of the ceiling image [0..255]
     double travelled_m = 0;                    ///< distance along the traverse [m]
+    /// "survey", or "refresh": an operating drive's image added where the ceiling changed
+    /// (lookup-survey --refresh).
+    std::string source = "survey";
+    /// The operating drive over which this reference no longer matched ("" = current). A
+    /// superseded reference stays in the database but no spatial query returns it.
+    std::string superseded_by;
+
+    bool current() const { return superseded_by.empty(); }
 };
 
 /// Database-wide metadata (db.ini).

@@ -39,6 +39,10 @@ class ReferenceDatabase {
     const Reference& reference(std::size_t i) const;
     const std::vector<Reference>& references() const;
 
+    // The spatial queries (nearest, nearestCameras, withinRadius) return current references
+    // only: a superseded one saw a ceiling that has since changed. nearestInTime returns any,
+    // since the coarse stage's key is a time on the survey's own time line.
+
     /// The `k` references whose vehicle positions are nearest to `position` (map frame, m),
     /// nearest first (fewer if the database is smaller).
     std::vector<Neighbour> nearest(const mrpt::math::TPoint2D& position, std::size_t k) const;
@@ -52,7 +56,8 @@ class ReferenceDatabase {
     /// first.
     std::vector<Neighbour> withinRadius(const mrpt::math::TPoint2D& position,
                                         double radius_m) const;
-    /// The `k` references whose ceiling time stamps are nearest to `time_s`, nearest first.
+    /// The `k` references whose ceiling time stamps are nearest to `time_s`, nearest first
+    /// (superseded ones included).
     std::vector<Neighbour> nearestInTime(double time_s, std::size_t k) const;
 
     /// Reference indices with a forward image, in increasing forward-image time: the sequence

@@ -48,6 +48,13 @@ class CObservationLookupReference : public mrpt::obs::CObservation {
     /// has_ceiling_camera is false and the database's db.ini [ceiling_camera] applies.
     bool has_ceiling_camera = false;
     mrpt::img::TCamera ceiling_camera;
+    /// Where the reference came from: "survey" (a surveyed traverse) or "refresh" (an
+    /// operating drive's image, posed by the localiser's fixes, added where the ceiling had
+    /// changed). Records before version 2: "survey".
+    std::string source = "survey";
+    /// Non-empty: the operating drive (traverse name) over which this reference's ceiling no
+    /// longer matched; kept for inspection, no longer used for localisation.
+    std::string superseded_by;
 
     /// Sensor pose = the ceiling camera's mounting pose on the vehicle.
     mrpt::poses::CPose3D sensorPose;

@@ -205,7 +205,7 @@ struct ImuOptions {
 /// One drive along the route.
 struct TraverseOptions {
     std::string name;               ///< file stem of its rawlog, e.g. "left"
-    std::string roles;              ///< comma list of mapping, reference, query
+    std::string roles;              ///< comma list of mapping, reference, query, refresh
     double lateral_offset_m = 0;    ///< offset from the centre line (+ left) [m]
     double zigzag_amplitude_m = 0;  ///< amplitude of a sinusoidal lateral weave [m]
     double zigzag_period_m = 40;    ///< its period along the route [m]

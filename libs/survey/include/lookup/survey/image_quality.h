@@ -2,7 +2,11 @@
 // Ceiling image quality used to skip bad keyframes: blur (variance of the Laplacian, Pech-Pacheco
 // et al. 2000) and exposure (mean grey level, share of clipped pixels).
 
+#include <mrpt/img/TCamera.h>
+#include <mrpt/obs/CObservationImage.h>
+
 #include <opencv2/core/mat.hpp>
+#include <string>
 
 namespace lookup::survey {
 
@@ -15,5 +19,11 @@ struct ImageQuality {
 
 /// Measures a grey or colour 8-bit image (colour is converted to grey first).
 ImageQuality measureImageQuality(const cv::Mat& image);
+
+/// Quality of a candidate ceiling image (its pixels loaded from the rawlog or its external
+/// file); not usable, with `problem` naming the image and the reason, when it is unreadable,
+/// not 8-bit, or not the size its intrinsics (and `expected`, when given) say.
+ImageQuality ceilingQuality(const mrpt::obs::CObservationImage& obs,
+                            const mrpt::img::TCamera* expected, std::string& problem);
 
 }  // namespace lookup::survey
