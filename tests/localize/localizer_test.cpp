@@ -306,6 +306,83 @@ TEST(Localize, AFailedTrackedFrameSearchesAroundItsPrediction) {
     EXPECT_LT(waited_refined, refined_after_slip) << waited.frames[8].reason;
 }
 
+// Frame 10's image shows the ceiling turned by 8 degrees (a camera knocked for an instant, a
+// reference that does not fit), while the odometry turns nothing; frames 11-15 see a flat
+// ceiling. The fix of frame 10 disagrees with the odometry's heading and is refused, so the
+// dead reckoning that follows starts from frame 9's fix; accepted, it would carry 8 degrees.
+TEST(Localize, AFixWhoseHeadingDisagreesWithTheOdometryIsRefused) {
+    const auto run = [](const std::string& name, const std::string& ini_text) {
+        const auto dir = lookup::test::freshDir("lookup_localize_heading_" + name);
+        const Scene scene;
+        auto req = planarRun(
+            dir,
+            [&](int i, mrpt::obs::CObservationImage& img, mrpt::obs::CObservationOdometry&) {
+                const mrpt::poses::CPose3D vehicle(-5 + 0.3 * i, 0.4, 0, 0.05, 0, 0);
+                if (i == 10) {
+                    const mrpt::poses::CPose3D turned(0, 0, 0, mrpt::DEG2RAD(8.0), 0, 0);
+                    img.image = scene.image(vehicle + turned, 0)->image;
+                } else if (i > 10 && i < 16) {
+                    img.image = mrpt::img::CImage(cv::Mat(240, 320, CV_8UC1, cv::Scalar(128)),
+                                                  mrpt::img::DEEP_COPY);
+                }
+            },
+            16);
+        req.ini_file = (dir / "localize.ini").string();
+        std::ofstream(req.ini_file) << ini_text;
+        localize::runLocalization(req);
+        return eval::loadRun(req.out_dir);
+    };
+    const auto yawError = [](const eval::FrameRow& f) {
+        return std::abs(mrpt::RAD2DEG(mrpt::math::wrapToPi(f.yaw - 0.05)));
+    };
+    const auto checked = run("checked", "[localizer]\n");
+    const auto unchecked = run("unchecked", "[localizer]\ntrack_heading_floor_deg = 180\n");
+    ASSERT_EQ(checked.frames.size(), 16u);
+    ASSERT_EQ(checked.frames[9].status, "refined") << checked.frames[9].reason;
+    EXPECT_EQ(checked.frames[10].status, "fallback");
+    EXPECT_NE(checked.frames[10].reason.find("heading"), std::string::npos)
+        << checked.frames[10].reason;
+    for (int i = 10; i < 16; ++i) {
+        const auto& f = checked.frames[i];
+        EXPECT_LT(yawError(f), 1.0) << i;
+        EXPECT_LT(std::hypot(f.x - (-5 + 0.3 * i), f.y - 0.4), 0.1) << i;
+    }
+    ASSERT_EQ(unchecked.frames[10].status, "refined") << unchecked.frames[10].reason;
+    EXPECT_GT(yawError(unchecked.frames[10]), 5.0);
+}
+
+// The odometry's heading jumps by 10 degrees between frames 8 and 9 (a wheel slipping in a
+// turn): every fix after it disagrees with the prediction. The first ones are refused, then
+// the track is dropped and the vehicle is found again around the coarse poses.
+TEST(Localize, FixesThatKeepDisagreeingInHeadingDropTheTrackAndFixAgain) {
+    const auto dir = lookup::test::freshDir("lookup_localize_heading_slip");
+    const auto vehicle = [](int i) { return mrpt::poses::CPose2D(-5 + 0.3 * i, 0.4, 0.05); };
+    auto req = planarRun(
+        dir,
+        [&](int i, mrpt::obs::CObservationImage&, mrpt::obs::CObservationOdometry& odo) {
+            if (i < 9) return;
+            const auto pivot = vehicle(8);
+            odo.odometry =
+                pivot + mrpt::poses::CPose2D(0, 0, mrpt::DEG2RAD(10.0)) + (vehicle(i) - pivot);
+        },
+        20);
+    localize::runLocalization(req);
+    const auto run = eval::loadRun(req.out_dir);
+    ASSERT_EQ(run.frames.size(), 20u);
+    ASSERT_EQ(run.frames[8].status, "refined") << run.frames[8].reason;
+    EXPECT_NE(run.frames[9].reason.find("heading"), std::string::npos) << run.frames[9].reason;
+    bool dropped = false;
+    for (int i = 9; i < 13; ++i) {
+        dropped = dropped || run.frames[i].reason.find("track dropped") != std::string::npos;
+    }
+    EXPECT_TRUE(dropped);
+    for (int i = 16; i < 20; ++i) {
+        const auto& f = run.frames[i];
+        ASSERT_EQ(f.status, "refined") << i << ": " << f.reason;
+        EXPECT_LT(std::hypot(f.x - (-5 + 0.3 * i), f.y - 0.4), 0.05) << i;
+    }
+}
+
 // The survey vehicle driven back against its own survey, its camera 3 m ahead of its base:
 // the references whose vehicles stood nearest saw the ceiling 6 m from the one the camera sees
 // now; the references whose cameras stood nearest saw the same ceiling.

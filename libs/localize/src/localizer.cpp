@@ -312,6 +312,7 @@ void Localizer::restart() {
     frames_since_check_ = 0;
     open_places_.clear();
     disagreeing_fixes_ = 0;
+    heading_refusals_ = 0;
     last_stamp_.clear();
     previous_ceiling_s_.reset();
     if (coarse_) coarse_->restart();
@@ -803,6 +804,18 @@ std::optional<std::string> Localizer::trackContradicted(const mrpt::obs::CObserv
     return why;
 }
 
+std::optional<std::string> Localizer::headingDisagrees(const refine::RefineResult& tracked,
+                                                       const Prediction& prediction) const {
+    const auto predicted = predictedPose(prediction);
+    const double d = std::abs(mrpt::math::wrapToPi(tracked.pose.mean.phi() - predicted.mean.phi()));
+    const double sigma = std::sqrt(tracked.pose.cov(2, 2) + predicted.cov(2, 2));
+    const double allowed = std::max(mrpt::DEG2RAD(options_.track_heading_floor_deg),
+                                    options_.track_heading_sigmas * sigma);
+    if (d <= allowed) return std::nullopt;
+    return "heading " + number(mrpt::RAD2DEG(d)) + " deg off the odometry's (allowed " +
+           number(mrpt::RAD2DEG(allowed)) + " deg)";
+}
+
 std::optional<std::string> Localizer::trackDisagreesWithOdometry(
     const refine::RefineResult& tracked, const Prediction& prediction) {
     // Tracked fixes are searched around the prediction, so a few centimetres of disagreement
@@ -970,6 +983,22 @@ void Localizer::checkTrack(const mrpt::obs::CObservationImage& query,
                            const std::optional<Prediction>& prediction, Attempt& a,
                            FrameResult& out) {
     if (!prediction || !a.result || !a.result->accepted()) return;
+    if (auto why = headingDisagrees(*a.result, *prediction)) {
+        // One wrong fix is refused; fixes that keep disagreeing say the odometry turned wrong
+        // (a slip), and the track is dropped so that the next fix starts afresh.
+        if (++heading_refusals_ >= options_.track_disagreeing_fixes) {
+            heading_refusals_ = 0;
+            a.dropped = *why + ", " + std::to_string(options_.track_disagreeing_fixes) +
+                        " frames in a row: track dropped";
+            return;
+        }
+        auto refused = std::make_shared<refine::RefineResult>(*a.result);
+        refused->status = refine::RefineStatus::OffsetTooLarge;
+        refused->reason = *why + ": fix refused";
+        a.result = std::move(refused);
+        return;
+    }
+    heading_refusals_ = 0;
     a.dropped = trackDisagreesWithOdometry(*a.result, *prediction);
     if (a.dropped || !places_ || options_.place_check_every <= 0 ||
         ++frames_since_check_ < options_.place_check_every) {

@@ -35,6 +35,8 @@ void LocalizerOptions::declareKeys(common::OptionsTable& t) {
     t.add("track_disagreement_m", track_disagreement_m, 0.0);
     t.add("track_disagreement_per_m", track_disagreement_per_m, 0.0);
     t.add("track_disagreeing_fixes", track_disagreeing_fixes, 1, 100000000);
+    t.add("track_heading_sigmas", track_heading_sigmas, common::kPositive);
+    t.add("track_heading_floor_deg", track_heading_floor_deg, 0.0, 180.0);
     t.add("place_check_rival_share", place_check_rival_share, 0.0, 1.0);
     t.add("coarse_reject_after_frames", coarse_reject_after_frames, 1, 100000000);
     t.add("coarse_exclusion_m", coarse_exclusion_m, common::kPositive);

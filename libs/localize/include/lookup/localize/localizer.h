@@ -256,6 +256,9 @@ class Localizer {
         std::vector<std::size_t> references;
     };
     GlobalOutcome bestPlace(const std::vector<VerifiedPlace>& verified, FrameResult& out);
+    /// Why a tracked fix's heading is refused (track_heading_sigmas), or nullopt.
+    std::optional<std::string> headingDisagrees(const refine::RefineResult& tracked,
+                                                const Prediction& prediction) const;
     std::optional<std::string> trackDisagreesWithOdometry(const refine::RefineResult& tracked,
                                                           const Prediction& prediction);
     const place::PlaceIndex* places_ = nullptr;
@@ -268,6 +271,7 @@ class Localizer {
     };
     std::vector<OpenPlace> open_places_;
     int disagreeing_fixes_ = 0;  ///< tracked fixes in a row far from the odometry prediction
+    int heading_refusals_ = 0;   ///< tracked fixes in a row refused for their heading
 
     const database::ReferenceDatabase& db_;
     LocalizerOptions options_;

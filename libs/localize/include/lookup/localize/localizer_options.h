@@ -91,6 +91,12 @@ struct LocalizerOptions : public common::TableOptions<LocalizerOptions> {
     double track_disagreement_m = 0.3;      ///< [m]
     double track_disagreement_per_m = 0.1;  ///< [m/m]
     int track_disagreeing_fixes = 3;
+    /// A tracked fix whose heading differs from the odometry prediction's by more than this
+    /// many sigmas of the two together (and at least track_heading_floor_deg) is refused: the
+    /// dead reckoning that follows a fix inherits its heading, so a wrong one drives the vehicle
+    /// off while its ellipse stays tight.
+    double track_heading_sigmas = 3.0;
+    double track_heading_floor_deg = 2.0;  ///< [deg]
     /// The place check verifies only the index's places with at least this share of its best
     /// place's feature inliers.
     double place_check_rival_share = 0.5;
