@@ -6,10 +6,12 @@
 #include <filesystem>
 #include <fstream>
 
+#include "lookup/common/errors.h"
 #include "lookup/database/database_writer.h"
 #include "lookup/database/reference_database.h"
 #include "lookup/eval/run_io.h"
 #include "lookup/survey/refresh.h"
+#include "lookup/survey/survey_app.h"
 #include "survey_fixture.h"
 
 namespace fs = std::filesystem;
@@ -186,4 +188,28 @@ TEST(Refresh, ARunOfAnotherDriveOrTheSameFolderIsRefusedNamingIt) {
     c.in.out_dir = c.in.db_dir;
     EXPECT_THROW(survey::refreshDatabase(c.in, o), common::ConfigError);
     EXPECT_EQ(database::ReferenceDatabase::load(c.in.db_dir).size(), 81u);
+}
+
+TEST(Refresh, TheCommandLineTakesOneDriveAndItsRun) {
+    const auto refused = [](std::vector<const char*> args) {
+        args.insert(args.begin(), "lookup-survey");
+        survey::SurveyApp app;
+        testing::internal::CaptureStderr();
+        const bool ok = app.initialize(int(args.size()), args.data());
+        const std::string err = testing::internal::GetCapturedStderr();
+        EXPECT_FALSE(ok);
+        EXPECT_EQ(app.exitCode(), common::kExitUsage) << err;
+        return err;
+    };
+    EXPECT_NE(refused({"--refresh", "db", "--rawlogs", "drive.rawlog", "--out", "new"})
+                  .find("--refresh and --run go together"),
+              std::string::npos);
+    EXPECT_NE(refused({"--refresh", "db", "--rawlogs", "a.rawlog,b.rawlog", "--run", "run", "--out",
+                       "new"})
+                  .find("one drive"),
+              std::string::npos);
+    EXPECT_NE(refused({"--refresh", "db", "--rawlogs", "a.rawlog", "--run", "run", "--poses",
+                       "p.tum", "--out", "new"})
+                  .find("one drive"),
+              std::string::npos);
 }
