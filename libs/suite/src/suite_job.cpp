@@ -65,10 +65,8 @@ std::vector<QueryTraverse> queryTraverses(const std::string& dataset_ini) {
     ini.getAllSections(sections);
     for (const auto& section : sections) {
         if (section.rfind("traverse_", 0) != 0) continue;
-        if (ini.read_string(section, "roles", "", false).find("query") == std::string::npos) {
-            continue;
-        }
         const std::string roles = ini.read_string(section, "roles", "", false);
+        if (roles.find("query") == std::string::npos) continue;
         queries.push_back({ini.read_string(section, "name", section, false),
                            (dir / ini.read_string(section, "rawlog", "", true)).string(),
                            (dir / ini.read_string(section, "ground_truth", "", true)).string(),

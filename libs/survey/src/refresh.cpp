@@ -334,6 +334,52 @@ std::vector<Posed> refreshedStretches(const std::vector<DriveFrame>& frames, con
 
 }  // namespace
 
+namespace {
+
+/// Each survey reference's superseded_by after the refresh: as before, or the drive's name where
+/// a stretch's bridged references now cover its ceiling.
+std::vector<std::string> supersededAfter(const std::vector<Posed>& added, const TraverseData& d,
+                                         const database::ReferenceDatabase& db,
+                                         const SurveyOptions& o, RefreshResult& result) {
+    std::vector<std::string> superseded_by(db.size());
+    for (std::size_t i = 0; i < db.size(); ++i) superseded_by[i] = db.reference(i).superseded_by;
+    for (std::size_t k = 0; k < result.stretches.size(); ++k) {
+        std::vector<Posed> in_stretch;
+        std::copy_if(added.begin(), added.end(), std::back_inserter(in_stretch),
+                     [&](const Posed& p) { return p.stretch == k; });
+        auto& s = result.stretches[k];
+        s.superseded = supersede(in_stretch, d, db, o, result.name, superseded_by);
+        result.references_superseded += s.superseded;
+    }
+    return superseded_by;
+}
+
+/// The refreshed database: every reference of `db` (superseded as marked), then the drive's,
+/// the map and the reports; committed atomically to `out_dir`.
+void writeRefreshed(const database::ReferenceDatabase& db,
+                    const std::vector<std::string>& superseded_by, const std::vector<Posed>& added,
+                    const TraverseData& d, const std::vector<DriveFrame>& frames,
+                    const RefreshResult& result) {
+    database::DatabaseWriter writer(result.out_dir);
+    for (std::size_t i = 0; i < db.size(); ++i) {
+        writer.add(inputOf(db.reference(i), db.info(), superseded_by[i]));
+    }
+    for (const auto& p : added) writer.add(inputOf(p, d, frames, result.name));
+    if (!db.info().map_file.empty()) {
+        writer.setMap(loadGridMap(db.directory() + "/" + db.info().map_file));
+    }
+    if (fs::is_regular_file(db.directory() + "/" + database::kReport)) {
+        writer.writeTextFile(database::kReport, readText(db.directory() + "/" + database::kReport));
+    }
+    writer.writeTextFile(kRefreshReport, result.toJson());
+    database::DatabaseInfo info = db.info();
+    info.source_rawlogs.push_back(fs::absolute(result.rawlog).string());
+    info.heatmaps_dir.clear();
+    writer.commit(info);
+}
+
+}  // namespace
+
 RefreshResult refreshDatabase(const RefreshInputs& in, const SurveyOptions& o) {
     if (fs::exists(in.out_dir) && fs::exists(in.db_dir) &&
         fs::equivalent(fs::absolute(in.out_dir), fs::absolute(in.db_dir))) {
@@ -360,39 +406,14 @@ RefreshResult refreshDatabase(const RefreshInputs& in, const SurveyOptions& o) {
     result.references_before = db.size();
 
     const std::vector<Posed> added = refreshedStretches(frames, d, o, result);
-    std::vector<std::string> superseded_by(db.size());
-    for (std::size_t i = 0; i < db.size(); ++i) superseded_by[i] = db.reference(i).superseded_by;
-    for (std::size_t k = 0; k < result.stretches.size(); ++k) {
-        std::vector<Posed> in_stretch;
-        std::copy_if(added.begin(), added.end(), std::back_inserter(in_stretch),
-                     [&](const Posed& p) { return p.stretch == k; });
-        auto& s = result.stretches[k];
-        s.superseded = supersede(in_stretch, d, db, o, result.name, superseded_by);
-        result.references_superseded += s.superseded;
-    }
     result.references_added = added.size();
+    const auto superseded_by = supersededAfter(added, d, db, o, result);
     if (!db.info().heatmaps_dir.empty()) {
         result.warnings.push_back("the FCN heat maps of " + in.db_dir +
                                   " are not carried over: train again (lookup-train --db " +
                                   in.out_dir + ")");
     }
-
-    database::DatabaseWriter writer(in.out_dir);
-    for (std::size_t i = 0; i < db.size(); ++i) {
-        writer.add(inputOf(db.reference(i), db.info(), superseded_by[i]));
-    }
-    for (const auto& p : added) writer.add(inputOf(p, d, frames, result.name));
-    if (!db.info().map_file.empty()) {
-        writer.setMap(loadGridMap(db.directory() + "/" + db.info().map_file));
-    }
-    if (fs::is_regular_file(db.directory() + "/" + database::kReport)) {
-        writer.writeTextFile(database::kReport, readText(db.directory() + "/" + database::kReport));
-    }
-    writer.writeTextFile(kRefreshReport, result.toJson());
-    database::DatabaseInfo info = db.info();
-    info.source_rawlogs.push_back(fs::absolute(in.rawlog).string());
-    info.heatmaps_dir.clear();
-    writer.commit(info);
+    writeRefreshed(db, superseded_by, added, d, frames, result);
     return result;
 }
 
