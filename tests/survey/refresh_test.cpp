@@ -25,13 +25,7 @@ constexpr double kT0 = 1.7e9;  // the fixture's first stamp
 /// with the fixture's ceiling mount (the survey's images; their pixels do not matter here).
 void writeSurveyedDatabase(const std::string& dir, const test::Fixture& f) {
     database::DatabaseWriter w(dir);
-    mrpt::img::TCamera cam;
-    cam.ncols = 80;
-    cam.nrows = 60;
-    cam.fx(40);
-    cam.fy(40);
-    cam.cx(40);
-    cam.cy(30);
+    const mrpt::img::TCamera cam = test::fixtureCeilingCamera();
     for (int k = 0; k <= 80; ++k) {
         const double t = 0.25 * k;
         const auto pose = mrpt::poses::CPose3D(test::truePoseAt(t));

@@ -82,6 +82,18 @@ inline cv::Mat ceilingTexture(const mrpt::poses::CPose3D& camera_in_map, int w, 
     return img;
 }
 
+/// The fixture's ceiling camera: 80x60 px, f = 40 px.
+inline mrpt::img::TCamera fixtureCeilingCamera() {
+    mrpt::img::TCamera cam;
+    cam.ncols = 80;
+    cam.nrows = 60;
+    cam.fx(40);
+    cam.fy(40);
+    cam.cx(40);
+    cam.cy(30);
+    return cam;
+}
+
 struct Fixture {
     std::string rawlog;
     std::string ground_truth;
@@ -107,13 +119,7 @@ inline Fixture makeSurveyRawlog(const std::string& dir, const std::string& name,
     mrpt::poses::CPose2D odometry;
     mrpt::poses::CPose2D previous = truePoseAt(0);
     const double t0 = 1.7e9;  // realistic UNIX time
-    mrpt::img::TCamera cam;
-    cam.ncols = 80;
-    cam.nrows = 60;
-    cam.fx(40);
-    cam.fy(40);
-    cam.cx(40);
-    cam.cy(30);
+    const mrpt::img::TCamera cam = fixtureCeilingCamera();
     mrpt::img::TCamera forward_cam = cam;  // the survey refuses images of another size
     forward_cam.scaleToResolution(32, 24);
     for (int k = 0; k <= static_cast<int>(duration_s * 10); ++k) {
