@@ -409,9 +409,13 @@ RefreshResult refreshDatabase(const RefreshInputs& in, const SurveyOptions& o) {
     result.references_added = added.size();
     const auto superseded_by = supersededAfter(added, d, db, o, result);
     if (!db.info().heatmaps_dir.empty()) {
-        result.warnings.push_back("the FCN heat maps of " + in.db_dir +
-                                  " are not carried over: train again (lookup-train --db " +
-                                  in.out_dir + ")");
+        const std::string model = db.directory() + "/fcn_model.pt";
+        result.warnings.push_back("the FCN heat maps of " + in.db_dir + " are not carried over: " +
+                                  (fs::is_regular_file(model)
+                                       ? "write them with its model (lookup-train --db " +
+                                             in.out_dir + " --heatmaps-only " + model +
+                                             ") or train again"
+                                       : "train again (lookup-train --db " + in.out_dir + ")"));
     }
     writeRefreshed(db, superseded_by, added, d, frames, result);
     return result;
