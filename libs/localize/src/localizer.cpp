@@ -589,14 +589,23 @@ std::shared_ptr<const refine::RefineResult> Localizer::refineAgainst(
         coarse_hint.probe_points = options_.acquisition_probe_points;
         coarse_hint.probe_min_matched = options_.acquisition_probe_min_matched;
     }
-    auto result =
-        std::make_shared<const refine::RefineResult>(refiner_.refine(query, coarse_hint, views));
+    auto result = std::make_shared<const refine::RefineResult>(
+        refiner_.refine(query, coarse_hint, views, framePyramid(query)));
     out.times.refine_ms += 1e3 * timer.Tac();
     ++out.refinement_attempts;
     out.reference_indices = refs;
     out.refinement = result;
     out.inlier_share = result->inlier_share;
     return result;
+}
+
+const std::shared_ptr<const refine::ImagePyramid>& Localizer::framePyramid(
+    const mrpt::obs::CObservationImage& query) {
+    if (!frame_pyramid_ || frame_pyramid_stamp_ != query.timestamp) {
+        frame_pyramid_ = refiner_.queryPyramid(query);
+        frame_pyramid_stamp_ = query.timestamp;
+    }
+    return frame_pyramid_;
 }
 
 std::vector<Localizer::Candidate> Localizer::candidatesAround(
@@ -1109,6 +1118,7 @@ mrpt::math::CMatrixDouble33 Localizer::imageTimeCovariance(double time_s, double
 }
 
 void Localizer::finishFrame(FrameResult& out) {
+    frame_pyramid_.reset();
     if (out.coarse_pose &&
         !std::isfinite(out.coarse_pose->x() + out.coarse_pose->y() + out.coarse_pose->phi())) {
         out.coarse_pose.reset();

@@ -440,15 +440,36 @@ Refiner::Refiner(RefinerOptions options)
     options_.check();
 }
 
-RefineResult Refiner::refine(const mrpt::obs::CObservationImage& query, const CoarseHint& hint,
-                             const std::vector<ReferenceImage>& references) const {
-    cv::Mat image;
-    std::string why;
+namespace {
+
+/// The pixels of `query` (an external image is loaded); empty with `why` when unreadable.
+cv::Mat queryPixels(const mrpt::obs::CObservationImage& query, std::string& why) {
     try {
-        image = query.image.asCvMatRef();  // loads an external image
+        return query.image.asCvMatRef();
     } catch (const std::exception& e) {
         why = e.what();
+        return cv::Mat();
     }
+}
+
+}  // namespace
+
+std::shared_ptr<const ImagePyramid> Refiner::queryPyramid(const cv::Mat& query_image) const {
+    return std::make_shared<const ImagePyramid>(ImagePyramid::build(
+        query_image, effectivePyramidLevels(options_.matcher), preprocessingFor(options_)));
+}
+
+std::shared_ptr<const ImagePyramid> Refiner::queryPyramid(
+    const mrpt::obs::CObservationImage& query) const {
+    std::string why;
+    return queryPyramid(queryPixels(query, why));
+}
+
+RefineResult Refiner::refine(const mrpt::obs::CObservationImage& query, const CoarseHint& hint,
+                             const std::vector<ReferenceImage>& references,
+                             const std::shared_ptr<const ImagePyramid>& query_pyramid) const {
+    std::string why;
+    const cv::Mat image = queryPixels(query, why);
     if (image.empty()) {
         // Still decide the fallback pose from the hint: go through the common path.
         RefineResult r = refine(cv::Mat(), query.cameraParams, query.cameraPose, hint, references);
@@ -456,12 +477,13 @@ RefineResult Refiner::refine(const mrpt::obs::CObservationImage& query, const Co
                    (why.empty() ? std::string() : ": " + why);
         return r;
     }
-    return refine(image, query.cameraParams, query.cameraPose, hint, references);
+    return refine(image, query.cameraParams, query.cameraPose, hint, references, query_pyramid);
 }
 
 RefineResult Refiner::refine(const cv::Mat& query_image, const mrpt::img::TCamera& query_camera,
                              const mrpt::poses::CPose3D& camera_on_vehicle, const CoarseHint& hint,
-                             const std::vector<ReferenceImage>& references) const {
+                             const std::vector<ReferenceImage>& references,
+                             const std::shared_ptr<const ImagePyramid>& query_pyramid) const {
     const auto t_start = Clock::now();
     RefineResult res;
     const UsableReferences usable = usableReferences(references, hint, options_.sampler);
@@ -477,8 +499,7 @@ RefineResult Refiner::refine(const cv::Mat& query_image, const mrpt::img::TCamer
         return fail(why->first, why->second);
     }
     auto t0 = Clock::now();
-    q.pyramid = ImagePyramid::build(query_image, effectivePyramidLevels(options_.matcher),
-                                    preprocessingFor(options_));
+    q.pyramid = query_pyramid ? *query_pyramid : *queryPyramid(query_image);
     res.times.prepare_ms += msSince(t0);
 
     EstimatorInput input = estimatorInput(usable.refs, q);

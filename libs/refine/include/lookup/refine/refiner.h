@@ -65,13 +65,23 @@ class Refiner {
     explicit Refiner(RefinerOptions options = {});
 
     /// `references` are the candidates; `hint.reference_ids` picks among them (all if empty).
+    /// `query_pyramid`: the query image's matching pyramid from queryPyramid(), when one frame
+    /// is refined against many candidates (acquisition); built here when null.
     RefineResult refine(const mrpt::obs::CObservationImage& query, const CoarseHint& hint,
-                        const std::vector<ReferenceImage>& references) const;
+                        const std::vector<ReferenceImage>& references,
+                        const std::shared_ptr<const ImagePyramid>& query_pyramid = nullptr) const;
 
     /// Same with a grey query image given directly (`camera_on_vehicle` as cameraPose).
     RefineResult refine(const cv::Mat& query_image, const mrpt::img::TCamera& query_camera,
                         const mrpt::poses::CPose3D& camera_on_vehicle, const CoarseHint& hint,
-                        const std::vector<ReferenceImage>& references) const;
+                        const std::vector<ReferenceImage>& references,
+                        const std::shared_ptr<const ImagePyramid>& query_pyramid = nullptr) const;
+
+    /// The matching pyramid refine() builds of a query image (the matcher's levels and
+    /// preprocessing); empty for an empty or unreadable image.
+    std::shared_ptr<const ImagePyramid> queryPyramid(const cv::Mat& query_image) const;
+    std::shared_ptr<const ImagePyramid> queryPyramid(
+        const mrpt::obs::CObservationImage& query) const;
 
     const RefinerOptions& options() const { return options_; }
     const AcceptancePolicy& acceptance() const { return acceptance_; }
