@@ -6,7 +6,6 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
-#include <map>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <set>
@@ -14,6 +13,7 @@
 
 #include "lookup/common/config.h"
 #include "lookup/common/odometry_track.h"
+#include "lookup/common/rawlog_io.h"
 #include "lookup/database/database_writer.h"
 #include "lookup/database/reference_database.h"
 #include "lookup/eval/run_io.h"
