@@ -482,6 +482,36 @@ std::string surveyIniWith(const fs::path& dir, const std::string& section, const
     return iniFile(dir, "survey_" + key, text);
 }
 
+// lookup-survey --refresh of `db` from `drive` with runs it cannot use: missing, unreadable,
+// of another drive; the database refreshed is never touched.
+void refreshCases(const fs::path& dir, const std::string& drive, const fs::path& db,
+                  const Refuse& refuse) {
+    const auto runFolder = [&dir](const std::string& name, const std::string& rows) {
+        const fs::path run = dir / name;
+        fs::create_directories(run);
+        std::ofstream(run / "frames.csv")
+            << "time_s,status,reason,x,y,yaw,cov_xx,cov_xy,cov_yy,cov_tt,coarse_x,coarse_y,"
+               "coarse_yaw,inlier_share,references,ms\n"
+            << rows;
+        std::ofstream(run / "timing.json") << "{\"frames\": 2}\n";
+        return run.string();
+    };
+    const auto args = [&](const std::string& from, const std::string& run) {
+        return std::vector<std::string>{"--refresh", from,    "--rawlogs",
+                                        drive,       "--run", run,
+                                        "-q",        "--out", (dir / "db_refreshed").string()};
+    };
+    refuse("refresh: bad run", args(db.string(), "/nonexistent/run"), "/nonexistent/run");
+    refuse("refresh: bad run", args("/nonexistent/db", (dir / "run_x").string()),
+           "/nonexistent/db");
+    const auto garbled = runFolder("run_garbled", "1.0,refined,,abc,0,0,0,0,0,0,,,,0.5,3,1\n");
+    refuse("refresh: bad run", args(db.string(), garbled), garbled);
+    const auto other = runFolder("run_other",
+                                 "1.0,refined,,0,0,0,1e-4,0,1e-4,1e-5,,,,0.9,3,1\n"
+                                 "2.0,refined,,1,0,0,1e-4,0,1e-4,1e-5,,,,0.9,3,1\n");
+    refuse("refresh: bad run", args(db.string(), other), other);
+}
+
 void surveyCases(const fs::path& dir, Tally& t) {
     const auto f = test::makeSurveyRawlog(dir.string(), "corridor", 3.0);
     const fs::path db = dir / "db_s";
@@ -508,6 +538,7 @@ void surveyCases(const fs::path& dir, Tally& t) {
         c.kept = kept;
         run(c, dir, t);
     };
+    refreshCases(dir, f.rawlog, db, refuse);
     fs::remove_all(dir / "s_bad_Images");
     fs::create_directory_symlink(dir / "corridor_Images", dir / "s_bad_Images");
     for (double share : {0.1, 0.5, 0.9}) {
