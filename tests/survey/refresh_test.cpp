@@ -38,6 +38,15 @@ void writeSurveyedDatabase(const std::string& dir, const test::Fixture& f) {
         in.ceiling->cameraParams = cam;
         in.ceiling->image = mrpt::img::CImage(test::ceilingTexture(pose + f.ceiling_mount, 80, 60),
                                               mrpt::img::DEEP_COPY);
+        if (k % 4 == 0) {  // a forward image 20 ms later, as the survey attaches them
+            in.forward = mrpt::obs::CObservationImage::Create();
+            in.forward->sensorLabel = "FORWARD_CAM";
+            in.forward->timestamp = mrpt::Clock::fromDouble(kT0 - 1000 + t + 0.02);
+            in.forward->cameraPose = f.forward_mount;
+            in.forward->image =
+                mrpt::img::CImage(test::ceilingTexture(pose, 32, 24), mrpt::img::DEEP_COPY);
+            in.forward_vehicle_pose = mrpt::poses::CPose3D(test::truePoseAt(t + 0.02));
+        }
         in.vehicle_pose = pose;
         in.vehicle_cov.setIdentity();
         in.vehicle_cov *= 1e-4;
@@ -123,7 +132,21 @@ TEST(Refresh, TheChangedStretchGetsTheDrivesImagesPosedBetweenItsFixes) {
     const auto before = database::ReferenceDatabase::load(c.in.db_dir);
     const auto after = database::ReferenceDatabase::load(c.in.out_dir);
     ASSERT_EQ(after.size(), before.size() + result.references_added);
-    for (std::size_t i = 0; i < before.size(); ++i) EXPECT_TRUE(before.reference(i).current());
+    for (std::size_t i = 0; i < before.size(); ++i) {
+        // The surveyed references come through as they were, forward images included.
+        const auto &was = before.reference(i), &is = after.reference(i);
+        EXPECT_TRUE(was.current());
+        EXPECT_EQ(is.source, "survey");
+        EXPECT_NEAR((is.vehicle_pose.asVectorVal() - was.vehicle_pose.asVectorVal()).norm(), 0,
+                    1e-9);
+        ASSERT_EQ(is.has_forward, was.has_forward) << i;
+        if (!was.has_forward) continue;
+        EXPECT_DOUBLE_EQ(is.forward_time_s, was.forward_time_s);
+        EXPECT_NEAR(
+            (is.forward_camera_pose.asVectorVal() - was.forward_camera_pose.asVectorVal()).norm(),
+            0, 1e-9)
+            << i;
+    }
     std::vector<std::size_t> bridged;
     for (std::size_t i = before.size(); i < after.size(); ++i) {
         const auto& r = after.reference(i);

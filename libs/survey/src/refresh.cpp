@@ -239,29 +239,35 @@ std::size_t supersede(const std::vector<Posed>& refs, const TraverseData& d,
     return n;
 }
 
+/// A stored image as the record the writer takes.
+mrpt::obs::CObservationImage::Ptr storedImage(const std::string& label, double time_s,
+                                              const mrpt::img::TCamera& camera,
+                                              const mrpt::poses::CPose3D& on_vehicle,
+                                              const std::string& path) {
+    auto image = mrpt::obs::CObservationImage::Create();
+    image->sensorLabel = label;
+    image->timestamp = mrpt::Clock::fromDouble(time_s);
+    image->cameraParams = camera;
+    image->cameraPose = on_vehicle;
+    if (!image->image.loadFromFile(path, 0)) {
+        throw database::DatabaseError(path + ": unreadable reference image");
+    }
+    return image;
+}
+
 /// A database reference as the writer takes it: its records rebuilt from the stored images.
 database::ReferenceInput inputOf(const database::Reference& ref, const database::DatabaseInfo& info,
                                  const std::string& superseded_by) {
     database::ReferenceInput in;
     in.traverse = ref.traverse;
-    in.ceiling = mrpt::obs::CObservationImage::Create();
-    in.ceiling->sensorLabel = info.ceiling_camera_label;
-    in.ceiling->timestamp = mrpt::Clock::fromDouble(ref.time_s);
-    in.ceiling->cameraParams = ref.ceiling_camera;
-    in.ceiling->cameraPose = ref.ceiling_camera_mount;
-    if (!in.ceiling->image.loadFromFile(ref.ceiling_image_path, 0)) {
-        throw database::DatabaseError(ref.ceiling_image_path + ": unreadable reference image");
-    }
+    in.ceiling = storedImage(info.ceiling_camera_label, ref.time_s, ref.ceiling_camera,
+                             ref.ceiling_camera_mount, ref.ceiling_image_path);
     if (ref.has_forward) {
-        in.forward = mrpt::obs::CObservationImage::Create();
-        in.forward->sensorLabel = info.forward_camera_label;
-        in.forward->timestamp = mrpt::Clock::fromDouble(ref.forward_time_s);
-        in.forward->cameraParams = info.forward_camera;
-        // The forward pose in the map is what is stored; relative to the ceiling-time pose.
-        in.forward->cameraPose = ref.forward_camera_pose - ref.vehicle_pose;
-        if (!in.forward->image.loadFromFile(ref.forward_image_path, 0)) {
-            throw database::DatabaseError(ref.forward_image_path + ": unreadable reference image");
-        }
+        // The forward camera's map pose is what the database keeps: stored relative to the
+        // vehicle at the ceiling image's time, it is composed back exactly.
+        in.forward =
+            storedImage(info.forward_camera_label, ref.forward_time_s, info.forward_camera,
+                        ref.forward_camera_pose - ref.vehicle_pose, ref.forward_image_path);
         in.forward_vehicle_pose = ref.vehicle_pose;
     }
     in.vehicle_pose = ref.vehicle_pose;
