@@ -131,21 +131,11 @@ std::vector<std::size_t> currentOf(const std::vector<Reference>& refs) {
     return current;
 }
 
-PointCloud2D positionsOf(const std::vector<Reference>& refs,
-                         const std::vector<std::size_t>& which) {
+// The positions (`pose`: the vehicle's or the ceiling camera's) of the references `which`.
+PointCloud2D positionsOf(const std::vector<Reference>& refs, const std::vector<std::size_t>& which,
+                         mrpt::poses::CPose3D Reference::*pose) {
     PointCloud2D cloud;
-    for (std::size_t i : which) {
-        cloud.points.push_back({refs[i].vehicle_pose.x(), refs[i].vehicle_pose.y()});
-    }
-    return cloud;
-}
-
-PointCloud2D cameraPositionsOf(const std::vector<Reference>& refs,
-                               const std::vector<std::size_t>& which) {
-    PointCloud2D cloud;
-    for (std::size_t i : which) {
-        cloud.points.push_back({refs[i].ceiling_camera_pose.x(), refs[i].ceiling_camera_pose.y()});
-    }
+    for (std::size_t i : which) cloud.points.push_back({(refs[i].*pose).x(), (refs[i].*pose).y()});
     return cloud;
 }
 
@@ -221,9 +211,9 @@ ReferenceDatabase ReferenceDatabase::load(const std::string& dir, std::size_t ca
     impl->refs = readReferences(impl->dir + "/" + kRefsRawlog, impl->info);
 
     impl->current = currentOf(impl->refs);
-    impl->cloud = positionsOf(impl->refs, impl->current);
+    impl->cloud = positionsOf(impl->refs, impl->current, &Reference::vehicle_pose);
     impl->tree = treeOver(impl->cloud);
-    impl->camera_cloud = cameraPositionsOf(impl->refs, impl->current);
+    impl->camera_cloud = positionsOf(impl->refs, impl->current, &Reference::ceiling_camera_pose);
     impl->camera_tree = treeOver(impl->camera_cloud);
     impl->by_time = timeOrder(impl->refs);
     impl->forward_sequence = forwardOrder(impl->refs);

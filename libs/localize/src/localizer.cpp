@@ -601,10 +601,7 @@ std::shared_ptr<const refine::RefineResult> Localizer::refineAgainst(
 
 const std::shared_ptr<const refine::ImagePyramid>& Localizer::framePyramid(
     const mrpt::obs::CObservationImage& query) {
-    if (!frame_pyramid_ || frame_pyramid_stamp_ != query.timestamp) {
-        frame_pyramid_ = refiner_.queryPyramid(query);
-        frame_pyramid_stamp_ = query.timestamp;
-    }
+    if (!frame_pyramid_) frame_pyramid_ = refiner_.queryPyramid(query);
     return frame_pyramid_;
 }
 
@@ -858,6 +855,7 @@ FrameResult Localizer::processCeiling(const mrpt::obs::CObservationImage& query)
 }
 
 FrameResult Localizer::startFrame(const mrpt::obs::CObservationImage& query) {
+    frame_pyramid_.reset();  // framePyramid() builds this frame's on its first refinement
     FrameResult out;
     out.time_s = mrpt::Clock::toDouble(query.timestamp);
     out.camera_on_vehicle = query.cameraPose;
@@ -1118,7 +1116,6 @@ mrpt::math::CMatrixDouble33 Localizer::imageTimeCovariance(double time_s, double
 }
 
 void Localizer::finishFrame(FrameResult& out) {
-    frame_pyramid_.reset();
     if (out.coarse_pose &&
         !std::isfinite(out.coarse_pose->x() + out.coarse_pose->y() + out.coarse_pose->phi())) {
         out.coarse_pose.reset();

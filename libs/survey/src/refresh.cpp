@@ -118,6 +118,7 @@ struct Posed {
     mrpt::math::CMatrixDouble33 cov;
     bool bridged = false;     ///< inside the stretch (else a margin frame with the run's own fix)
     std::size_t stretch = 0;  ///< index in RefreshResult::stretches
+    ImageQuality quality;     ///< measured when it was kept as a keyframe
 };
 
 /// The stretch's frames posed from the fixes at `a` and `b` and the odometry between them: run
@@ -213,30 +214,11 @@ std::vector<Posed> keyframesOf(const std::vector<Posed>& posed, const TraverseDa
         return ceilingQuality(*d.ceiling[posed[c].frame], nullptr, problem);
     });
     std::vector<Posed> out;
-    for (std::size_t k : kept.kept) out.push_back(posed[k]);
-    return out;
-}
-
-/// Marks survey references superseded when their cameras stood within the radius of a bridged
-/// reference's camera; returns how many were newly marked.
-std::size_t supersede(const std::vector<Posed>& refs, const TraverseData& d,
-                      const database::ReferenceDatabase& db, const SurveyOptions& o,
-                      const std::string& name, std::vector<std::string>& superseded_by) {
-    std::size_t n = 0;
-    for (const auto& r : refs) {
-        if (!r.bridged) continue;
-        const auto camera = mrpt::poses::CPose3D(r.pose) + d.ceiling[r.frame]->cameraPose;
-        for (std::size_t i = 0; i < db.size(); ++i) {
-            const auto& c = db.reference(i).ceiling_camera_pose;
-            if (!superseded_by[i].empty() ||
-                std::hypot(c.x() - camera.x(), c.y() - camera.y()) > o.refresh_supersede_radius_m) {
-                continue;
-            }
-            superseded_by[i] = name;
-            ++n;
-        }
+    for (std::size_t k = 0; k < kept.kept.size(); ++k) {
+        out.push_back(posed[kept.kept[k]]);
+        out.back().quality = kept.kept_quality[k];
     }
-    return n;
+    return out;
 }
 
 /// A stored image as the record the writer takes.
@@ -287,10 +269,8 @@ database::ReferenceInput inputOf(const Posed& p, const TraverseData& d,
     in.ceiling = d.ceiling[p.frame];
     in.vehicle_pose = mrpt::poses::CPose3D(p.pose);
     in.vehicle_cov = p.cov;
-    std::string problem;
-    const ImageQuality q = ceilingQuality(*in.ceiling, nullptr, problem);
-    in.sharpness = q.sharpness;
-    in.mean_intensity = q.mean_intensity;
+    in.sharpness = p.quality.sharpness;
+    in.mean_intensity = p.quality.mean_intensity;
     in.travelled_m = frames[p.frame].travelled_m;
     in.source = "refresh";
     return in;
@@ -343,19 +323,25 @@ std::vector<Posed> refreshedStretches(const std::vector<DriveFrame>& frames, con
 namespace {
 
 /// Each survey reference's superseded_by after the refresh: as before, or the drive's name where
-/// a stretch's bridged references now cover its ceiling.
+/// its camera stood within the radius of a bridged reference's camera (counted per stretch).
 std::vector<std::string> supersededAfter(const std::vector<Posed>& added, const TraverseData& d,
                                          const database::ReferenceDatabase& db,
                                          const SurveyOptions& o, RefreshResult& result) {
     std::vector<std::string> superseded_by(db.size());
     for (std::size_t i = 0; i < db.size(); ++i) superseded_by[i] = db.reference(i).superseded_by;
-    for (std::size_t k = 0; k < result.stretches.size(); ++k) {
-        std::vector<Posed> in_stretch;
-        std::copy_if(added.begin(), added.end(), std::back_inserter(in_stretch),
-                     [&](const Posed& p) { return p.stretch == k; });
-        auto& s = result.stretches[k];
-        s.superseded = supersede(in_stretch, d, db, o, result.name, superseded_by);
-        result.references_superseded += s.superseded;
+    for (const auto& r : added) {
+        if (!r.bridged) continue;
+        const auto camera = mrpt::poses::CPose3D(r.pose) + d.ceiling[r.frame]->cameraPose;
+        for (std::size_t i = 0; i < db.size(); ++i) {
+            const auto& c = db.reference(i).ceiling_camera_pose;
+            if (!superseded_by[i].empty() ||
+                std::hypot(c.x() - camera.x(), c.y() - camera.y()) > o.refresh_supersede_radius_m) {
+                continue;
+            }
+            superseded_by[i] = result.name;
+            ++result.stretches[r.stretch].superseded;
+            ++result.references_superseded;
+        }
     }
     return superseded_by;
 }

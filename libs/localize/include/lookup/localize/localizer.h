@@ -236,8 +236,8 @@ class Localizer {
     std::shared_ptr<const refine::RefineResult> refineAgainst(
         const mrpt::obs::CObservationImage& query, const std::vector<std::size_t>& refs,
         const mrpt::poses::CPose2D& hint, FrameResult& out, bool probe = false);
-    /// The query's matching pyramid, built once per frame: a lost frame refines against dozens
-    /// of candidates.
+    /// The current frame's query pyramid, built at its first refinement (startFrame forgets the
+    /// last frame's): a lost frame refines against dozens of candidates.
     const std::shared_ptr<const refine::ImagePyramid>& framePyramid(
         const mrpt::obs::CObservationImage& query);
     const refine::ReferenceImage& referenceView(std::size_t index);
@@ -281,7 +281,6 @@ class Localizer {
     LocalizerOptions options_;
     refine::Refiner refiner_;
     std::shared_ptr<const refine::ImagePyramid> frame_pyramid_;  ///< framePyramid()'s
-    mrpt::Clock::time_point frame_pyramid_stamp_{};              ///< ... and its query's stamp
     refine::Rectifier rectifier_;  ///< every ceiling image into the database's pinhole camera
     std::unique_ptr<coarse::CoarseSource> coarse_;
     bool coarse_uses_images_;
