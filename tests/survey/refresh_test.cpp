@@ -171,7 +171,9 @@ TEST(Refresh, TheChangedStretchGetsTheDrivesImagesPosedBetweenItsFixes) {
             nearest = std::min(nearest, cameraDistance(after.reference(i), after.reference(b)));
         }
         EXPECT_EQ(after.reference(i).current(), nearest > o.refresh_supersede_radius_m) << i;
-        if (!after.reference(i).current()) EXPECT_EQ(after.reference(i).superseded_by, "today");
+        if (!after.reference(i).current()) {
+            EXPECT_EQ(after.reference(i).superseded_by, "today");
+        }
     }
     // Over the changed stretch the localiser now gets today's images only.
     const auto middle = after.reference(bridged[bridged.size() / 2]).ceiling_camera_pose;

@@ -4,6 +4,7 @@
 #include <mrpt/core/exceptions.h>
 #include <mrpt/obs/CObservationImage.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -54,6 +55,26 @@ std::string cameraProblem(const mrpt::img::TCamera& c, int width, int height) {
                size(unsigned(width), unsigned(height)) + " px";
     }
     return "";
+}
+
+mrpt::img::TCamera resizedCamera(const mrpt::img::TCamera& camera, int width, int height) {
+    // MRPT's TCamera::scaleToResolution scales cx by the ratio alone: half a source pixel off
+    // the centre cv::resize maps a pixel to, a shift that does not cancel between images stored
+    // at different sizes.
+    const double sx = double(width) / camera.ncols, sy = double(height) / camera.nrows;
+    mrpt::img::TCamera out = camera;
+    out.ncols = uint32_t(width);
+    out.nrows = uint32_t(height);
+    out.fx(camera.fx() * sx);
+    out.fy(camera.fy() * sy);
+    out.cx((camera.cx() + 0.5) * sx - 0.5);
+    out.cy((camera.cy() + 0.5) * sy - 0.5);
+    return out;
+}
+
+mrpt::img::TImageSize cappedSize(int width, int height, int max_width) {
+    if (max_width <= 0 || width <= max_width) return {width, height};
+    return {max_width, std::max(1, int(std::lround(double(height) * max_width / width)))};
 }
 
 std::optional<mrpt::img::TCamera> sensorCameraParams(const mrpt::config::CConfigFileBase& sensors,

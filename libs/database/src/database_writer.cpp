@@ -68,24 +68,33 @@ cv::Mat greyPixels(const mrpt::obs::CObservationImage& src, const std::string& t
 // an observation that refers to it by `name`, leaving `src` untouched (CImage copies share
 // their pixels and external path). Uncompressed because a lost vehicle reads dozens of
 // references per frame: PGM decodes about 100 times faster than PNG (docs/benchmarks.md,
-// "Reference images stored uncompressed").
+// "Reference images stored uncompressed"). An image wider than `max_width` (> 0) is averaged
+// down to it, its intrinsics with it.
 mrpt::obs::CObservationImage::Ptr storedCopy(const mrpt::obs::CObservationImage& src,
-                                             const std::string& images_dir,
-                                             const std::string& name) {
+                                             const std::string& images_dir, const std::string& name,
+                                             int max_width = 0) {
     const std::string target = images_dir + "/" + name;
-    std::vector<uchar> pgm;
-    if (!cv::imencode(".pgm", greyPixels(src, target), pgm)) {
-        throw common::WriteError(target, "cannot encode image");
-    }
-    std::ofstream file(target, std::ios::binary);
-    file.write(reinterpret_cast<const char*>(pgm.data()), static_cast<std::streamsize>(pgm.size()));
-    file.close();
-    if (!file) throw common::WriteError(target, "cannot write image");
+    cv::Mat grey = greyPixels(src, target);
     auto out = mrpt::obs::CObservationImage::Create();
     out->sensorLabel = src.sensorLabel;
     out->timestamp = src.timestamp;
     out->cameraPose = src.cameraPose;
     out->cameraParams = src.cameraParams;
+    const auto size = common::cappedSize(grey.cols, grey.rows, max_width);
+    if (size.x != grey.cols) {
+        cv::Mat shrunk;
+        cv::resize(grey, shrunk, cv::Size(size.x, size.y), 0, 0, cv::INTER_AREA);
+        grey = shrunk;
+        if (src.cameraParams.ncols > 0) {
+            out->cameraParams = common::resizedCamera(src.cameraParams, size.x, size.y);
+        }
+    }
+    std::vector<uchar> pgm;
+    if (!cv::imencode(".pgm", grey, pgm)) throw common::WriteError(target, "cannot encode image");
+    std::ofstream file(target, std::ios::binary);
+    file.write(reinterpret_cast<const char*>(pgm.data()), static_cast<std::streamsize>(pgm.size()));
+    file.close();
+    if (!file) throw common::WriteError(target, "cannot write image");
     out->image.setExternalStorage(name);
     return out;
 }
@@ -278,7 +287,8 @@ std::vector<std::string> recoverInterrupted(const std::string& out) {
     return done;
 }
 
-DatabaseWriter::DatabaseWriter(const std::string& out_dir) : out_dir_(normalised(out_dir)) {
+DatabaseWriter::DatabaseWriter(const std::string& out_dir, int ceiling_max_width_px)
+    : out_dir_(normalised(out_dir)), ceiling_max_width_px_(ceiling_max_width_px) {
     std::error_code ec;
     fs::create_directories(fs::path(out_dir_).parent_path(), ec);
     std::string templ = out_dir_ + ".tmp-" + std::to_string(::getpid()) + "-XXXXXX";
@@ -308,7 +318,9 @@ uint32_t DatabaseWriter::add(const ReferenceInput& in) {
 
     Reference ref = referenceOf(in, id);
     const std::string ceiling_name = imageName("ceiling_", stem);
-    writeRecord(*storedCopy(*in.ceiling, images_dir, ceiling_name));
+    const auto ceiling = storedCopy(*in.ceiling, images_dir, ceiling_name, ceiling_max_width_px_);
+    ref.ceiling_camera = ceiling->cameraParams;
+    writeRecord(*ceiling);
     ref.ceiling_image_path = images_dir + "/" + ceiling_name;
     std::string forward_name;
     if (in.forward) {
@@ -365,6 +377,13 @@ void DatabaseWriter::writeTextFile(const std::string& name, const std::string& c
 
 void DatabaseWriter::commit(DatabaseInfo info) {
     if (committed_) throw DatabaseError(out_dir_ + ": database already committed");
+    // The localiser's camera is that of the stored images.
+    auto& camera = info.ceiling_camera;
+    if (const auto size =
+            common::cappedSize(int(camera.ncols), int(camera.nrows), ceiling_max_width_px_);
+        size.x != int(camera.ncols)) {
+        camera = common::resizedCamera(camera, size.x, size.y);
+    }
     try {
         rawlog_->close();
     } catch (const std::exception& e) {

@@ -8,8 +8,10 @@
 #include <limits>
 #include <map>
 #include <opencv2/imgproc.hpp>
+#include <optional>
 #include <stdexcept>
 
+#include "lookup/common/camera_params.h"
 #include "lookup/common/pose_files.h"
 #include "lookup/common/rawlog_io.h"
 #include "lookup/refine/geometry.h"
@@ -127,9 +129,14 @@ bool isTarget(const refine::PointMatch& m, double residual_px, double precise_px
 }
 
 // Whether the pair must be labelled on rectified images.
-bool distorting(const PairCameras* cameras) {
-    return cameras &&
-           (refine::hasDistortion(cameras->reference) || refine::hasDistortion(cameras->query));
+bool rectifying(const PairCameras* cameras) {
+    if (!cameras) return false;
+    const auto& r = cameras->reference;
+    if (refine::hasDistortion(r) || refine::hasDistortion(cameras->query)) return true;
+    // A query camera of another size or focal length (another vehicle's, or one finer than
+    // the database stores).
+    return common::cameraProblem(r).empty() && r.ncols > 0 && r.nrows > 0 &&
+           !refine::Rectifier(r).isIdentity(cameras->query);
 }
 
 // Reference points of the rectified image moved to where the raw reference records them;
@@ -156,18 +163,22 @@ void toRawReference(std::vector<refine::PointMatch>& matches, std::vector<double
 
 }  // namespace
 
+mrpt::img::TCamera labelCamera(const PairCameras& cameras) {
+    return rectifying(&cameras) ? refine::idealPinhole(cameras.reference) : cameras.query;
+}
+
 PairLabels labelPair(const cv::Mat& reference, const cv::Mat& query, const LabelOptions& options,
                      const cv::Matx33d* reference_to_query, const PairCameras* cameras) {
     CV_Assert(reference.type() == CV_8UC1 && query.type() == CV_8UC1);
-    const bool rectify = distorting(cameras);
+    const bool rectify = rectifying(cameras);
     const int levels = refine::effectivePyramidLevels(options.matcher);
+    std::optional<refine::Rectifier> rectifier;
+    if (rectify) rectifier.emplace(cameras->reference);
     const auto ref = refine::ImagePyramid::build(
-        rectify ? refine::Rectifier(cameras->reference).rectify(reference, cameras->reference)
-                : reference,
-        levels, options.matcher);
-    const auto qry = refine::ImagePyramid::build(
-        rectify ? refine::Rectifier(cameras->query).rectify(query, cameras->query) : query, levels,
+        rectify ? rectifier->rectify(reference, cameras->reference) : reference, levels,
         options.matcher);
+    const auto qry = refine::ImagePyramid::build(
+        rectify ? rectifier->rectify(query, cameras->query) : query, levels, options.matcher);
     std::vector<cv::Point2f> points;
     const int margin = options.matcher.patch_px / 2;
     for (int y = margin; y + margin < reference.rows; y += options.grid_step_px) {
@@ -258,9 +269,10 @@ LabelSet generateLabels(const database::ReferenceDatabase& db,
         } else {
             const std::string where = *job.rawlog + " record " + std::to_string(f.record);
             const cv::Mat query = greyOf(*f.obs, where);
-            refine::Pinhole query_camera;
-            if (!refine::pinholeFrom(f.obs->cameraParams, query_camera, &why)) {
-                throw std::runtime_error(where + ": camera parameters: " + why);
+            if (const std::string bad =
+                    common::cameraProblem(f.obs->cameraParams, query.cols, query.rows);
+                !bad.empty()) {
+                throw std::runtime_error(where + ": camera parameters: " + bad);
             }
             const mrpt::poses::CPose3D query_camera_in_map = f.vehicle_in_map + f.obs->cameraPose;
             for (const auto& n : chosen) {
@@ -273,9 +285,11 @@ LabelSet generateLabels(const database::ReferenceDatabase& db,
                 pair.query_time_s = f.time_s;
                 pair.distance_m = n.distance;
                 pair.held_out = job.held_out;
+                const PairCameras cameras{ref.ceiling_camera, f.obs->cameraParams};
+                refine::Pinhole query_camera;
+                refine::pinholeFrom(labelCamera(cameras), query_camera, &why);
                 const cv::Matx33d H = refine::ceilingHomography(
                     ref_camera, ref.ceiling_camera_pose, query_camera, query_camera_in_map, h);
-                const PairCameras cameras{ref.ceiling_camera, f.obs->cameraParams};
                 const auto labels = labelPair(ref_image, query, options,
                                               options.use_pose_prior ? &H : nullptr, &cameras);
                 const auto& fit = labels.fit;

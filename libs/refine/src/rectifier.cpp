@@ -2,6 +2,7 @@
 
 #include <mrpt/img/CImage.h>
 
+#include <algorithm>
 #include <cmath>
 #include <deque>
 #include <mutex>
@@ -33,11 +34,18 @@ mrpt::img::TCamera idealPinhole(const mrpt::img::TCamera& camera) {
     return ideal;
 }
 
+// Below this ratio of target to source focal length, bilinear sampling skips source pixels and
+// aliases the ceiling's fine texture into the patches: the image is first averaged down.
+constexpr double kShrinkBelowScale = 0.75;
+
+struct Rectifier::Maps {
+    mrpt::img::TCamera camera;
+    cv::Size shrunk;     // size the image is first averaged down to; empty = none
+    bool remap = true;   // false: the shrunk image already is one of the target
+    cv::Mat map1, map2;  // cv::remap's fixed-point maps (CV_16SC2, CV_16UC1)
+};
+
 struct Rectifier::Cache {
-    struct Maps {
-        mrpt::img::TCamera camera;
-        cv::Mat map1, map2;  // cv::remap's fixed-point maps (CV_16SC2, CV_16UC1)
-    };
     std::mutex mutex;
     std::deque<Maps> maps;  // a deque keeps references stable while it grows
 };
@@ -68,36 +76,48 @@ cv::Mat Rectifier::rectify(const cv::Mat& image, const mrpt::img::TCamera& camer
         throw std::invalid_argument(why);
     }
     if (isIdentity(camera)) return image;
-    const Cache::Maps* maps = nullptr;
-    {
-        std::lock_guard<std::mutex> lock(cache_->mutex);
-        for (const auto& m : cache_->maps) {
-            if (m.camera == camera) maps = &m;
-        }
-        if (maps == nullptr) {
-            Cache::Maps m{camera, {}, {}};
-            const cv::Matx33d K = intrinsicMatrix(camera), K_ideal = intrinsicMatrix(target_);
-            const cv::Size out(int(target_.ncols), int(target_.nrows));
-            if (camera.distortion == mrpt::img::DistortionModel::kannala_brandt) {
-                const cv::Vec4d d(camera.k1(), camera.k2(), camera.k3(), camera.k4());
-                cv::fisheye::initUndistortRectifyMap(K, d, cv::Matx33d::eye(), K_ideal, out,
-                                                     CV_16SC2, m.map1, m.map2);
-            } else {
-                const std::vector<double> d =
-                    hasCoefficients(camera)
-                        ? std::vector<double>(camera.dist.begin(), camera.dist.end())
-                        : std::vector<double>(5, 0.0);
-                cv::initUndistortRectifyMap(K, d, cv::noArray(), K_ideal, out, CV_16SC2, m.map1,
-                                            m.map2);
-            }
-            cache_->maps.push_back(std::move(m));
-            maps = &cache_->maps.back();
-        }
-    }
+    const Maps& maps = mapsFor(camera);
+    cv::Mat source = image;
+    if (!maps.shrunk.empty()) cv::resize(image, source, maps.shrunk, 0, 0, cv::INTER_AREA);
+    if (!maps.remap) return source;
     cv::Mat out;
-    cv::remap(image, out, maps->map1, maps->map2, cv::INTER_LINEAR, cv::BORDER_CONSTANT,
+    cv::remap(source, out, maps.map1, maps.map2, cv::INTER_LINEAR, cv::BORDER_CONSTANT,
               cv::Scalar::all(0));
     return out;
+}
+
+const Rectifier::Maps& Rectifier::mapsFor(const mrpt::img::TCamera& camera) const {
+    std::lock_guard<std::mutex> lock(cache_->mutex);
+    for (const auto& m : cache_->maps) {
+        if (m.camera == camera) return m;
+    }
+    Maps m{camera, {}, true, {}, {}};
+    mrpt::img::TCamera source = camera;
+    const double scale = std::min(target_.fx() / camera.fx(), target_.fy() / camera.fy());
+    if (scale < kShrinkBelowScale) {
+        m.shrunk = cv::Size(std::max(1, int(std::lround(camera.ncols * scale))),
+                            std::max(1, int(std::lround(camera.nrows * scale))));
+        source = common::resizedCamera(camera, m.shrunk.width, m.shrunk.height);
+        m.remap = !isIdentity(source);
+    }
+    if (m.remap) {
+        const cv::Matx33d K = intrinsicMatrix(source), K_ideal = intrinsicMatrix(target_);
+        const cv::Size out(int(target_.ncols), int(target_.nrows));
+        if (source.distortion == mrpt::img::DistortionModel::kannala_brandt) {
+            const cv::Vec4d d(source.k1(), source.k2(), source.k3(), source.k4());
+            cv::fisheye::initUndistortRectifyMap(K, d, cv::Matx33d::eye(), K_ideal, out, CV_16SC2,
+                                                 m.map1, m.map2);
+        } else {
+            const std::vector<double> d =
+                hasCoefficients(source)
+                    ? std::vector<double>(source.dist.begin(), source.dist.end())
+                    : std::vector<double>(5, 0.0);
+            cv::initUndistortRectifyMap(K, d, cv::noArray(), K_ideal, out, CV_16SC2, m.map1,
+                                        m.map2);
+        }
+    }
+    cache_->maps.push_back(std::move(m));
+    return cache_->maps.back();
 }
 
 mrpt::obs::CObservationImage Rectifier::rectify(const mrpt::obs::CObservationImage& obs) const {

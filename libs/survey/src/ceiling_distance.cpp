@@ -146,13 +146,16 @@ CeilingDistanceEstimate estimateCeilingDistance(const std::vector<CeilingTravers
             break;
         }
     }
-    // Every image is rectified into the first valid camera's pinhole twin (its maps cached).
+    // Every image is rectified into the first valid camera's pinhole twin at the width the
+    // references are stored at (its maps cached): measured as the localiser will match.
     std::optional<refine::Rectifier> rectifier;
     for (const auto& t : traverses) {
         for (const auto& image : *t.ceiling) {
             const auto& c = image->cameraParams;
             if (!rectifier && c.ncols > 0 && c.nrows > 0 && common::cameraProblem(c).empty()) {
-                rectifier.emplace(c);
+                const auto size =
+                    common::cappedSize(int(c.ncols), int(c.nrows), o.ceiling_max_width_px);
+                rectifier.emplace(common::resizedCamera(c, size.x, size.y));
             }
         }
     }

@@ -178,7 +178,7 @@ std::vector<Posed> margin(const std::vector<DriveFrame>& frames, std::size_t fro
         if (frame.state != DriveFrame::Refined || std::abs(frame.travelled_m - s0) > margin_m) {
             break;
         }
-        out.push_back({std::size_t(f), frame.pose, frame.cov, false});
+        out.push_back({std::size_t(f), frame.pose, frame.cov, false, 0, {}});
     }
     if (step < 0) std::reverse(out.begin(), out.end());
     return out;
@@ -352,7 +352,8 @@ void writeRefreshed(const database::ReferenceDatabase& db,
                     const std::vector<std::string>& superseded_by, const std::vector<Posed>& added,
                     const TraverseData& d, const std::vector<DriveFrame>& frames,
                     const RefreshResult& result) {
-    database::DatabaseWriter writer(result.out_dir);
+    // The drive's images at the width the database's are stored at.
+    database::DatabaseWriter writer(result.out_dir, int(db.info().ceiling_camera.ncols));
     for (std::size_t i = 0; i < db.size(); ++i) {
         writer.add(inputOf(db.reference(i), db.info(), superseded_by[i]));
     }

@@ -983,7 +983,7 @@ SurveyResult Survey::run(const SurveyInputs& in) const {
 
         // 3. References: pose per ceiling image, keyframes, forward image, database records.
         mrpt::system::CTicTac timer;
-        database::DatabaseWriter writer(in.out_dir);
+        database::DatabaseWriter writer(in.out_dir, options_.ceiling_max_width_px);
         if (poses.grid) writer.setMap(*poses.grid);
         database::DatabaseInfo info = databaseInfo(in, options_);
         info.ceiling_height_m = ceilingHeight(in, survey.data, poses.tracks, result);

@@ -8,6 +8,7 @@
 
 #include <mrpt/config/CConfigFileBase.h>
 #include <mrpt/img/TCamera.h>
+#include <mrpt/img/TPixelCoord.h>
 #include <mrpt/obs/CObservation.h>
 
 #include <optional>
@@ -34,5 +35,14 @@ bool applyCameraParams(const mrpt::img::TCamera& camera, mrpt::obs::CObservation
 /// distortion model MRPT does not know, or a calibrated size (ncols x nrows) other than the
 /// image's. `width` = `height` = 0 skips the size check.
 std::string cameraProblem(const mrpt::img::TCamera& camera, int width = 0, int height = 0);
+
+/// The camera of `camera`'s images resized to `width` x `height` px (cv::resize's pixel-centre
+/// convention: a pixel's centre x maps to (x + 0.5) * width / ncols - 0.5), distortion
+/// coefficients unchanged (they act on normalised coordinates).
+mrpt::img::TCamera resizedCamera(const mrpt::img::TCamera& camera, int width, int height);
+
+/// An image of `width` x `height` px scaled down, aspect kept, to at most `max_width` columns
+/// (0 = no limit); its own size when it is no wider.
+mrpt::img::TImageSize cappedSize(int width, int height, int max_width);
 
 }  // namespace lookup::common

@@ -50,8 +50,10 @@ void testKillPoint(const char* point);
 
 class DatabaseWriter {
   public:
-    /// Creates the staging folder beside `out_dir`. Throws DatabaseError if impossible.
-    explicit DatabaseWriter(const std::string& out_dir);
+    /// Creates the staging folder beside `out_dir`. Throws DatabaseError if impossible. Ceiling
+    /// images wider than `ceiling_max_width_px` (> 0) are stored averaged down to that width,
+    /// their intrinsics (and DatabaseInfo::ceiling_camera at commit) scaled with them.
+    explicit DatabaseWriter(const std::string& out_dir, int ceiling_max_width_px = 0);
     ~DatabaseWriter();
     DatabaseWriter(const DatabaseWriter&) = delete;
     DatabaseWriter& operator=(const DatabaseWriter&) = delete;
@@ -79,6 +81,7 @@ class DatabaseWriter {
 
     std::string out_dir_;
     std::string staging_;
+    int ceiling_max_width_px_ = 0;
     std::unique_ptr<common::RawlogWriter> rawlog_;
     std::vector<Reference> references_;
     bool has_map_ = false;

@@ -74,12 +74,18 @@ struct PairLabels {
 /// matcher -> RANSAC homography, as refine::labelGridPoints. With `reference_to_query` (the
 /// ceiling-plane homography predicted from known poses) each search window is centred on the
 /// predicted position instead of the same pixel, so pairs farther apart than L_SR / 2 can be
-/// labelled. With `cameras` of which one distorts, both images are first rectified into their
-/// ideal pinhole twins, as the localiser matches them (`reference_to_query` then relates the
-/// twins): through a distorting lens the raw pixels of a plane seen twice are no homography, and
-/// the rim of the image would be labelled off the plane. Images are CV_8UC1.
+/// labelled. With `cameras` of which one distorts or that differ, the reference is rectified into
+/// its ideal pinhole twin and the query into the same camera, as the localiser matches them
+/// (`reference_to_query` then relates labelCamera(cameras) on both sides): through a distorting
+/// lens the raw pixels of a plane seen twice are no homography, and the rim of the image would
+/// be labelled off the plane; a query of another size or focal length would be searched at
+/// another scale. Images are CV_8UC1.
 PairLabels labelPair(const cv::Mat& reference, const cv::Mat& query, const LabelOptions& options,
                      const cv::Matx33d* reference_to_query, const PairCameras* cameras = nullptr);
+
+/// The camera the query of a pair is labelled in: the reference's ideal pinhole twin when the
+/// pair is rectified (see labelPair), else the query's own.
+mrpt::img::TCamera labelCamera(const PairCameras& cameras);
 
 /// Called with (done, total) during label generation.
 using ProgressFn = std::function<void(std::size_t done, std::size_t total)>;

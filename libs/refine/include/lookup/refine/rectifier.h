@@ -60,7 +60,10 @@ class Rectifier {
     std::size_t cachedCameras() const;
 
   private:
+    struct Maps;
     struct Cache;
+    /// The cached maps from `camera` (built on first use).
+    const Maps& mapsFor(const mrpt::img::TCamera& camera) const;
     mrpt::img::TCamera target_;
     std::shared_ptr<Cache> cache_;
 };

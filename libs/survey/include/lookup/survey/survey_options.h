@@ -41,6 +41,11 @@ struct SurveyOptions : public common::TableOptions<SurveyOptions> {
     double min_mean_intensity = 25.0;    ///< darker mean grey level = under-exposed [0..255]
     double max_mean_intensity = 230.0;   ///< brighter mean grey level = over-exposed [0..255]
     double max_clipped_fraction = 0.25;  ///< max share of pixels at <=2 or >=253 [0..1]
+    /// Ceiling images are stored (and so matched) averaged down to at most this width, their
+    /// intrinsics scaled with them: the matcher's pixel settings hold for any camera, and a
+    /// finer image costs time without a finer fix (docs/benchmarks.md, "Camera resolution")
+    /// [px]; 0 = as recorded.
+    int ceiling_max_width_px = 320;
 
     // --- time association -----------------------------------------------------------------
     double forward_max_dt_s = 0.25;  ///< max |t_forward - t_ceiling| to attach a forward image [s]
