@@ -16,6 +16,7 @@
 #include <thread>
 
 #include "lookup/common/config.h"
+#include "lookup/common/odometry_track.h"
 #include "lookup/common/parallel_for.h"
 
 namespace lookup::survey {
@@ -36,6 +37,9 @@ void PoseGraphOptions::declareKeys(common::OptionsTable& t) {
     t.add("registration_min_std_yaw_deg", registration_min_std_yaw_deg, common::kPositive);
     t.add("odometry_std_per_m", odometry_std_per_m, common::kPositive);
     t.add("odometry_std_yaw_deg_per_m", odometry_std_yaw_deg_per_m, common::kPositive);
+    t.add("odometry_gap_s", odometry_gap_s, common::kPositive);
+    t.add("odometry_gap_accel_mps2", odometry_gap_accel_mps2, 0.0);
+    t.add("odometry_gap_yaw_accel_deg_s2", odometry_gap_yaw_accel_deg_s2, 0.0);
     t.add("huber_sigmas", huber_sigmas, common::kPositive);
     t.add("max_iterations", max_iterations, 1, 100000);
     t.add("threads", threads, 0, 1024);
@@ -205,21 +209,32 @@ Registration registerPointToLine(const ScanPoints& a, const ScanPoints& b,
     return out;
 }
 
-/// The traverse's scans in order, each with the latest odometry before it.
+/// The traverse's scans in order, each with the odometry at its time (interpolated between the
+/// readings around it) and how long it lies from the nearer reading inside a dropout.
 struct ScanWithOdometry {
     const mrpt::obs::CObservation2DRangeScan* scan;
     mrpt::poses::CPose2D odometry;
+    double uncovered_s = 0;
 };
 
-std::vector<ScanWithOdometry> scansOf(const TraverseData& traverse) {
-    std::vector<ScanWithOdometry> out;
-    mrpt::poses::CPose2D odometry;
+std::vector<ScanWithOdometry> scansOf(const TraverseData& traverse, double gap_s) {
+    common::OdometryTrack odometry;
     for (const auto& o : traverse.laser_sequence) {
         if (auto odo = std::dynamic_pointer_cast<mrpt::obs::CObservationOdometry>(o)) {
-            odometry = odo->odometry;
-        } else if (auto scan = std::dynamic_pointer_cast<mrpt::obs::CObservation2DRangeScan>(o)) {
-            out.push_back({scan.get(), odometry});
+            odometry.add(mrpt::Clock::toDouble(odo->timestamp), odo->odometry);
         }
+    }
+    std::vector<ScanWithOdometry> out;
+    for (const auto& o : traverse.laser_sequence) {
+        auto scan = std::dynamic_pointer_cast<mrpt::obs::CObservation2DRangeScan>(o);
+        if (!scan) continue;
+        ScanWithOdometry s{scan.get(), {}, 0.0};
+        constexpr double kAnyTime = 1e9;
+        if (const auto p = odometry.at(mrpt::Clock::toDouble(scan->timestamp), kAnyTime)) {
+            s.odometry = p->pose;
+            s.uncovered_s = p->extrapolated_s + (p->gap_s > gap_s ? p->inside_gap_s : 0.0);
+        }
+        out.push_back(s);
     }
     return out;
 }
@@ -227,6 +242,7 @@ std::vector<ScanWithOdometry> scansOf(const TraverseData& traverse) {
 struct Keyframe {
     std::size_t traverse = 0, scan = 0;
     mrpt::poses::CPose2D initial, odometry;
+    double uncovered_s = 0;  ///< ScanWithOdometry::uncovered_s
     double travelled_m = 0;  ///< along its traverse, by the first estimate
     ScanPoints points;
 };
@@ -248,23 +264,39 @@ void spread(std::size_t first, std::size_t last, int count, F&& take) {
 /// Keyframes of all traverses, in traverse order, with each traverse's scans.
 struct KeyframeSet {
     std::vector<std::vector<ScanWithOdometry>> scans;         ///< per traverse
+    std::vector<common::PoseTrack> initial;                   ///< first estimate per traverse
     std::vector<Keyframe> keyframes;                          ///< all traverses, in order
     std::vector<std::pair<std::size_t, std::size_t>> ranges;  ///< [first, end) per traverse
 };
 
+/// The first estimate with every scan inside an odometry dropout dead-reckoned from the scan
+/// before it: without odometry, ICP-SLAM along a featureless drive stands still or wanders
+/// (its scans match at any offset along the drive).
+common::PoseTrack bridgedDropouts(const common::PoseTrack& initial,
+                                  const std::vector<ScanWithOdometry>& scans) {
+    common::PoseTrack out = initial;
+    for (std::size_t i = 1; i < out.size(); ++i) {
+        if (scans[i].uncovered_s <= 0) continue;
+        const mrpt::poses::CPose2D step = scans[i].odometry - scans[i - 1].odometry;
+        out[i].pose = mrpt::poses::CPose3D(mrpt::poses::CPose2D(out[i - 1].pose) + step);
+    }
+    return out;
+}
+
 /// Appends the keyframes of traverse `t`: the first scan, then every scan where the first
 /// estimate has travelled keyframe_spacing_m or turned keyframe_spacing_deg since the last
-/// keyframe, and the last scan.
-void addKeyframes(std::size_t t, const GraphTraverse& tr, const PoseGraphOptions& options,
-                  KeyframeSet& set) {
+/// keyframe, every scan inside an odometry dropout and the first after it (each then holds
+/// the odometry's own motion), and the last scan.
+void addKeyframes(std::size_t t, const PoseGraphOptions& options, KeyframeSet& set) {
     const auto& scans = set.scans[t];
+    const auto& initial = set.initial[t];
     auto& keyframes = set.keyframes;
     const std::size_t first = keyframes.size();
     double travelled = 0;
     for (std::size_t i = 0; i < scans.size(); ++i) {
-        const mrpt::poses::CPose2D pose(tr.initial[i].pose);
+        const mrpt::poses::CPose2D pose(initial[i].pose);
         if (i > 0) {
-            const mrpt::poses::CPose2D prev(tr.initial[i - 1].pose);
+            const mrpt::poses::CPose2D prev(initial[i - 1].pose);
             travelled += std::hypot(pose.x() - prev.x(), pose.y() - prev.y());
         }
         if (keyframes.size() > first) {
@@ -272,13 +304,16 @@ void addKeyframes(std::size_t t, const GraphTraverse& tr, const PoseGraphOptions
             const bool far = travelled - last.travelled_m >= options.keyframe_spacing_m;
             const bool turned = std::abs(mrpt::math::wrapToPi(pose.phi() - last.initial.phi())) >=
                                 mrpt::DEG2RAD(options.keyframe_spacing_deg);
-            if (!far && !turned && i + 1 < scans.size()) continue;
+            const bool dropout =
+                scans[i].uncovered_s > 0 || (i > 0 && scans[i - 1].uncovered_s > 0);
+            if (!far && !turned && !dropout && i + 1 < scans.size()) continue;
         }
         Keyframe k;
         k.traverse = t;
         k.scan = i;
         k.initial = pose;
         k.odometry = scans[i].odometry;
+        k.uncovered_s = scans[i].uncovered_s;
         k.travelled_m = travelled;
         keyframes.push_back(std::move(k));
     }
@@ -290,13 +325,14 @@ KeyframeSet selectKeyframes(const std::vector<GraphTraverse>& traverses,
     KeyframeSet set;
     for (std::size_t t = 0; t < traverses.size(); ++t) {
         const auto& tr = traverses[t];
-        set.scans.push_back(scansOf(*tr.data));
+        set.scans.push_back(scansOf(*tr.data, options.odometry_gap_s));
         if (set.scans[t].size() != tr.initial.size()) {
             throw std::invalid_argument("optimisePoseGraph: " + tr.data->rawlog + ": " +
                                         std::to_string(set.scans[t].size()) + " scans but " +
                                         std::to_string(tr.initial.size()) + " poses");
         }
-        addKeyframes(t, tr, options, set);
+        set.initial.push_back(bridgedDropouts(tr.initial, set.scans[t]));
+        addKeyframes(t, options, set);
     }
     return set;
 }
@@ -450,13 +486,17 @@ void addOdometryEdges(const KeyframeSet& set, const PoseGraphOptions& options,
         for (std::size_t a = first; a + 1 < end; ++a) {
             const auto& ka = set.keyframes[a];
             const auto& kb = set.keyframes[a + 1];
-            const double d = std::max(0.05, kb.travelled_m - ka.travelled_m);
-            const double s_xy = options.odometry_std_per_m * d;
-            const double s_yaw = mrpt::DEG2RAD(options.odometry_std_yaw_deg_per_m) * d;
+            const mrpt::poses::CPose2D motion = kb.odometry - ka.odometry;
+            // Through a dropout the first estimate may stand still: the odometry's travel counts.
+            const double d = std::max({0.05, kb.travelled_m - ka.travelled_m, motion.norm()});
+            const double u2 = ka.uncovered_s * ka.uncovered_s + kb.uncovered_s * kb.uncovered_s;
+            const double s_xy =
+                options.odometry_std_per_m * d + 0.5 * options.odometry_gap_accel_mps2 * u2;
+            const double s_yaw = mrpt::DEG2RAD(options.odometry_std_yaw_deg_per_m * d +
+                                               0.5 * options.odometry_gap_yaw_accel_deg_s2 * u2);
             problem.AddResidualBlock(
                 relativePoseCost(
-                    kb.odometry - ka.odometry,
-                    Eigen::Vector3d(s_xy * s_xy, s_xy * s_xy, s_yaw * s_yaw).asDiagonal()),
+                    motion, Eigen::Vector3d(s_xy * s_xy, s_xy * s_xy, s_yaw * s_yaw).asDiagonal()),
                 nullptr, &state[3 * a], &state[3 * (a + 1)]);
         }
     }
@@ -543,23 +583,46 @@ std::vector<Eigen::Matrix3d> interpolateCovariances(
     return interpolated;
 }
 
-/// Every scan follows the keyframe at or before it: its first-estimate pose relative to that
-/// keyframe is kept, the keyframe's correction (and covariance, when computed) applied.
+/// The correction C of keyframe `k`: C + first estimate = optimised pose.
+mrpt::poses::CPose2D correctionOf(const KeyframeSet& set, const std::vector<double>& state,
+                                  std::size_t k) {
+    const mrpt::poses::CPose2D optimised(state[3 * k], state[3 * k + 1], state[3 * k + 2]);
+    return optimised + (-set.keyframes[k].initial);
+}
+
+/// `a` and `b` blended: w = 0 gives a, 1 gives b.
+mrpt::poses::CPose2D blend(const mrpt::poses::CPose2D& a, const mrpt::poses::CPose2D& b, double w) {
+    return {a.x() + w * (b.x() - a.x()), a.y() + w * (b.y() - a.y()),
+            a.phi() + w * mrpt::math::wrapToPi(b.phi() - a.phi())};
+}
+
+/// Every scan takes the corrections of the keyframes before and after it, blended by time, on
+/// its first-estimate pose (and the covariance of the keyframe before it, when computed). The
+/// blend matters where the first estimate stalled, as ICP-SLAM does through an odometry dropout
+/// along a featureless stretch: no keyframe is taken there (its travel stands still), and the
+/// scans in between would stand still with the keyframe before and jump at the next.
 std::vector<common::PoseTrack> followKeyframes(
     const std::vector<GraphTraverse>& traverses, const KeyframeSet& set,
     const std::vector<double>& state, const std::vector<Eigen::Matrix3d>& keyframe_cov,
     std::vector<std::vector<mrpt::math::CMatrixDouble33>>* covariances) {
     std::vector<common::PoseTrack> out;
     for (std::size_t t = 0; t < traverses.size(); ++t) {
-        common::PoseTrack track = traverses[t].initial;
+        const common::PoseTrack& initial = set.initial[t];
+        common::PoseTrack track = initial;
         std::vector<mrpt::math::CMatrixDouble33> covs;
-        std::size_t k = set.ranges[t].first;
+        const auto [first, end] = set.ranges[t];
+        std::size_t k = first;
         for (std::size_t i = 0; i < track.size(); ++i) {
-            while (k + 1 < set.ranges[t].second && set.keyframes[k + 1].scan <= i) ++k;
-            const mrpt::poses::CPose2D optimised(state[3 * k], state[3 * k + 1], state[3 * k + 2]);
-            const mrpt::poses::CPose2D relative =
-                mrpt::poses::CPose2D(traverses[t].initial[i].pose) - set.keyframes[k].initial;
-            track[i].pose = mrpt::poses::CPose3D(optimised + relative);
+            while (k + 1 < end && set.keyframes[k + 1].scan <= i) ++k;
+            mrpt::poses::CPose2D correction = correctionOf(set, state, k);
+            if (k + 1 < end && set.keyframes[k].scan < i) {
+                const double t0 = initial[set.keyframes[k].scan].time_s;
+                const double t1 = initial[set.keyframes[k + 1].scan].time_s;
+                const double w = t1 > t0 ? (initial[i].time_s - t0) / (t1 - t0) : 0.0;
+                correction = blend(correction, correctionOf(set, state, k + 1), w);
+            }
+            track[i].pose =
+                mrpt::poses::CPose3D(correction + mrpt::poses::CPose2D(initial[i].pose));
             if (!keyframe_cov.empty()) covs.emplace_back(keyframe_cov[k]);
         }
         out.push_back(std::move(track));
@@ -637,7 +700,7 @@ mrpt::maps::COccupancyGridMap2D gridFromTracks(const std::vector<GraphTraverse>&
     grid.setSize(float(min_x - margin), float(max_x + margin), float(min_y - margin),
                  float(max_y + margin), float(resolution));
     for (std::size_t t = 0; t < traverses.size(); ++t) {
-        const auto scans = scansOf(*traverses[t].data);
+        const auto scans = scansOf(*traverses[t].data, 0.0);
         if (scans.size() != tracks[t].size()) {
             throw std::invalid_argument("gridFromTracks: " + traverses[t].data->rawlog +
                                         ": scan and pose counts differ");

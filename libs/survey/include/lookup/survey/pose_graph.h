@@ -52,6 +52,13 @@ struct PoseGraphOptions : public common::TableOptions<PoseGraphOptions> {
     double registration_min_std_yaw_deg = 0.01;  ///< ... in heading [deg]
     double odometry_std_per_m = 0.1;             ///< odometry link error per metre [m/m]
     double odometry_std_yaw_deg_per_m = 1.0;     ///< ... heading [deg/m]
+    /// Odometry readings further apart than this bracket a dropout [s]: a scan inside one gets
+    /// the motion interpolated between them, and its links the uncertainty of a vehicle that
+    /// may have accelerated meanwhile (half these accelerations times the time to the nearer
+    /// reading squared) [m/s^2] / [deg/s^2].
+    double odometry_gap_s = 0.2;
+    double odometry_gap_accel_mps2 = 2.5;
+    double odometry_gap_yaw_accel_deg_s2 = 30.0;
     double huber_sigmas = 3.0;  ///< registration residuals beyond this many sigmas count linearly
     int max_iterations = 100;   ///< Ceres iterations
     int threads = 0;            ///< registration threads (0: all cores)
