@@ -129,6 +129,54 @@ TEST(ReferenceCamera, EachReferenceKeepsItsOwnIntrinsicsAndDistortion) {
     EXPECT_DOUBLE_EQ(db.info().ceiling_camera.fx(), 20.0);
 }
 
+TEST(ReferenceCamera, AFinerCameraIsStoredAveragedDownWithItsIntrinsics) {
+    const auto dir = lookup::test::freshDir("lookup_refcam_capped");
+    // A 16x12 camera stored at most 8 px wide: half the size, focal length and principal point
+    // (pixel centres: (7.5 + 0.5) / 2 - 0.5 = 3.5), the distortion as it was; the pixels are
+    // the 2x2 means.
+    mrpt::img::TCamera cam = camera(20.0, true);
+    ReferenceInput in = input(0, cam);
+    for (int y = 0; y < 12; ++y)
+        for (int x = 0; x < 16; ++x) in.ceiling->image.setPixel(x, y, (x % 2) * 200);
+    {
+        DatabaseWriter w((dir / "db").string(), 8);
+        w.add(in);
+        DatabaseInfo info;
+        info.name = "capped";
+        info.ceiling_camera = cam;
+        info.ceiling_height_m = 4.5;
+        w.commit(info);
+    }
+    const auto db = ReferenceDatabase::load((dir / "db").string());
+    ASSERT_EQ(db.size(), 1u);
+    for (const auto& c : {db.reference(0).ceiling_camera, db.info().ceiling_camera}) {
+        EXPECT_EQ(c.ncols, 8u);
+        EXPECT_EQ(c.nrows, 6u);
+        EXPECT_NEAR(c.fx(), 10.0, 1e-4);
+        EXPECT_NEAR(c.fy(), 10.0, 1e-4);
+        EXPECT_NEAR(c.cx(), 3.5, 1e-4);
+        EXPECT_NEAR(c.cy(), 2.5, 1e-4);
+        EXPECT_DOUBLE_EQ(c.k1(), -0.3);
+    }
+    const cv::Mat stored = db.ceilingImage(0);
+    ASSERT_EQ(stored.cols, 8);
+    ASSERT_EQ(stored.rows, 6);
+    for (int y = 0; y < 6; ++y)
+        for (int x = 0; x < 8; ++x) EXPECT_EQ(int(stored.at<uint8_t>(y, x)), 100) << x << "," << y;
+    // Without a limit the image is stored as recorded.
+    {
+        DatabaseWriter w((dir / "as-recorded").string());
+        w.add(in);
+        DatabaseInfo info;
+        info.ceiling_camera = cam;
+        info.ceiling_height_m = 4.5;
+        w.commit(info);
+    }
+    const auto full = ReferenceDatabase::load((dir / "as-recorded").string());
+    EXPECT_EQ(full.ceilingImage(0).cols, 16);
+    EXPECT_DOUBLE_EQ(full.info().ceiling_camera.fx(), 20.0);
+}
+
 TEST(ReferenceCamera, VersionZeroRecordsTakeTheDatabaseCamera) {
     const auto dir = lookup::test::freshDir("lookup_refcam_v0");
     writeTwoCameras(dir / "db");

@@ -9,6 +9,7 @@
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "lookup/common/camera_params.h"
 #include "lookup/refine/geometry.h"
 
 using namespace lookup::refine;
@@ -42,7 +43,7 @@ cv::Mat seenThrough(const mrpt::img::TCamera& camera, const cv::Mat& ideal, doub
     for (int v = 0; v < int(camera.nrows); ++v)
         for (int u = 0; u < int(camera.ncols); ++u) px.emplace_back(float(u), float(v));
     const cv::Matx33d K(camera.fx(), 0, camera.cx(), 0, camera.fy(), camera.cy(), 0, 0, 1);
-    const mrpt::img::TCamera t = pinhole(f);
+    const mrpt::img::TCamera t = pinhole(f, ideal.cols, ideal.rows);
     const cv::Matx33d P(t.fx(), 0, t.cx(), 0, t.fy(), t.cy(), 0, 0, 1);
     std::vector<cv::Point2f> in_ideal;
     if (camera.distortion == mrpt::img::DistortionModel::kannala_brandt) {
@@ -110,6 +111,37 @@ TEST(Rectifier, AnotherFocalLengthIsScaledIntoTheTargetWithABlackBorder) {
     EXPECT_EQ(r.cachedCameras(), 1u);
     r.rectify(raw, longer);
     EXPECT_EQ(r.cachedCameras(), 1u);  // maps built once per camera
+}
+
+TEST(Rectifier, AFinerCameraIsAveragedDownIntoTheTarget) {
+    // The same scene through a 1280x960 camera of four times the focal length, a pinhole and a
+    // barrel lens, rectified into the 320x240 target.
+    cv::Mat fine_ideal;
+    cv::resize(idealTexture(), fine_ideal, cv::Size(1280, 960), 0, 0, cv::INTER_CUBIC);
+    const auto target = pinhole(146.6);
+    const auto fine = pinhole(4 * 146.6, 1280, 960);
+    const auto as_stored = lookup::common::resizedCamera(fine, 320, 240);
+    EXPECT_NEAR(as_stored.cx(), target.cx(), 1e-9);  // pixel centres, as cv::resize maps them
+    const Rectifier r(target);
+    cv::Mat averaged;
+    cv::resize(fine_ideal, averaged, cv::Size(320, 240), 0, 0, cv::INTER_AREA);
+    const cv::Mat from_pinhole = r.rectify(fine_ideal, fine);
+    EXPECT_EQ(cv::norm(from_pinhole, averaged, cv::NORM_INF), 0.0);  // no second resampling
+    EXPECT_LT(centralDifference(from_pinhole, idealTexture(), 0.8), 2.0);
+    auto barrel = fine;
+    barrel.setDistortionPlumbBob(-0.40, 0.12, 0.0005, -0.0005);
+    const cv::Mat rectified = r.rectify(seenThrough(barrel, fine_ideal, 4 * 146.6), barrel);
+    ASSERT_EQ(rectified.size(), cv::Size(320, 240));
+    EXPECT_LT(centralDifference(rectified, idealTexture(), 0.7), 4.0);
+    // Texture finer than the target's pixels is averaged, not aliased: pixel noise of the
+    // fine camera keeps a quarter of its spread (4x4 pixels averaged), where sampling every
+    // fourth pixel would keep it all.
+    cv::Mat noise(960, 1280, CV_8UC1);
+    cv::RNG rng(7);
+    rng.fill(noise, cv::RNG::UNIFORM, 0, 256);
+    cv::Scalar mean, stddev;
+    cv::meanStdDev(r.rectify(noise, barrel)(cv::Rect(80, 60, 160, 120)), mean, stddev);
+    EXPECT_LT(stddev[0], 30.0);
 }
 
 TEST(Rectifier, ObservationAndReferenceCarryTheTargetCamera) {

@@ -4,6 +4,7 @@
 #include <mrpt/config/CConfigFileMemory.h>
 #include <mrpt/obs/CObservationOdometry.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "lidar_drives.h"
@@ -93,6 +94,42 @@ TEST(PoseGraph, TwoTraversesAreTiedTogether) {
     EXPECT_LT(errors(out[0], a.truth).first, 0.03);
     EXPECT_LT(errors(out[1], b.truth).first, 0.05);
     EXPECT_GT(errors(shifted, b.truth).first, 0.2);
+}
+
+TEST(PoseGraph, ThroughAnOdometryDropoutTheScansFollowTheOdometry) {
+    const lookup::sim::TunnelWorld world(bentTunnel(), 5);
+    Drive d = drive(world, 0.0, 1000, 1);
+    // 1.2 s without odometry readings in the middle of the drive (6 m at 5 m/s); the first
+    // estimate stands still there, as ICP-SLAM does without odometry along a featureless drive.
+    const double t_from = d.truth[d.truth.size() / 2].time_s;
+    const double t_to = t_from + 1.2;
+    auto& seq = d.data.laser_sequence;
+    seq.erase(std::remove_if(seq.begin(), seq.end(),
+                             [&](const mrpt::obs::CObservation::Ptr& o) {
+                                 const double t = mrpt::Clock::toDouble(o->timestamp);
+                                 return IS_CLASS(*o, mrpt::obs::CObservationOdometry) &&
+                                        t > t_from + 1e-6 && t < t_to - 1e-6;
+                             }),
+              seq.end());
+    lookup::common::PoseTrack first = d.truth;
+    std::vector<std::size_t> inside;
+    for (std::size_t i = 1; i < first.size(); ++i) {
+        if (first[i].time_s > t_from + 1e-6 && first[i].time_s < t_to - 1e-6) {
+            first[i].pose = first[i - 1].pose;
+            inside.push_back(i);
+        }
+    }
+    ASSERT_GE(inside.size(), 10u);
+    PoseGraphReport report;
+    const auto out = optimisePoseGraph({{&d.data, first}}, PoseGraphOptions(), &report);
+    ASSERT_EQ(out.size(), 1u);
+    // Without the odometry's interpolated motion the scans stood with the last one before the
+    // dropout (up to 6 m behind) and the graph's odometry links held them there.
+    for (std::size_t i : inside) {
+        EXPECT_NEAR(out[0][i].pose.x(), d.truth[i].pose.x(), 0.15) << i;
+        EXPECT_NEAR(out[0][i].pose.y(), d.truth[i].pose.y(), 0.15) << i;
+    }
+    EXPECT_LT(errors(out[0], d.truth).first, 0.05);
 }
 
 TEST(PoseGraph, SameResultWhateverTheThreadCount) {
