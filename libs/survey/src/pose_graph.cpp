@@ -583,46 +583,43 @@ std::vector<Eigen::Matrix3d> interpolateCovariances(
     return interpolated;
 }
 
-/// The correction C of keyframe `k`: C + first estimate = optimised pose.
-mrpt::poses::CPose2D correctionOf(const KeyframeSet& set, const std::vector<double>& state,
-                                  std::size_t k) {
-    const mrpt::poses::CPose2D optimised(state[3 * k], state[3 * k + 1], state[3 * k + 2]);
-    return optimised + (-set.keyframes[k].initial);
-}
-
 /// `a` and `b` blended: w = 0 gives a, 1 gives b.
 mrpt::poses::CPose2D blend(const mrpt::poses::CPose2D& a, const mrpt::poses::CPose2D& b, double w) {
     return {a.x() + w * (b.x() - a.x()), a.y() + w * (b.y() - a.y()),
             a.phi() + w * mrpt::math::wrapToPi(b.phi() - a.phi())};
 }
 
-/// Every scan takes the corrections of the keyframes before and after it, blended by time, on
-/// its first-estimate pose (and the covariance of the keyframe before it, when computed). The
-/// blend matters where the first estimate stalled, as ICP-SLAM does through an odometry dropout
-/// along a featureless stretch: no keyframe is taken there (its travel stands still), and the
-/// scans in between would stand still with the keyframe before and jump at the next.
+/// Every scan between two keyframes is placed by the odometry's motion from each of them,
+/// blended by time: run forward from the one before and back from the one after, the two meet
+/// both optimised poses (an odometry scale error cancels). ICP-SLAM's own poses between
+/// keyframes are no guide: it lags behind a vehicle starting from rest and stands still through
+/// an odometry dropout. After a traverse's last keyframe, the odometry from it. Covariances:
+/// the keyframe before's (when computed).
 std::vector<common::PoseTrack> followKeyframes(
     const std::vector<GraphTraverse>& traverses, const KeyframeSet& set,
     const std::vector<double>& state, const std::vector<Eigen::Matrix3d>& keyframe_cov,
     std::vector<std::vector<mrpt::math::CMatrixDouble33>>* covariances) {
+    const auto optimised = [&](std::size_t k) {
+        return mrpt::poses::CPose2D(state[3 * k], state[3 * k + 1], state[3 * k + 2]);
+    };
     std::vector<common::PoseTrack> out;
     for (std::size_t t = 0; t < traverses.size(); ++t) {
-        const common::PoseTrack& initial = set.initial[t];
-        common::PoseTrack track = initial;
+        const auto& scans = set.scans[t];
+        common::PoseTrack track = traverses[t].initial;
         std::vector<mrpt::math::CMatrixDouble33> covs;
         const auto [first, end] = set.ranges[t];
         std::size_t k = first;
         for (std::size_t i = 0; i < track.size(); ++i) {
             while (k + 1 < end && set.keyframes[k + 1].scan <= i) ++k;
-            mrpt::poses::CPose2D correction = correctionOf(set, state, k);
-            if (k + 1 < end && set.keyframes[k].scan < i) {
-                const double t0 = initial[set.keyframes[k].scan].time_s;
-                const double t1 = initial[set.keyframes[k + 1].scan].time_s;
-                const double w = t1 > t0 ? (initial[i].time_s - t0) / (t1 - t0) : 0.0;
-                correction = blend(correction, correctionOf(set, state, k + 1), w);
+            const Keyframe& a = set.keyframes[k];
+            mrpt::poses::CPose2D pose = optimised(k) + (scans[i].odometry - a.odometry);
+            if (k + 1 < end && a.scan < i) {
+                const Keyframe& b = set.keyframes[k + 1];
+                const double t0 = track[a.scan].time_s, t1 = track[b.scan].time_s;
+                const double w = t1 > t0 ? (track[i].time_s - t0) / (t1 - t0) : 0.0;
+                pose = blend(pose, optimised(k + 1) + (scans[i].odometry - b.odometry), w);
             }
-            track[i].pose =
-                mrpt::poses::CPose3D(correction + mrpt::poses::CPose2D(initial[i].pose));
+            track[i].pose = mrpt::poses::CPose3D(pose);
             if (!keyframe_cov.empty()) covs.emplace_back(keyframe_cov[k]);
         }
         out.push_back(std::move(track));
