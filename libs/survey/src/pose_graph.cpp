@@ -454,9 +454,15 @@ void addRegistrationEdges(const std::vector<Keyframe>& keyframes, const std::vec
         const auto& ka = keyframes[pairs[p].a];
         const auto& kb = keyframes[pairs[p].b];
         const mrpt::poses::CPose2D correction = r.pose - (kb.initial - ka.initial);
+        // A first estimate dead-reckoned through an odometry dropout may be off by what the
+        // vehicle's accelerations allow (3 sigmas of it) on top of the usual correction.
+        const double u2 = ka.uncovered_s * ka.uncovered_s + kb.uncovered_s * kb.uncovered_s;
+        const double max_m = options.max_correction_m + 1.5 * options.odometry_gap_accel_mps2 * u2;
+        const double max_deg =
+            options.max_correction_deg + 1.5 * options.odometry_gap_yaw_accel_deg_s2 * u2;
         if (!r.ok || r.matched_share < options.min_matched_share ||
-            std::hypot(correction.x(), correction.y()) > options.max_correction_m ||
-            std::abs(correction.phi()) > mrpt::DEG2RAD(options.max_correction_deg)) {
+            std::hypot(correction.x(), correction.y()) > max_m ||
+            std::abs(correction.phi()) > mrpt::DEG2RAD(max_deg)) {
             ++rep.rejected_registrations;
             continue;
         }
@@ -522,13 +528,16 @@ void solveGraph(ceres::Problem& problem, const std::vector<GraphTraverse>& trave
     rep.final_cost = summary.final_cost;
 }
 
-/// Every covariance_stride-th keyframe of each traverse and its last (never keyframe 0, the
-/// fixed frame).
+/// Every covariance_stride-th keyframe of each traverse, every one inside an odometry dropout,
+/// and its last (never keyframe 0, the fixed frame).
 std::vector<std::size_t> covarianceKeyframes(const KeyframeSet& set, int stride) {
     std::vector<std::size_t> sampled;
     for (const auto& [first, end] : set.ranges) {
-        for (std::size_t k = first; k < end; k += std::size_t(stride)) {
-            if (k != 0) sampled.push_back(k);
+        for (std::size_t k = first; k < end; ++k) {
+            // Inside a dropout the uncertainty differs from the neighbours': interpolating
+            // past it would hide it.
+            const bool due = (k - first) % std::size_t(stride) == 0;
+            if (k != 0 && (due || set.keyframes[k].uncovered_s > 0)) sampled.push_back(k);
         }
         if (end > first && (sampled.empty() || sampled.back() != end - 1)) {
             sampled.push_back(end - 1);

@@ -5,7 +5,9 @@
 // pixel. Cameras are MRPT TCamera calibrations: DistortionModel::none, plumb_bob (OpenCV's
 // radial-tangential model, dist = k1 k2 p1 p2 k3 [k4 k5 k6]) or kannala_brandt (OpenCV's fisheye
 // model, TCamera::k1() .. k4()). The maps (cv::initUndistortRectifyMap and its fisheye twin) are
-// built once per source camera and cached; rectifying is then one cv::remap per image.
+// built once per source camera and cached; rectifying is then one cv::remap per image. A source
+// much finer than the target (a camera of more pixels than the database stores) is first
+// averaged down to about the target's scale (cv::INTER_AREA), so its fine texture is not aliased.
 //
 // Pixels of the ideal camera that the source does not see (a query camera with a longer focal
 // length, a pincushion lens) are 0.
