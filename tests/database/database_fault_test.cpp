@@ -29,13 +29,7 @@ namespace {
 // A database of `n` references of 64x48 px of noise (so PNG and gzip cannot shrink them).
 void writeDatabase(const fs::path& out, int n) {
     DatabaseWriter w(out.string());
-    mrpt::img::TCamera cam;
-    cam.ncols = 64;
-    cam.nrows = 48;
-    cam.fx(50);
-    cam.fy(50);
-    cam.cx(32);
-    cam.cy(24);
+    const mrpt::img::TCamera cam = lookup::test::pinholeCamera(64, 48, 50);
     for (int i = 0; i < n; ++i) {
         ReferenceInput in;
         in.traverse = "a";

@@ -63,13 +63,7 @@ struct GeneratedTraverse {
 // 12 m along x at 0.1 m per frame with a gentle heading wobble, ceiling at `h`.
 GeneratedTraverse generateTraverse(double h) {
     GeneratedTraverse g;
-    mrpt::img::TCamera cam;
-    cam.ncols = 320;
-    cam.nrows = 240;
-    cam.fx(160);
-    cam.fy(160);
-    cam.cx(160);
-    cam.cy(120);
+    const mrpt::img::TCamera cam = lookup::test::pinholeCamera(320, 240, 160);
     const mrpt::poses::CPose3D mount(0.5, 0, 2.0, M_PI / 2, 0, 0);
     for (int k = 0; k <= 120; ++k) {
         const double x = 0.1 * k;

@@ -83,16 +83,7 @@ inline cv::Mat ceilingTexture(const mrpt::poses::CPose3D& camera_in_map, int w, 
 }
 
 /// The fixture's ceiling camera: 80x60 px, f = 40 px.
-inline mrpt::img::TCamera fixtureCeilingCamera() {
-    mrpt::img::TCamera cam;
-    cam.ncols = 80;
-    cam.nrows = 60;
-    cam.fx(40);
-    cam.fy(40);
-    cam.cx(40);
-    cam.cy(30);
-    return cam;
-}
+inline mrpt::img::TCamera fixtureCeilingCamera() { return pinholeCamera(80, 60, 40); }
 
 struct Fixture {
     std::string rawlog;

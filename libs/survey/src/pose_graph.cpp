@@ -209,6 +209,17 @@ Registration registerPointToLine(const ScanPoints& a, const ScanPoints& b,
     return out;
 }
 
+/// The traverse's range scans in order.
+std::vector<const mrpt::obs::CObservation2DRangeScan*> rangeScans(const TraverseData& traverse) {
+    std::vector<const mrpt::obs::CObservation2DRangeScan*> out;
+    for (const auto& o : traverse.laser_sequence) {
+        if (auto scan = std::dynamic_pointer_cast<mrpt::obs::CObservation2DRangeScan>(o)) {
+            out.push_back(scan.get());
+        }
+    }
+    return out;
+}
+
 /// The traverse's scans in order, each with the odometry at its time (interpolated between the
 /// readings around it) and how long it lies from the nearer reading inside a dropout.
 struct ScanWithOdometry {
@@ -225,10 +236,8 @@ std::vector<ScanWithOdometry> scansOf(const TraverseData& traverse, double gap_s
         }
     }
     std::vector<ScanWithOdometry> out;
-    for (const auto& o : traverse.laser_sequence) {
-        auto scan = std::dynamic_pointer_cast<mrpt::obs::CObservation2DRangeScan>(o);
-        if (!scan) continue;
-        ScanWithOdometry s{scan.get(), {}, 0.0};
+    for (const auto* scan : rangeScans(traverse)) {
+        ScanWithOdometry s{scan, {}, 0.0};
         constexpr double kAnyTime = 1e9;
         if (const auto p = odometry.at(mrpt::Clock::toDouble(scan->timestamp), kAnyTime)) {
             s.odometry = p->pose;
@@ -706,14 +715,14 @@ mrpt::maps::COccupancyGridMap2D gridFromTracks(const std::vector<GraphTraverse>&
     grid.setSize(float(min_x - margin), float(max_x + margin), float(min_y - margin),
                  float(max_y + margin), float(resolution));
     for (std::size_t t = 0; t < traverses.size(); ++t) {
-        const auto scans = scansOf(*traverses[t].data, 0.0);
+        const auto scans = rangeScans(*traverses[t].data);
         if (scans.size() != tracks[t].size()) {
             throw std::invalid_argument("gridFromTracks: " + traverses[t].data->rawlog +
                                         ": scan and pose counts differ");
         }
         for (std::size_t i = 0; i < scans.size(); ++i) {
             const mrpt::poses::CPose3D pose(mrpt::poses::CPose2D(tracks[t][i].pose));
-            grid.insertObservation(*scans[i].scan, pose);
+            grid.insertObservation(*scans[i], pose);
         }
     }
     return grid;

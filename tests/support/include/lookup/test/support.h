@@ -2,6 +2,8 @@
 // What the tests of every stage share (target lookup_test_support): temporary folders, whole
 // files as text, running a built program, and an App run as its program would run it.
 
+#include <mrpt/img/TCamera.h>
+
 #include <filesystem>
 #include <functional>
 #include <string>
@@ -17,6 +19,18 @@ std::filesystem::path freshDir(const std::string& name);
 
 /// The whole file (bytes as they are); "" when it cannot be read.
 std::string readText(const std::filesystem::path& path);
+
+/// An ideal pinhole camera of `width` x `height` px, focal length `f` px, centred.
+inline mrpt::img::TCamera pinholeCamera(unsigned width, unsigned height, double f) {
+    mrpt::img::TCamera cam;
+    cam.ncols = width;
+    cam.nrows = height;
+    cam.fx(f);
+    cam.fy(f);
+    cam.cx(width / 2.0);
+    cam.cy(height / 2.0);
+    return cam;
+}
 
 /// bin/<name> of the build tree the tests belong to.
 std::string programPath(const std::string& name);
