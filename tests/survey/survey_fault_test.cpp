@@ -250,3 +250,21 @@ TEST(SurveyFault, GarbageEmptyAndWrongSizeImagesRefused) {
         ASSERT_EQ(fw.depth(), CV_8U);
     }
 }
+
+TEST(SurveyFault, TwoTraversesOfOneNameAreRefusedNamingBothRawlogs) {
+    const auto dir = lookup::test::freshDir("lookup_survey_fault_names");
+    const auto f = lookup::test::makeSurveyRawlog(dir.string(), "corridor", 4.0);
+    const std::string copy = (dir / "copy.rawlog").string();
+    rewriteRawlog(f.rawlog, copy, [](std::size_t, mrpt::obs::CObservation&) {});
+    auto in = inputsFor(f.rawlog, f.ground_truth, dir / "db");
+    TraverseSpec again = in.traverses.front();
+    again.rawlog = copy;
+    in.traverses.push_back(again);
+    in.poses_file = kPosesFromGroundTruth;
+    const auto r = Survey(shareOptions(), shareIni()).run(in);
+    ASSERT_FALSE(r.ok());
+    EXPECT_NE(r.reason.find("'corridor'"), std::string::npos) << r.reason;
+    EXPECT_NE(r.reason.find("copy.rawlog"), std::string::npos) << r.reason;
+    EXPECT_NE(r.reason.find(f.rawlog), std::string::npos) << r.reason;
+    EXPECT_FALSE(fs::exists(dir / "db"));
+}

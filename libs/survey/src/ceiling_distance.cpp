@@ -6,44 +6,15 @@
 #include <cstdio>
 #include <optional>
 
+#include "ceiling_frames.h"
 #include "lookup/common/camera_params.h"
-#include "lookup/refine/rectifier.h"
 #include "lookup/refine/refiner.h"
 
 namespace lookup::survey {
 namespace {
 
-struct Frame {
-    double travel_m = 0;
-    mrpt::poses::CPose3D pose;
-    std::size_t index = 0;  ///< into CeilingTraverse::ceiling
-};
-
-std::vector<Frame> framesWithPose(const CeilingTraverse& t) {
-    std::vector<Frame> out;
-    for (std::size_t i = 0; i < t.ceiling->size(); ++i) {
-        mrpt::math::TPose3D p;
-        bool valid = false;
-        t.poses->interpolate((*t.ceiling)[i]->timestamp, p, valid);
-        if (!valid) continue;
-        Frame f{0, mrpt::poses::CPose3D(p), i};
-        if (!out.empty()) {
-            const auto& q = out.back().pose;
-            f.travel_m = out.back().travel_m + std::hypot(f.pose.x() - q.x(), f.pose.y() - q.y());
-        }
-        out.push_back(f);
-    }
-    return out;
-}
-
-std::size_t nearestTravel(const std::vector<Frame>& f, double target) {
-    const auto it = std::lower_bound(f.begin(), f.end(), target,
-                                     [](const Frame& a, double t) { return a.travel_m < t; });
-    if (it == f.end()) return f.size() - 1;
-    if (it == f.begin()) return 0;
-    const auto hi = static_cast<std::size_t>(it - f.begin());
-    return (target - f[hi - 1].travel_m <= f[hi].travel_m - target) ? hi - 1 : hi;
-}
+using Frame = detail::PosedCeilingFrame;
+using detail::nearestTravel;
 
 // h from frame j refined against the frames `baseline_m` behind and ahead (nullopt when the
 // neighbours are missing or the refiner refuses the triple).
@@ -99,7 +70,7 @@ std::vector<double> onePass(const std::vector<CeilingTraverse>& traverses, const
     std::vector<double> hs;
     out.tried = out.rejected = 0;
     for (const auto& t : traverses) {
-        const auto f = framesWithPose(t);
+        const auto f = detail::posedCeilingFrames(t);
         if (f.size() < 3) continue;
         for (double s = baseline_m; s <= f.back().travel_m - baseline_m;
              s += o.ceiling_sample_spacing_m) {
@@ -146,19 +117,8 @@ CeilingDistanceEstimate estimateCeilingDistance(const std::vector<CeilingTravers
             break;
         }
     }
-    // Every image is rectified into the first valid camera's pinhole twin at the width the
-    // references are stored at (its maps cached): measured as the localiser will match.
-    std::optional<refine::Rectifier> rectifier;
-    for (const auto& t : traverses) {
-        for (const auto& image : *t.ceiling) {
-            const auto& c = image->cameraParams;
-            if (!rectifier && c.ncols > 0 && c.nrows > 0 && common::cameraProblem(c).empty()) {
-                const auto size =
-                    common::cappedSize(int(c.ncols), int(c.nrows), o.ceiling_max_width_px);
-                rectifier.emplace(common::resizedCamera(c, size.x, size.y));
-            }
-        }
-    }
+    // Measured as the localiser will match: rectified, at the stored width.
+    const std::optional<refine::Rectifier> rectifier = detail::storedCameraRectifier(traverses, o);
     const auto finish = [&] {
         out.camera_to_ceiling_m = out.ceiling_height_m - out.camera_z_m;
         out.time_s =
@@ -210,5 +170,51 @@ nlohmann::ordered_json ceilingJson(const CeilingDistanceEstimate& e, const std::
             {"estimated", e.estimated},
             {"time_s", e.time_s}};
 }
+
+namespace detail {
+
+std::vector<PosedCeilingFrame> posedCeilingFrames(const CeilingTraverse& t) {
+    std::vector<PosedCeilingFrame> out;
+    for (std::size_t i = 0; i < t.ceiling->size(); ++i) {
+        mrpt::math::TPose3D p;
+        bool valid = false;
+        t.poses->interpolate((*t.ceiling)[i]->timestamp, p, valid);
+        if (!valid) continue;
+        PosedCeilingFrame f{0, mrpt::poses::CPose3D(p), i};
+        if (!out.empty()) {
+            const auto& q = out.back().pose;
+            f.travel_m = out.back().travel_m + std::hypot(f.pose.x() - q.x(), f.pose.y() - q.y());
+        }
+        out.push_back(f);
+    }
+    return out;
+}
+
+std::size_t nearestTravel(const std::vector<PosedCeilingFrame>& f, double target_m) {
+    const auto it =
+        std::lower_bound(f.begin(), f.end(), target_m,
+                         [](const PosedCeilingFrame& a, double t) { return a.travel_m < t; });
+    if (it == f.end()) return f.size() - 1;
+    if (it == f.begin()) return 0;
+    const auto hi = static_cast<std::size_t>(it - f.begin());
+    return (target_m - f[hi - 1].travel_m <= f[hi].travel_m - target_m) ? hi - 1 : hi;
+}
+
+std::optional<refine::Rectifier> storedCameraRectifier(
+    const std::vector<CeilingTraverse>& traverses, const SurveyOptions& o) {
+    for (const auto& t : traverses) {
+        for (const auto& image : *t.ceiling) {
+            const auto& c = image->cameraParams;
+            if (c.ncols > 0 && c.nrows > 0 && common::cameraProblem(c).empty()) {
+                const auto size =
+                    common::cappedSize(int(c.ncols), int(c.nrows), o.ceiling_max_width_px);
+                return refine::Rectifier(common::resizedCamera(c, size.x, size.y));
+            }
+        }
+    }
+    return std::nullopt;
+}
+
+}  // namespace detail
 
 }  // namespace lookup::survey

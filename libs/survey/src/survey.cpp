@@ -219,6 +219,7 @@ nlohmann::ordered_json traverseJson(const TraverseReport& t) {
                       {"rejected_exposure", t.rejected_exposure},
                       {"rejected_image", t.rejected_image},
                       {"rejected_forward", t.rejected_forward},
+                      {"rejected_audit", t.rejected_audit},
                       {"without_forward", t.without_forward},
                       {"scans_deskewed", t.scans_deskewed}};
     j["skipped"] = {{"lidar_ranges", t.skipped.lidar_ranges},
@@ -744,13 +745,29 @@ std::vector<SegmentError> errorSegments(const ReferenceErrors& e) {
     return out;
 }
 
+/// Removes the candidates in a stretch whose laser poses the images contradict; their count.
+std::size_t dropContradicted(PosedFrames& frames, const PoseAudit& audit,
+                             const std::string& traverse) {
+    PosedFrames kept = frames;
+    kept.candidates.clear();
+    kept.frame_of.clear();
+    for (std::size_t c = 0; c < frames.candidates.size(); ++c) {
+        if (audit.excludes(traverse, frames.candidates[c].time_s)) continue;
+        kept.candidates.push_back(frames.candidates[c]);
+        kept.frame_of.push_back(frames.frame_of[c]);
+    }
+    const std::size_t dropped = frames.candidates.size() - kept.candidates.size();
+    frames = std::move(kept);
+    return dropped;
+}
+
 /// One reference traverse into the database: a pose per ceiling frame, keyframes, forward
 /// images, the records; its report.
 TraverseReport addTraverse(const TraverseSpec& spec, const TraverseData& d, const LaserTrack& track,
                            const std::optional<mrpt::poses::CPose3DInterpolator>& gt,
                            const TraverseStart& start, double localisation_time_s,
-                           double image_time_sigma_s, const SurveyOptions& o,
-                           const std::string& track_name, Cameras& cameras,
+                           double image_time_sigma_s, const PoseAudit& audit,
+                           const SurveyOptions& o, const std::string& track_name, Cameras& cameras,
                            database::DatabaseWriter& writer) {
     TraverseReport rep;
     rep.name = spec.name;
@@ -764,9 +781,10 @@ TraverseReport addTraverse(const TraverseSpec& spec, const TraverseData& d, cons
         throw common::RawlogError(d.rawlog, "no vehicle poses (no lidar scans localised)");
     }
     const TrackLookup poses(track, o.max_pose_gap_s, image_time_sigma_s);
-    const PosedFrames frames = posedFrames(d, poses);
+    PosedFrames frames = posedFrames(d, poses);
     rep.frames_without_pose = frames.without_pose;
     checkPoseCoverage(d, frames, poses, o, track_name);
+    rep.rejected_audit = dropContradicted(frames, audit, spec.name);
     const KeyframeSelection selection = selectReferences(d, frames, o, cameras, rep);
     rep.rejected_image = selection.rejected_unusable;
     rep.skipped = d.skipped;
@@ -802,6 +820,18 @@ database::DatabaseInfo databaseInfo(const SurveyInputs& in, const SurveyOptions&
     return info;
 }
 
+/// References are told apart by their traverse's name (the database, the pose audit).
+void checkUniqueNames(const SurveyInputs& in) {
+    for (std::size_t i = 0; i < in.traverses.size(); ++i) {
+        for (std::size_t k = 0; k < i; ++k) {
+            if (in.traverses[i].name != in.traverses[k].name) continue;
+            throw common::ConfigError("two traverses are named '" + in.traverses[i].name + "' (" +
+                                      in.traverses[k].rawlog + ", " + in.traverses[i].rawlog +
+                                      "): names must differ");
+        }
+    }
+}
+
 std::vector<bool> referenceFlags(const SurveyInputs& in) {
     std::vector<bool> reference;
     for (const auto& t : in.traverses) reference.push_back(t.reference);
@@ -830,6 +860,10 @@ std::string SurveyResult::summaryLine() const {
         o << "; " << c.label << " time offset " << 1e3 * c.offset_s << " +- "
           << 1e3 * c.applied_sigma_s << " ms (" << c.source << "); lidar sweep "
           << lidar_sweep.sweep_ms << " ms (" << lidar_sweep.source << ")";
+    }
+    if (pose_audit.ran) {
+        o << "; pose audit: " << pose_audit.suspect << " suspect of " << pose_audit.sampled
+          << " frames";
     }
     for (const auto& t : traverses) {
         if (!t.has_ground_truth) continue;
@@ -860,6 +894,7 @@ std::string SurveyResult::toJson() const {
         for (const auto& t : time_offsets) j["time_offsets"].push_back(timeOffsetJson(t));
         j["lidar_sweep"] = lidarSweepJson(lidar_sweep);
     }
+    if (pose_audit.ran) j["pose_audit"] = poseAuditJson(pose_audit);
     j["traverses"] = ordered_json::array();
     for (const auto& t : traverses) j["traverses"].push_back(traverseJson(t));
     // Paths and reasons are bytes from the file system: invalid UTF-8 is replaced, not fatal.
@@ -960,12 +995,36 @@ void Survey::timeOffsets(std::vector<TraverseData>& data, const std::vector<Lase
     result.time_offsets = {ceiling, forward};
 }
 
+void Survey::auditPoses(const SurveyInputs& in, const std::vector<TraverseData>& data,
+                        const std::vector<LaserTrack>& tracks, double ceiling_height_m,
+                        SurveyResult& result) const {
+    std::vector<mrpt::poses::CPose3DInterpolator> interps;
+    interps.reserve(data.size());
+    std::vector<CeilingTraverse> traverses;
+    for (std::size_t i = 0; i < data.size(); ++i) {
+        interps.push_back(common::makeInterpolator(tracks[i].poses, options_.max_pose_gap_s));
+        if (!in.traverses[i].reference || tracks[i].poses.empty()) continue;
+        traverses.push_back({in.traverses[i].name, &data[i].ceiling, &interps.back()});
+    }
+    result.pose_audit = auditLaserPoses(traverses, ceiling_height_m, options_);
+    for (const auto& s : result.pose_audit.stretches) {
+        char buf[400];
+        std::snprintf(buf, sizeof(buf),
+                      "%s: the ceiling images put the frame at t=%.3f s %.2f m from its pose "
+                      "(against traverse %s, agreeing with none): no references kept between "
+                      "the audited frames around it",
+                      s.traverse.c_str(), s.sample_s, s.disagreement_m, s.against.c_str());
+        result.warnings.push_back(buf);
+    }
+}
+
 SurveyResult Survey::run(const SurveyInputs& in) const {
     SurveyResult result;
     mrpt::system::CTicTac total;
     result.out_dir = fs::absolute(in.out_dir).lexically_normal().string();
     try {
         if (in.traverses.empty()) throw std::runtime_error("no input traverses");
+        checkUniqueNames(in);
         if (in.out_dir.empty()) throw common::ConfigError("no output folder given");
         // Leftovers of an interrupted run: the old database put back, stale folders removed.
         for (auto& line : database::recoverInterrupted(in.out_dir)) {
@@ -988,6 +1047,7 @@ SurveyResult Survey::run(const SurveyInputs& in) const {
         database::DatabaseInfo info = databaseInfo(in, options_);
         info.ceiling_height_m = ceilingHeight(in, survey.data, poses.tracks, result);
         timeOffsets(survey.data, poses.tracks, referenceFlags(in), info.ceiling_height_m, result);
+        auditPoses(in, survey.data, poses.tracks, info.ceiling_height_m, result);
         info.pose_source = result.pose_source;
         const std::string track_name = laser ? std::string("the laser track") : in.poses_file;
         Cameras cameras;
@@ -995,8 +1055,8 @@ SurveyResult Survey::run(const SurveyInputs& in) const {
             if (!in.traverses[i].reference) continue;
             TraverseReport rep = addTraverse(
                 in.traverses[i], survey.data[i], poses.tracks[i], survey.gt[i], poses.starts[i],
-                poses.localisation_time_s[i], result.time_offsets.front().applied_sigma_s, options_,
-                track_name, cameras, writer);
+                poses.localisation_time_s[i], result.time_offsets.front().applied_sigma_s,
+                result.pose_audit, options_, track_name, cameras, writer);
             addWarnings(rep, survey.data[i].rawlog, result.warnings);
             result.traverses.push_back(std::move(rep));
         }

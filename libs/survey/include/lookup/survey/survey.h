@@ -13,6 +13,7 @@
 #include "lookup/survey/ceiling_distance.h"
 #include "lookup/survey/laser_poses.h"
 #include "lookup/survey/lidar_sweep.h"
+#include "lookup/survey/pose_audit.h"
 #include "lookup/survey/pose_graph.h"
 #include "lookup/survey/survey_options.h"
 #include "lookup/survey/time_offset.h"
@@ -71,6 +72,7 @@ struct TraverseReport {
     std::size_t rejected_exposure = 0;
     std::size_t rejected_image = 0;    ///< ceiling images unreadable, empty or of the wrong size
     std::size_t rejected_forward = 0;  ///< forward images unreadable, empty or of the wrong size
+    std::size_t rejected_audit = 0;    ///< frames in a stretch the images contradict (pose_audit.h)
     std::size_t without_forward = 0;   ///< references with no forward image in time
     SkippedRecords skipped;            ///< sensor records refused while reading the rawlog
     std::size_t scans_deskewed = 0;    ///< lidar scans redrawn for the motion over their sweep
@@ -104,6 +106,7 @@ struct SurveyResult {
     /// Each camera's time offset against the pose track (ceiling, then forward), as applied.
     std::vector<TimeOffsetEstimate> time_offsets;
     LidarSweepEstimate lidar_sweep;  ///< the lidar's sweep as applied to every scan
+    PoseAudit pose_audit;            ///< the laser poses checked by the images
     /// Refused or skipped input, one line each (file, record, reason, count); lookup-survey
     /// prints them on stderr.
     std::vector<std::string> warnings;
@@ -141,6 +144,12 @@ class Survey {
     void timeOffsets(std::vector<TraverseData>& data, const std::vector<LaserTrack>& tracks,
                      const std::vector<bool>& reference, double ceiling_height_m,
                      SurveyResult& result) const;
+
+    /// The reference traverses' laser poses checked against one another's images
+    /// (pose_audit.h), recorded in `result` with a warning per suspect stretch.
+    void auditPoses(const SurveyInputs& in, const std::vector<TraverseData>& data,
+                    const std::vector<LaserTrack>& tracks, double ceiling_height_m,
+                    SurveyResult& result) const;
 
     SurveyOptions options_;
     PoseGraphOptions graph_options_;

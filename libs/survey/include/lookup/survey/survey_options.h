@@ -93,6 +93,17 @@ struct SurveyOptions : public common::TableOptions<SurveyOptions> {
     /// offset used [s].
     double time_offset_max_sigma_s = 0.005;
 
+    // --- the laser poses checked by the images (pose_audit.h) ------------------------------
+    bool pose_audit = true;
+    double pose_audit_spacing_m = 2.0;  ///< travel between audited frames of a traverse [m]
+    /// Another traverse's camera this near an audited frame's saw most of its ceiling [m].
+    double pose_audit_view_distance_m = 1.5;
+    /// A frame that matches nothing at its laser pose is searched this far along its heading
+    /// on each side [m].
+    double pose_audit_search_m = 3.0;
+    /// A fix farther than this from the frame's laser pose contradicts it [m].
+    double pose_audit_max_disagreement_m = 0.4;
+
     // --- laser stage (ICP-SLAM map, then MCL per traverse) ---------------------------------
     int mcl_particles = 600;              ///< particles of CMonteCarloLocalization2D
     double mcl_init_std_xy_m = 0.2;       ///< spread of the initial particles around the start [m]

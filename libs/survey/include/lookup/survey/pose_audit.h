@@ -1,0 +1,65 @@
+#pragma once
+// The survey's check of its own laser poses by the ceiling images. Where two reference
+// traverses passed under the same ceiling, an image of one, refined by the localiser's own
+// refiner against the other's images placed by their laser poses, must land where its own laser
+// pose puts it. A laser pose that ICP-SLAM or MCL got wrong (a featureless drive, an odometry
+// dropout) would otherwise become references that give confident wrong fixes.
+//
+// Frames are sampled every pose_audit_spacing_m along each traverse. Each is refined against
+// every other traverse whose cameras passed near its camera: first at its laser pose, and when
+// that finds nothing, from poses shifted along its heading up to pose_audit_search_m (a
+// tunnel's laser error runs along the drive). A sample agrees with a traverse when the fix lies
+// within pose_audit_max_disagreement_m of its laser pose, and disagrees when a fix lies farther
+// and no other shift explains the image nearly as well (a repeating ceiling is inconclusive).
+// A sample that disagrees with some traverse and agrees with none is suspect: the survey keeps
+// no reference between the audited samples on either side of it. With three traverses the
+// wrong one is found; with two, both sides of a disagreement are dropped.
+
+#include <nlohmann/json.hpp>
+
+#include <string>
+#include <vector>
+
+#include "lookup/survey/ceiling_distance.h"
+#include "lookup/survey/survey_options.h"
+
+namespace lookup::survey {
+
+/// A stretch of one traverse whose laser poses the images contradict.
+struct SuspectStretch {
+    std::string traverse;  ///< its name
+    double from_s = 0;     ///< no reference strictly between these times is kept [s]
+    double to_s = 0;
+    double sample_s = 0;        ///< the suspect sample's image time [s]
+    double disagreement_m = 0;  ///< |fix - laser pose| of that sample [m]
+    std::string against;        ///< the traverse whose images placed it there
+};
+
+struct PoseAudit {
+    bool ran = false;
+    std::size_t sampled = 0;       ///< frames sampled
+    std::size_t compared = 0;      ///< (sample, other traverse) pairs whose cameras passed near
+    std::size_t agreed = 0;        ///< pairs whose fix lies within the limit
+    std::size_t disagreed = 0;     ///< pairs whose fix lies beyond it
+    std::size_t inconclusive = 0;  ///< no fix, or a repeating ceiling's rival
+    std::size_t suspect = 0;       ///< samples that disagree and agree with no traverse
+    double median_m = 0;           ///< |fix - laser pose| over the agreeing pairs [m]
+    double p95_m = 0;
+    double max_agreed_m = 0;
+    std::vector<SuspectStretch> stretches;
+    double time_s = 0;
+
+    /// Whether an image of traverse `traverse` at `time_s` lies in a suspect stretch.
+    bool excludes(const std::string& traverse, double time_s) const;
+};
+
+/// Audits the laser poses of `traverses` (named uniquely) (options pose_audit_* of SurveyOptions)
+/// at the database's ceiling height. Never throws for bad images: an unreadable one is
+/// inconclusive.
+PoseAudit auditLaserPoses(const std::vector<CeilingTraverse>& traverses, double ceiling_height_m,
+                          const SurveyOptions& options);
+
+/// survey_report.json's "pose_audit" object.
+nlohmann::ordered_json poseAuditJson(const PoseAudit& a);
+
+}  // namespace lookup::survey

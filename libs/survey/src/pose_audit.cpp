@@ -1,0 +1,292 @@
+#include "lookup/survey/pose_audit.h"
+
+#include <mrpt/math/TPoint2D.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <map>
+#include <optional>
+
+#include "ceiling_frames.h"
+#include "lookup/refine/refiner.h"
+
+namespace lookup::survey {
+namespace {
+
+using detail::PosedCeilingFrame;
+
+/// Another traverse's fixes nearer each other than this are one place, not rivals [m].
+constexpr double kSamePlace_m = 0.3;
+/// A rival fix explaining the image with this share of the best's inliers or more makes the
+/// comparison inconclusive (a repeating ceiling).
+constexpr double kRivalShare = 0.8;
+/// Frames of the other traverse refined against per hint: the nearest cameras.
+constexpr std::size_t kReferencesPerHint = 3;
+
+struct AuditedTraverse {
+    const CeilingTraverse* t = nullptr;
+    std::vector<PosedCeilingFrame> frames;
+    std::vector<mrpt::math::TPoint2D> cameras;  ///< each frame's camera position in the map
+};
+
+mrpt::math::TPoint2D cameraPosition(const CeilingTraverse& t, const PosedCeilingFrame& f) {
+    const auto camera = f.pose + (*t.ceiling)[f.index]->cameraPose;
+    return {camera.x(), camera.y()};
+}
+
+AuditedTraverse audited(const CeilingTraverse& t) {
+    AuditedTraverse a{&t, detail::posedCeilingFrames(t), {}};
+    for (const auto& f : a.frames) a.cameras.push_back(cameraPosition(t, f));
+    return a;
+}
+
+double timeOf(const AuditedTraverse& a, std::size_t k) {
+    return mrpt::Clock::toDouble((*a.t->ceiling)[a.frames[k].index]->timestamp);
+}
+
+/// The frames of `b` whose cameras stood nearest `p`, within `max_m`.
+std::vector<std::size_t> nearestCameras(const AuditedTraverse& b, const mrpt::math::TPoint2D& p,
+                                        double max_m) {
+    std::vector<std::pair<double, std::size_t>> near;
+    for (std::size_t k = 0; k < b.cameras.size(); ++k) {
+        const double d = std::hypot(b.cameras[k].x - p.x, b.cameras[k].y - p.y);
+        if (d <= max_m) near.emplace_back(d, k);
+    }
+    const std::size_t n = std::min(near.size(), kReferencesPerHint);
+    std::partial_sort(near.begin(), near.begin() + n, near.end());
+    std::vector<std::size_t> out;
+    for (std::size_t i = 0; i < n; ++i) out.push_back(near[i].second);
+    return out;
+}
+
+struct Fix {
+    mrpt::poses::CPose2D pose;
+    double inlier_share = 0;
+};
+
+/// Rectified, prepared images, each loaded from disk once per audit step.
+class Images {
+  public:
+    Images(const std::optional<refine::Rectifier>& rectifier, const refine::Refiner& refiner)
+        : rectifier_(rectifier), refiner_(refiner) {}
+
+    mrpt::obs::CObservationImage query(const AuditedTraverse& a, std::size_t k) const {
+        auto& obs = *(*a.t->ceiling)[a.frames[k].index];
+        auto out = rectifier_ ? rectifier_->rectify(obs) : obs;
+        obs.image.unload();
+        return out;
+    }
+
+    const refine::ReferenceImage& reference(const AuditedTraverse& b, std::size_t k) {
+        const auto key = std::make_pair(b.t, k);
+        auto it = cache_.find(key);
+        if (it != cache_.end()) return it->second;
+        auto ref =
+            refine::ReferenceImage::fromObservation(std::int64_t(k), query(b, k), b.frames[k].pose);
+        ref.prepare(refiner_.options().matcher);
+        return cache_.emplace(key, std::move(ref)).first->second;
+    }
+
+    /// The cache holds the other traverse's frames near one sample only.
+    void clear() { cache_.clear(); }
+
+  private:
+    const std::optional<refine::Rectifier>& rectifier_;
+    const refine::Refiner& refiner_;
+    std::map<std::pair<const CeilingTraverse*, std::size_t>, refine::ReferenceImage> cache_;
+};
+
+/// Sample `j` of `a` refined against `b`'s frames nearest the camera it would have at `hint`.
+std::optional<Fix> refineAt(const AuditedTraverse& a, std::size_t j, const AuditedTraverse& b,
+                            const mrpt::poses::CPose3D& hint, double ceiling_height_m,
+                            double view_m, const mrpt::obs::CObservationImage& query,
+                            const refine::Refiner& refiner, Images& images) {
+    const auto camera = hint + (*a.t->ceiling)[a.frames[j].index]->cameraPose;
+    const auto near = nearestCameras(b, {camera.x(), camera.y()}, view_m);
+    if (near.empty()) return std::nullopt;
+    std::vector<refine::ReferenceImage> refs;
+    for (std::size_t k : near) refs.push_back(images.reference(b, k));
+    refine::CoarseHint coarse;
+    coarse.vehicle_pose = hint;
+    coarse.ceiling_height_m = ceiling_height_m;
+    const auto r = refiner.refine(query, coarse, refs);
+    if (!r.accepted()) return std::nullopt;
+    return Fix{mrpt::poses::CPose2D(r.pose.mean), r.inlier_share};
+}
+
+enum class Verdict { NotCompared, Agreed, Disagreed, Inconclusive };
+
+struct Comparison {
+    Verdict verdict = Verdict::NotCompared;
+    double distance_m = 0;  ///< |fix - laser pose|
+};
+
+double distance(const Fix& f, const mrpt::poses::CPose3D& p) {
+    return std::hypot(f.pose.x() - p.x(), f.pose.y() - p.y());
+}
+
+/// Sample `j` of `a` against traverse `b`: at its laser pose, else shifted along its heading.
+Comparison compare(const AuditedTraverse& a, std::size_t j, const AuditedTraverse& b,
+                   double ceiling_height_m, double shift_step_m, const SurveyOptions& o,
+                   const refine::Refiner& refiner, Images& images) {
+    const double view_m = o.pose_audit_view_distance_m;
+    const auto& laser = a.frames[j].pose;
+    if (nearestCameras(b, a.cameras[j], view_m).empty()) return {};
+    Comparison c{Verdict::Inconclusive, 0};
+    const auto query = images.query(a, j);
+    std::vector<Fix> fixes;
+    if (auto f = refineAt(a, j, b, laser, ceiling_height_m, view_m, query, refiner, images)) {
+        fixes.push_back(*f);
+    } else {
+        for (double s = shift_step_m; s <= o.pose_audit_search_m + 1e-9; s += shift_step_m) {
+            for (double sign : {-1.0, 1.0}) {
+                const auto hint = laser + mrpt::poses::CPose3D(sign * s, 0, 0, 0, 0, 0);
+                if (auto f =
+                        refineAt(a, j, b, hint, ceiling_height_m, view_m, query, refiner, images)) {
+                    fixes.push_back(*f);
+                }
+            }
+        }
+    }
+    images.clear();
+    if (fixes.empty()) return c;
+    const auto best = *std::max_element(fixes.begin(), fixes.end(), [](const Fix& x, const Fix& y) {
+        return x.inlier_share < y.inlier_share;
+    });
+    for (const auto& f : fixes) {
+        const double apart = std::hypot(f.pose.x() - best.pose.x(), f.pose.y() - best.pose.y());
+        if (apart > kSamePlace_m && f.inlier_share >= kRivalShare * best.inlier_share) return c;
+    }
+    c.distance_m = distance(best, laser);
+    c.verdict =
+        c.distance_m <= o.pose_audit_max_disagreement_m ? Verdict::Agreed : Verdict::Disagreed;
+    return c;
+}
+
+/// The shift between hints: the matcher's reach around one hint (half its search window at the
+/// ceiling's distance), so consecutive hints leave no gap.
+double shiftStep(const std::optional<refine::Rectifier>& rectifier, const refine::Refiner& refiner,
+                 double camera_to_ceiling_m) {
+    if (!rectifier || !(camera_to_ceiling_m > 0)) return 0.5;
+    const double metres_per_px = camera_to_ceiling_m / rectifier->target().fx();
+    return 0.5 * refiner.options().matcher.search_range_px * metres_per_px;
+}
+
+double quantile(std::vector<double> v, double q) {
+    if (v.empty()) return 0;
+    std::sort(v.begin(), v.end());
+    return v[std::min(v.size() - 1, std::size_t(q * double(v.size())))];
+}
+
+/// One traverse's samples: audited against every other, suspects into `out`.
+void auditTraverse(const std::vector<AuditedTraverse>& all, std::size_t ai, double h, double step_m,
+                   const SurveyOptions& o, const refine::Refiner& refiner, Images& images,
+                   std::vector<double>& agreed_m, PoseAudit& out) {
+    const auto& a = all[ai];
+    if (a.frames.empty()) return;
+    std::vector<std::size_t> samples;
+    for (double s = 0; s <= a.frames.back().travel_m; s += o.pose_audit_spacing_m) {
+        const std::size_t j = detail::nearestTravel(a.frames, s);
+        if (samples.empty() || samples.back() != j) samples.push_back(j);
+    }
+    out.sampled += samples.size();
+    for (std::size_t si = 0; si < samples.size(); ++si) {
+        const std::size_t j = samples[si];
+        std::size_t agreed = 0;
+        std::optional<std::pair<double, std::size_t>> worst;  ///< disagreement, against
+        for (std::size_t bi = 0; bi < all.size(); ++bi) {
+            if (bi == ai) continue;
+            const auto c = compare(a, j, all[bi], h, step_m, o, refiner, images);
+            if (c.verdict == Verdict::NotCompared) continue;
+            ++out.compared;
+            if (c.verdict == Verdict::Inconclusive) ++out.inconclusive;
+            if (c.verdict == Verdict::Agreed) {
+                ++out.agreed;
+                ++agreed;
+                agreed_m.push_back(c.distance_m);
+            }
+            if (c.verdict == Verdict::Disagreed) {
+                ++out.disagreed;
+                if (!worst || c.distance_m > worst->first) worst = {c.distance_m, bi};
+            }
+        }
+        if (agreed > 0 || !worst) continue;
+        ++out.suspect;
+        SuspectStretch s;
+        s.traverse = a.t->name;
+        s.sample_s = timeOf(a, j);
+        s.from_s = si > 0 ? timeOf(a, samples[si - 1]) : -1e300;
+        s.to_s = si + 1 < samples.size() ? timeOf(a, samples[si + 1]) : 1e300;
+        s.disagreement_m = worst->first;
+        s.against = all[worst->second].t->name;
+        out.stretches.push_back(s);
+    }
+}
+
+}  // namespace
+
+bool PoseAudit::excludes(const std::string& traverse, double time_s) const {
+    return std::any_of(stretches.begin(), stretches.end(), [&](const SuspectStretch& s) {
+        return s.traverse == traverse && time_s > s.from_s && time_s < s.to_s;
+    });
+}
+
+PoseAudit auditLaserPoses(const std::vector<CeilingTraverse>& traverses, double ceiling_height_m,
+                          const SurveyOptions& o) {
+    const auto started = std::chrono::steady_clock::now();
+    PoseAudit out;
+    if (!o.pose_audit || traverses.size() < 2) return out;
+    out.ran = true;
+    std::vector<AuditedTraverse> all;
+    for (const auto& t : traverses) all.push_back(audited(t));
+    // The localiser's guard against repeating texture: a point whose second-best match is
+    // within 20 % of the best is not used (share/lookup/localize-mine-*.ini).
+    refine::RefinerOptions ro;
+    ro.matcher.min_distinctiveness = 0.2;
+    ro.estimator.ceiling_height_m = ceiling_height_m;
+    const refine::Refiner refiner(ro);
+    const auto rectifier = detail::storedCameraRectifier(traverses, o);
+    double camera_z = 0;
+    for (const auto& t : traverses) {
+        if (!t.ceiling->empty()) camera_z = t.ceiling->front()->cameraPose.z();
+    }
+    const double step_m = shiftStep(rectifier, refiner, ceiling_height_m - camera_z);
+    Images images(rectifier, refiner);
+    std::vector<double> agreed_m;
+    for (std::size_t ai = 0; ai < all.size(); ++ai) {
+        auditTraverse(all, ai, ceiling_height_m, step_m, o, refiner, images, agreed_m, out);
+    }
+    out.median_m = quantile(agreed_m, 0.5);
+    out.p95_m = quantile(agreed_m, 0.95);
+    out.max_agreed_m = agreed_m.empty() ? 0 : *std::max_element(agreed_m.begin(), agreed_m.end());
+    out.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+    return out;
+}
+
+nlohmann::ordered_json poseAuditJson(const PoseAudit& a) {
+    nlohmann::ordered_json j{{"ran", a.ran},
+                             {"sampled", a.sampled},
+                             {"compared", a.compared},
+                             {"agreed", a.agreed},
+                             {"disagreed", a.disagreed},
+                             {"inconclusive", a.inconclusive},
+                             {"suspect", a.suspect},
+                             {"agreed_median_m", a.median_m},
+                             {"agreed_p95_m", a.p95_m},
+                             {"agreed_max_m", a.max_agreed_m},
+                             {"time_s", a.time_s}};
+    j["suspect_stretches"] = nlohmann::ordered_json::array();
+    for (const auto& s : a.stretches) {
+        j["suspect_stretches"].push_back(
+            {{"traverse", s.traverse},
+             {"sample_time_s", s.sample_s},
+             {"from_time_s", s.from_s > -1e299 ? nlohmann::ordered_json(s.from_s) : nullptr},
+             {"to_time_s", s.to_s < 1e299 ? nlohmann::ordered_json(s.to_s) : nullptr},
+             {"disagreement_m", s.disagreement_m},
+             {"against", s.against}});
+    }
+    return j;
+}
+
+}  // namespace lookup::survey

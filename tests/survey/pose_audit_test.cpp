@@ -1,0 +1,142 @@
+// The survey's audit of its laser poses by the ceiling images (pose_audit.h) on drives the test
+// makes: three parallel traverses under one textured plane ceiling, images rendered at the true
+// poses, and the pose tracks handed to the audit either true or with a stretch moved along the
+// drive, as ICP-SLAM does on a featureless drive or through an odometry dropout.
+
+#include <gtest/gtest.h>
+#include <mrpt/obs/CObservationImage.h>
+
+#include <cmath>
+
+#include "lookup/common/pose_files.h"
+#include "lookup/refine/testing/synthetic_ceiling.h"
+#include "lookup/survey/pose_audit.h"
+
+namespace lookup::survey {
+namespace {
+
+namespace synth = refine::synthetic;
+
+constexpr double kCeiling_m = 4.0;
+constexpr double kSpeed_mps = 3.0;
+constexpr double kLength_m = 24.0;
+
+struct Drive {
+    std::string name;
+    std::vector<mrpt::obs::CObservationImage::Ptr> images;
+    mrpt::poses::CPose3DInterpolator track;  ///< what the audit is told
+    double t0 = 0;
+};
+
+mrpt::poses::CPose3D truePose(double travel_m, double lateral_m) {
+    return mrpt::poses::CPose3D(travel_m - 0.5 * kLength_m, lateral_m, 0, 0, 0, 0);
+}
+
+// A drive along x at `lateral_m`; its track is moved `shift_m` along the drive between travel
+// `from_m` and `to_m` (ramped over 1 m at each end).
+Drive makeDrive(const std::string& name, double t0, double lateral_m, double shift_m = 0,
+                double from_m = 0, double to_m = 0) {
+    static const auto ceiling = synth::SyntheticCeiling::make(kCeiling_m, 30.0, 0.015, 11);
+    const auto camera = synth::makeCamera(160, 120, 100);
+    const auto mount = synth::ceilingCameraOnVehicle();
+    Drive d{name, {}, {}, t0};
+    common::PoseTrack poses;
+    for (double s = 0; s <= kLength_m; s += 0.05) {
+        const double w = std::clamp(std::min(s - from_m + 1, to_m + 1 - s), 0.0, 1.0);
+        poses.push_back({t0 + s / kSpeed_mps, truePose(s + w * shift_m, lateral_m)});
+    }
+    d.track = common::makeInterpolator(poses, 1.0);
+    for (double s = 0.1; s < kLength_m; s += 0.25) {
+        auto obs = mrpt::obs::CObservationImage::Create();
+        obs->sensorLabel = "CEILING_CAM";
+        obs->timestamp = mrpt::Clock::fromDouble(t0 + s / kSpeed_mps);
+        obs->cameraParams = camera;
+        obs->cameraPose = mount;
+        const cv::Mat image = ceiling.render(camera, truePose(s, lateral_m) + mount);
+        obs->image = mrpt::img::CImage(image, mrpt::img::DEEP_COPY);
+        d.images.push_back(obs);
+    }
+    return d;
+}
+
+PoseAudit audit(const std::vector<Drive>& drives, const SurveyOptions& o = {}) {
+    std::vector<CeilingTraverse> traverses;
+    for (const auto& d : drives) traverses.push_back({d.name, &d.images, &d.track});
+    return auditLaserPoses(traverses, kCeiling_m, o);
+}
+
+double timeAt(const Drive& d, double travel_m) { return d.t0 + travel_m / kSpeed_mps; }
+
+TEST(PoseAudit, TrueLaserPosesAgreeEverywhere) {
+    const std::vector<Drive> drives{makeDrive("left", 100, 0.5), makeDrive("middle", 200, 0),
+                                    makeDrive("right", 300, -0.5)};
+    const auto a = audit(drives);
+    ASSERT_TRUE(a.ran);
+    EXPECT_EQ(a.suspect, 0u);
+    EXPECT_EQ(a.disagreed, 0u);
+    EXPECT_TRUE(a.stretches.empty());
+    // Every sample sees both other traverses; nearly all comparisons find the fix.
+    EXPECT_EQ(a.compared, 2 * a.sampled);
+    EXPECT_GT(a.agreed, 0.9 * double(a.compared));
+    EXPECT_LT(a.max_agreed_m, 0.05);
+}
+
+TEST(PoseAudit, AStretchMetresOffAlongTheDriveIsFoundOnThatTraverseOnly) {
+    // The middle traverse's track 1.5 m ahead of its images from 8 to 14 m of travel.
+    const std::vector<Drive> drives{makeDrive("left", 100, 0.5),
+                                    makeDrive("middle", 200, 0, 1.5, 8, 14),
+                                    makeDrive("right", 300, -0.5)};
+    const auto a = audit(drives);
+    ASSERT_FALSE(a.stretches.empty());
+    for (const auto& s : a.stretches) {
+        EXPECT_EQ(s.traverse, "middle");
+        EXPECT_GT(s.sample_s, timeAt(drives[1], 7));
+        EXPECT_LT(s.sample_s, timeAt(drives[1], 15));
+    }
+    const auto& worst = *std::max_element(
+        a.stretches.begin(), a.stretches.end(),
+        [](const auto& x, const auto& y) { return x.disagreement_m < y.disagreement_m; });
+    EXPECT_NEAR(worst.disagreement_m, 1.5, 0.1);
+    // Inside the stretch nothing is kept; well outside it everything is.
+    EXPECT_TRUE(a.excludes("middle", timeAt(drives[1], 11)));
+    EXPECT_FALSE(a.excludes("middle", timeAt(drives[1], 3)));
+    EXPECT_FALSE(a.excludes("middle", timeAt(drives[1], 20)));
+    EXPECT_FALSE(a.excludes("left", timeAt(drives[0], 11)));
+}
+
+TEST(PoseAudit, ASmallerOffsetBeyondTheLimitIsFoundTooAndOneWithinItIsNot) {
+    SurveyOptions o;
+    const std::vector<Drive> beyond{makeDrive("left", 100, 0.5),
+                                    makeDrive("middle", 200, 0, 0.5, 8, 14),
+                                    makeDrive("right", 300, -0.5)};
+    const auto a = audit(beyond, o);
+    EXPECT_TRUE(a.excludes("middle", timeAt(beyond[1], 11)));
+    o.pose_audit_max_disagreement_m = 0.6;
+    const auto b = audit(beyond, o);
+    EXPECT_TRUE(b.stretches.empty());
+}
+
+TEST(PoseAudit, WithTwoTraversesBothSidesOfADisagreementAreDropped) {
+    // Nothing tells which of two traverses is wrong: neither keeps references there.
+    const std::vector<Drive> drives{makeDrive("left", 100, 0.4, 1.5, 8, 14),
+                                    makeDrive("right", 300, -0.4)};
+    const auto a = audit(drives);
+    EXPECT_TRUE(a.excludes("left", timeAt(drives[0], 11)));
+    EXPECT_TRUE(a.excludes("right", timeAt(drives[1], 11.5)));
+    EXPECT_FALSE(a.excludes("right", timeAt(drives[1], 3)));
+}
+
+TEST(PoseAudit, OneTraverseOrTheAuditOffIsNotAudited) {
+    const std::vector<Drive> one{makeDrive("only", 100, 0, 1.5, 8, 14)};
+    EXPECT_FALSE(audit(one).ran);
+    SurveyOptions off;
+    off.pose_audit = false;
+    const std::vector<Drive> two{makeDrive("left", 100, 0.4, 1.5, 8, 14),
+                                 makeDrive("right", 300, -0.4)};
+    const auto a = audit(two, off);
+    EXPECT_FALSE(a.ran);
+    EXPECT_FALSE(a.excludes("left", timeAt(two[0], 11)));
+}
+
+}  // namespace
+}  // namespace lookup::survey
