@@ -1,11 +1,13 @@
 #include "lookup/survey/pose_audit.h"
 
+#include <mrpt/maps/CSimplePointsMap.h>
 #include <mrpt/math/TPoint2D.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <map>
+#include <memory>
 #include <optional>
 
 #include "ceiling_frames.h"
@@ -28,16 +30,18 @@ struct AuditedTraverse {
     const CeilingTraverse* t = nullptr;
     std::vector<PosedCeilingFrame> frames;
     std::vector<mrpt::math::TPoint2D> cameras;  ///< each frame's camera position in the map
+    /// The same positions, searched by MRPT's KD-tree.
+    std::unique_ptr<mrpt::maps::CSimplePointsMap> camera_index;
 };
 
-mrpt::math::TPoint2D cameraPosition(const CeilingTraverse& t, const PosedCeilingFrame& f) {
-    const auto camera = f.pose + (*t.ceiling)[f.index]->cameraPose;
-    return {camera.x(), camera.y()};
-}
-
 AuditedTraverse audited(const CeilingTraverse& t) {
-    AuditedTraverse a{&t, detail::posedCeilingFrames(t), {}};
-    for (const auto& f : a.frames) a.cameras.push_back(cameraPosition(t, f));
+    AuditedTraverse a{
+        &t, detail::posedCeilingFrames(t), {}, std::make_unique<mrpt::maps::CSimplePointsMap>()};
+    for (const auto& f : a.frames) {
+        const auto camera = f.pose + (*t.ceiling)[f.index]->cameraPose;
+        a.cameras.emplace_back(camera.x(), camera.y());
+        a.camera_index->insertPoint(float(camera.x()), float(camera.y()), 0.0f);
+    }
     return a;
 }
 
@@ -48,15 +52,14 @@ double timeOf(const AuditedTraverse& a, std::size_t k) {
 /// The frames of `b` whose cameras stood nearest `p`, within `max_m`.
 std::vector<std::size_t> nearestCameras(const AuditedTraverse& b, const mrpt::math::TPoint2D& p,
                                         double max_m) {
-    std::vector<std::pair<double, std::size_t>> near;
-    for (std::size_t k = 0; k < b.cameras.size(); ++k) {
-        const double d = std::hypot(b.cameras[k].x - p.x, b.cameras[k].y - p.y);
-        if (d <= max_m) near.emplace_back(d, k);
+    std::vector<std::size_t> found, out;
+    std::vector<float> dist_sq;
+    if (b.cameras.empty()) return out;
+    b.camera_index->kdTreeNClosestPoint2DIdx(float(p.x), float(p.y), kReferencesPerHint, found,
+                                             dist_sq);
+    for (std::size_t i = 0; i < found.size(); ++i) {
+        if (dist_sq[i] <= max_m * max_m) out.push_back(found[i]);
     }
-    const std::size_t n = std::min(near.size(), kReferencesPerHint);
-    std::partial_sort(near.begin(), near.begin() + n, near.end());
-    std::vector<std::size_t> out;
-    for (std::size_t i = 0; i < n; ++i) out.push_back(near[i].second);
     return out;
 }
 
