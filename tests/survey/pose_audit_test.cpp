@@ -126,15 +126,28 @@ TEST(PoseAudit, WithTwoTraversesBothSidesOfADisagreementAreDropped) {
     EXPECT_FALSE(a.excludes("right", timeAt(drives[1], 3)));
 }
 
+TEST(PoseAudit, TraversesFarApartAreNotCompared) {
+    const std::vector<Drive> drives{makeDrive("left", 100, 3.0, 1.5, 8, 14),
+                                    makeDrive("right", 300, -3.0)};
+    const auto a = audit(drives);
+    EXPECT_TRUE(a.ran);
+    EXPECT_EQ(a.compared, 0u);
+    EXPECT_TRUE(a.stretches.empty());
+    EXPECT_NE(a.note.find("no two traverses"), std::string::npos) << a.note;
+}
+
 TEST(PoseAudit, OneTraverseOrTheAuditOffIsNotAudited) {
     const std::vector<Drive> one{makeDrive("only", 100, 0, 1.5, 8, 14)};
-    EXPECT_FALSE(audit(one).ran);
+    const auto alone = audit(one);
+    EXPECT_FALSE(alone.ran);
+    EXPECT_NE(alone.note.find("one reference traverse"), std::string::npos) << alone.note;
     SurveyOptions off;
     off.pose_audit = false;
     const std::vector<Drive> two{makeDrive("left", 100, 0.4, 1.5, 8, 14),
                                  makeDrive("right", 300, -0.4)};
     const auto a = audit(two, off);
     EXPECT_FALSE(a.ran);
+    EXPECT_NE(a.note.find("pose_audit = false"), std::string::npos) << a.note;
     EXPECT_FALSE(a.excludes("left", timeAt(two[0], 11)));
 }
 

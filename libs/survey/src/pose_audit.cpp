@@ -239,7 +239,14 @@ PoseAudit auditLaserPoses(const std::vector<CeilingTraverse>& traverses, double 
                           const SurveyOptions& o) {
     const auto started = std::chrono::steady_clock::now();
     PoseAudit out;
-    if (!o.pose_audit || traverses.size() < 2) return out;
+    if (!o.pose_audit) {
+        out.note = "off ([survey] pose_audit = false)";
+        return out;
+    }
+    if (traverses.size() < 2) {
+        out.note = "one reference traverse: no other one to check its poses against";
+        return out;
+    }
     out.ran = true;
     std::vector<AuditedTraverse> all;
     for (const auto& t : traverses) all.push_back(audited(t));
@@ -263,12 +270,14 @@ PoseAudit auditLaserPoses(const std::vector<CeilingTraverse>& traverses, double 
     out.median_m = quantile(agreed_m, 0.5);
     out.p95_m = quantile(agreed_m, 0.95);
     out.max_agreed_m = agreed_m.empty() ? 0 : *std::max_element(agreed_m.begin(), agreed_m.end());
+    if (out.compared == 0) out.note = "no two traverses passed under the same ceiling";
     out.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
     return out;
 }
 
 nlohmann::ordered_json poseAuditJson(const PoseAudit& a) {
     nlohmann::ordered_json j{{"ran", a.ran},
+                             {"note", a.note},
                              {"sampled", a.sampled},
                              {"compared", a.compared},
                              {"agreed", a.agreed},

@@ -861,9 +861,11 @@ std::string SurveyResult::summaryLine() const {
           << 1e3 * c.applied_sigma_s << " ms (" << c.source << "); lidar sweep "
           << lidar_sweep.sweep_ms << " ms (" << lidar_sweep.source << ")";
     }
-    if (pose_audit.ran) {
+    if (pose_audit.ran && pose_audit.note.empty()) {
         o << "; pose audit: " << pose_audit.suspect << " suspect of " << pose_audit.sampled
           << " frames";
+    } else {
+        o << "; poses not audited: " << pose_audit.note;
     }
     for (const auto& t : traverses) {
         if (!t.has_ground_truth) continue;
@@ -894,7 +896,7 @@ std::string SurveyResult::toJson() const {
         for (const auto& t : time_offsets) j["time_offsets"].push_back(timeOffsetJson(t));
         j["lidar_sweep"] = lidarSweepJson(lidar_sweep);
     }
-    if (pose_audit.ran) j["pose_audit"] = poseAuditJson(pose_audit);
+    j["pose_audit"] = poseAuditJson(pose_audit);
     j["traverses"] = ordered_json::array();
     for (const auto& t : traverses) j["traverses"].push_back(traverseJson(t));
     // Paths and reasons are bytes from the file system: invalid UTF-8 is replaced, not fatal.

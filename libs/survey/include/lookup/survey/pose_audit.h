@@ -37,6 +37,7 @@ struct SuspectStretch {
 
 struct PoseAudit {
     bool ran = false;
+    std::string note;  ///< why nothing was audited (off, one traverse, no overlap); else empty
     std::size_t sampled = 0;       ///< frames sampled
     std::size_t compared = 0;      ///< (sample, other traverse) pairs whose cameras passed near
     std::size_t agreed = 0;        ///< pairs whose fix lies within the limit
