@@ -11,6 +11,7 @@
 #include "lookup/common/pose_files.h"
 #include "lookup/refine/testing/synthetic_ceiling.h"
 #include "lookup/survey/pose_audit.h"
+#include "lookup/survey/time_offset.h"
 
 namespace lookup::survey {
 namespace {
@@ -28,14 +29,22 @@ struct Drive {
     double t0 = 0;
 };
 
-mrpt::poses::CPose3D truePose(double travel_m, double lateral_m) {
+// Along x at `lateral_m`, or back along it when `reverse`.
+mrpt::poses::CPose3D truePose(double travel_m, double lateral_m, bool reverse = false) {
+    if (reverse) return mrpt::poses::CPose3D(0.5 * kLength_m - travel_m, lateral_m, 0, M_PI, 0, 0);
     return mrpt::poses::CPose3D(travel_m - 0.5 * kLength_m, lateral_m, 0, 0, 0, 0);
 }
 
-// A drive along x at `lateral_m`; its track is moved `shift_m` along the drive between travel
+struct DriveSpec {
+    bool reverse = false;
+    double latency_s = 0;  ///< image stamps this late
+    double speed_mps = kSpeed_mps;
+};
+
+// A drive at `lateral_m`; its track is moved `shift_m` along the drive between travel
 // `from_m` and `to_m` (ramped over 1 m at each end).
 Drive makeDrive(const std::string& name, double t0, double lateral_m, double shift_m = 0,
-                double from_m = 0, double to_m = 0) {
+                double from_m = 0, double to_m = 0, DriveSpec spec = {}) {
     static const auto ceiling = synth::SyntheticCeiling::make(kCeiling_m, 30.0, 0.015, 11);
     const auto camera = synth::makeCamera(160, 120, 100);
     const auto mount = synth::ceilingCameraOnVehicle();
@@ -43,26 +52,31 @@ Drive makeDrive(const std::string& name, double t0, double lateral_m, double shi
     common::PoseTrack poses;
     for (double s = 0; s <= kLength_m; s += 0.05) {
         const double w = std::clamp(std::min(s - from_m + 1, to_m + 1 - s), 0.0, 1.0);
-        poses.push_back({t0 + s / kSpeed_mps, truePose(s + w * shift_m, lateral_m)});
+        poses.push_back(
+            {t0 + s / spec.speed_mps, truePose(s + w * shift_m, lateral_m, spec.reverse)});
     }
     d.track = common::makeInterpolator(poses, 1.0);
     for (double s = 0.1; s < kLength_m; s += 0.25) {
         auto obs = mrpt::obs::CObservationImage::Create();
         obs->sensorLabel = "CEILING_CAM";
-        obs->timestamp = mrpt::Clock::fromDouble(t0 + s / kSpeed_mps);
+        obs->timestamp = mrpt::Clock::fromDouble(t0 + s / spec.speed_mps + spec.latency_s);
         obs->cameraParams = camera;
         obs->cameraPose = mount;
-        const cv::Mat image = ceiling.render(camera, truePose(s, lateral_m) + mount);
+        const cv::Mat image = ceiling.render(camera, truePose(s, lateral_m, spec.reverse) + mount);
         obs->image = mrpt::img::CImage(image, mrpt::img::DEEP_COPY);
         d.images.push_back(obs);
     }
     return d;
 }
 
-PoseAudit audit(const std::vector<Drive>& drives, const SurveyOptions& o = {}) {
+std::vector<CeilingTraverse> traversesOf(const std::vector<Drive>& drives) {
     std::vector<CeilingTraverse> traverses;
     for (const auto& d : drives) traverses.push_back({d.name, &d.images, &d.track});
-    return auditLaserPoses(traverses, kCeiling_m, o);
+    return traverses;
+}
+
+PoseAudit audit(const std::vector<Drive>& drives, const SurveyOptions& o = {}) {
+    return auditLaserPoses(traversesOf(drives), kCeiling_m, o);
 }
 
 double timeAt(const Drive& d, double travel_m) { return d.t0 + travel_m / kSpeed_mps; }
@@ -149,6 +163,46 @@ TEST(PoseAudit, OneTraverseOrTheAuditOffIsNotAudited) {
     EXPECT_FALSE(a.ran);
     EXPECT_NE(a.note.find("pose_audit = false"), std::string::npos) << a.note;
     EXPECT_FALSE(a.excludes("left", timeAt(two[0], 11)));
+}
+
+TEST(TimeOffsetAcrossTraverses, TraversesDrivenBothWaysPinDownALateCamera) {
+    // Stamps 40 ms late: each traverse's references sit 0.12 m ahead along its own motion,
+    // so fixes across the two directions lie 0.24 m from the laser poses.
+    DriveSpec out, back;
+    out.latency_s = back.latency_s = 0.040;
+    back.reverse = true;
+    const std::vector<Drive> drives{makeDrive("in", 100, 0.3, 0, 0, 0, out),
+                                    makeDrive("out", 300, -0.3, 0, 0, 0, back)};
+    SurveyOptions o;
+    const auto a = audit(drives, o);
+    ASSERT_GT(a.fixes.size(), std::size_t(o.time_offset_min_pairs));
+    const auto e = estimateTimeOffsetAcrossTraverses(a, traversesOf(drives), 0.0, o);
+    EXPECT_EQ(e.source, "estimated") << e.warning;
+    EXPECT_EQ(e.method, "across traverses");
+    EXPECT_NEAR(e.offset_s, -0.040, 0.004);
+    EXPECT_LT(e.sigma_s, o.time_offset_max_sigma_s);
+    // Starting from a configured -30 ms (the stamps already corrected by it): the rest.
+    DriveSpec out2 = out, back2 = back;
+    out2.latency_s = back2.latency_s = 0.010;
+    const std::vector<Drive> corrected{makeDrive("in", 100, 0.3, 0, 0, 0, out2),
+                                       makeDrive("out", 300, -0.3, 0, 0, 0, back2)};
+    const auto b =
+        estimateTimeOffsetAcrossTraverses(audit(corrected, o), traversesOf(corrected), -0.030, o);
+    EXPECT_EQ(b.source, "estimated") << b.warning;
+    EXPECT_NEAR(b.offset_s, -0.040, 0.004);
+}
+
+TEST(TimeOffsetAcrossTraverses, TraversesDrivenTheSameWayAtOneSpeedDoNot) {
+    // Both references sit equally far ahead: the fixes agree whatever the lateness.
+    DriveSpec late;
+    late.latency_s = 0.040;
+    const std::vector<Drive> drives{makeDrive("left", 100, 0.3, 0, 0, 0, late),
+                                    makeDrive("right", 300, -0.3, 0, 0, 0, late)};
+    SurveyOptions o;
+    const auto e = estimateTimeOffsetAcrossTraverses(audit(drives, o), traversesOf(drives), 0.0, o);
+    EXPECT_EQ(e.source, "configured");
+    EXPECT_DOUBLE_EQ(e.offset_s, 0.0);
+    EXPECT_NE(e.warning.find("differ too little"), std::string::npos) << e.warning;
 }
 
 }  // namespace

@@ -66,6 +66,7 @@ std::vector<std::size_t> nearestCameras(const AuditedTraverse& b, const mrpt::ma
 struct Fix {
     mrpt::poses::CPose2D pose;
     double inlier_share = 0;
+    double other_time_s = 0;  ///< image time of the other traverse's nearest frame used
 };
 
 /// Rectified, prepared images, each loaded from disk once per audit step.
@@ -115,7 +116,7 @@ std::optional<Fix> refineAt(const AuditedTraverse& a, std::size_t j, const Audit
     coarse.ceiling_height_m = ceiling_height_m;
     const auto r = refiner.refine(query, coarse, refs);
     if (!r.accepted()) return std::nullopt;
-    return Fix{mrpt::poses::CPose2D(r.pose.mean), r.inlier_share};
+    return Fix{mrpt::poses::CPose2D(r.pose.mean), r.inlier_share, timeOf(b, near.front())};
 }
 
 enum class Verdict { NotCompared, Agreed, Disagreed, Inconclusive };
@@ -123,6 +124,7 @@ enum class Verdict { NotCompared, Agreed, Disagreed, Inconclusive };
 struct Comparison {
     Verdict verdict = Verdict::NotCompared;
     double distance_m = 0;  ///< |fix - laser pose|
+    Fix fix;                ///< when agreed or disagreed
 };
 
 double distance(const Fix& f, const mrpt::poses::CPose3D& p) {
@@ -162,6 +164,7 @@ Comparison compare(const AuditedTraverse& a, std::size_t j, const AuditedTravers
         if (apart > kSamePlace_m && f.inlier_share >= kRivalShare * best.inlier_share) return c;
     }
     c.distance_m = distance(best, laser);
+    c.fix = best;
     c.verdict =
         c.distance_m <= o.pose_audit_max_disagreement_m ? Verdict::Agreed : Verdict::Disagreed;
     return c;
@@ -204,6 +207,11 @@ void auditTraverse(const std::vector<AuditedTraverse>& all, std::size_t ai, doub
             if (c.verdict == Verdict::NotCompared) continue;
             ++out.compared;
             if (c.verdict == Verdict::Inconclusive) ++out.inconclusive;
+            if (c.verdict == Verdict::Agreed || c.verdict == Verdict::Disagreed) {
+                const auto& laser = a.frames[j].pose;
+                out.fixes.push_back({a.t->name, all[bi].t->name, timeOf(a, j), c.fix.other_time_s,
+                                     c.fix.pose.x() - laser.x(), c.fix.pose.y() - laser.y()});
+            }
             if (c.verdict == Verdict::Agreed) {
                 ++out.agreed;
                 ++agreed;

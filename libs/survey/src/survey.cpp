@@ -896,6 +896,9 @@ std::string SurveyResult::toJson() const {
         for (const auto& t : time_offsets) j["time_offsets"].push_back(timeOffsetJson(t));
         j["lidar_sweep"] = lidarSweepJson(lidar_sweep);
     }
+    if (time_offset_across.tried) {
+        j["time_offset_across_traverses"] = timeOffsetJson(time_offset_across);
+    }
     j["pose_audit"] = poseAuditJson(pose_audit);
     j["traverses"] = ordered_json::array();
     for (const auto& t : traverses) j["traverses"].push_back(traverseJson(t));
@@ -997,18 +1000,34 @@ void Survey::timeOffsets(std::vector<TraverseData>& data, const std::vector<Lase
     result.time_offsets = {ceiling, forward};
 }
 
-void Survey::auditPoses(const SurveyInputs& in, const std::vector<TraverseData>& data,
+void Survey::auditPoses(const SurveyInputs& in, std::vector<TraverseData>& data,
                         const std::vector<LaserTrack>& tracks, double ceiling_height_m,
                         SurveyResult& result) const {
     std::vector<mrpt::poses::CPose3DInterpolator> interps;
     interps.reserve(data.size());
     std::vector<CeilingTraverse> traverses;
+    std::vector<TraverseData*> audited;
     for (std::size_t i = 0; i < data.size(); ++i) {
         interps.push_back(common::makeInterpolator(tracks[i].poses, options_.max_pose_gap_s));
         if (!in.traverses[i].reference || tracks[i].poses.empty()) continue;
         traverses.push_back({in.traverses[i].name, &data[i].ceiling, &interps.back()});
     }
     result.pose_audit = auditLaserPoses(traverses, ceiling_height_m, options_);
+    // Where the image motion left the camera's offset as configured, the audit's fixes across
+    // traverses may pin it down; the audit then runs again on the stamps corrected.
+    TimeOffsetEstimate& ceiling = result.time_offsets.front();
+    if (options_.time_offset_estimate && ceiling.source != "estimated" && result.pose_audit.ran) {
+        result.time_offset_across = estimateTimeOffsetAcrossTraverses(result.pose_audit, traverses,
+                                                                      ceiling.offset_s, options_);
+        const auto& across = result.time_offset_across;
+        if (across.source == "estimated") {
+            for (auto& d : data) shiftStamps(d.ceiling, across.offset_s - ceiling.offset_s);
+            auto& w = result.warnings;
+            w.erase(std::remove(w.begin(), w.end(), ceiling.warning), w.end());
+            ceiling = across;
+            result.pose_audit = auditLaserPoses(traverses, ceiling_height_m, options_);
+        }
+    }
     for (const auto& s : result.pose_audit.stretches) {
         char buf[400];
         std::snprintf(buf, sizeof(buf),

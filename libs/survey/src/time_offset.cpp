@@ -8,6 +8,7 @@
 #include <map>
 #include <optional>
 
+#include <Eigen/Core>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -15,6 +16,7 @@
 
 #include "lookup/common/pose_files.h"
 #include "lookup/refine/geometry.h"
+#include "lookup/survey/pose_audit.h"
 
 namespace lookup::survey {
 namespace {
@@ -456,6 +458,144 @@ TimeOffsetEstimate estimateTimeOffset(const std::vector<CeilingTraverse>& traver
     return finish();
 }
 
+namespace {
+
+// A fix of the audit with the two traverses' velocities (map frame) at its images' times.
+struct CrossFix {
+    Eigen::Vector2d dv;  ///< other traverse's velocity - the frame's own [m/s]
+    Eigen::Vector2d r;   ///< fix - laser pose [m]
+    std::string group;   ///< the traverse pair
+};
+
+std::optional<Eigen::Vector2d> velocityAt(const mrpt::poses::CPose3DInterpolator& track, double t) {
+    constexpr double kSpan_s = 0.05;
+    const auto a = common::poseAt(track, t - kSpan_s), b = common::poseAt(track, t + kSpan_s);
+    if (!a || !b) return std::nullopt;
+    return Eigen::Vector2d(b->x() - a->x(), b->y() - a->y()) / (2 * kSpan_s);
+}
+
+struct CrossFit {
+    double late_s = 0;  ///< the stamps' lateness the fixes show [s]
+    double sigma_s = std::numeric_limits<double>::infinity();
+    double rms_m = 0;
+    std::size_t used = 0;
+};
+
+// r = dv * late, least squares; once more without the fixes beyond 3 robust deviations (a
+// stretch whose poses are wrong, not late).
+CrossFit fitLateness(const std::vector<CrossFix>& fixes) {
+    CrossFit f;
+    const auto solve = [&](const std::vector<bool>& use) {
+        double num = 0, den = 0;
+        for (std::size_t i = 0; i < fixes.size(); ++i) {
+            if (!use[i]) continue;
+            num += fixes[i].dv.dot(fixes[i].r);
+            den += fixes[i].dv.squaredNorm();
+        }
+        return std::make_pair(den > 0 ? num / den : 0.0, den);
+    };
+    std::vector<bool> use(fixes.size(), true);
+    auto [late, den] = solve(use);
+    std::vector<double> dev;
+    for (const auto& x : fixes) dev.push_back((x.r - x.dv * late).norm());
+    std::vector<double> sorted = dev;
+    std::sort(sorted.begin(), sorted.end());
+    const double gate = sorted.empty() ? 0 : std::max(0.1, 3 * 1.4826 * sorted[sorted.size() / 2]);
+    for (std::size_t i = 0; i < fixes.size(); ++i) use[i] = dev[i] <= gate;
+    std::tie(late, den) = solve(use);
+    double ss = 0;
+    for (std::size_t i = 0; i < fixes.size(); ++i) {
+        if (!use[i]) continue;
+        ss += (fixes[i].r - fixes[i].dv * late).squaredNorm();
+        ++f.used;
+    }
+    if (f.used < 2 || !(den > 0)) return f;
+    f.late_s = late;
+    f.rms_m = std::sqrt(ss / double(2 * f.used - 1));
+    f.sigma_s = f.rms_m / std::sqrt(den);
+    return f;
+}
+
+// Widened by the Birge ratio of each traverse pair's own fit, as for the image motion.
+double consistentCrossSigma(const std::vector<CrossFix>& fixes, const CrossFit& all) {
+    std::map<std::string, std::vector<CrossFix>> groups;
+    for (const auto& x : fixes) groups[x.group].push_back(x);
+    double chi2 = 0;
+    int k = 0;
+    for (const auto& [name, g] : groups) {
+        const CrossFit f = fitLateness(g);
+        if (!std::isfinite(f.sigma_s) || f.sigma_s <= 0) continue;
+        chi2 += std::pow((f.late_s - all.late_s) / f.sigma_s, 2);
+        ++k;
+    }
+    if (k < 2) return all.sigma_s;
+    return all.sigma_s * std::max(1.0, std::sqrt(chi2 / (k - 1)));
+}
+
+}  // namespace
+
+TimeOffsetEstimate estimateTimeOffsetAcrossTraverses(const PoseAudit& audit,
+                                                     const std::vector<CeilingTraverse>& traverses,
+                                                     double applied_s, const SurveyOptions& o) {
+    const auto started = std::chrono::steady_clock::now();
+    TimeOffsetEstimate e;
+    e.label = o.ceiling_camera_label;
+    e.method = "across traverses";
+    e.source = "configured";
+    e.configured_s = o.ceiling_time_offset_s;
+    e.offset_s = applied_s;
+    e.applied_sigma_s = o.ceiling_time_offset_sigma_s;
+    e.tried = true;
+    std::map<std::string, const mrpt::poses::CPose3DInterpolator*> tracks;
+    for (const auto& t : traverses) tracks[t.name] = t.poses;
+    std::vector<CrossFix> fixes;
+    for (const auto& f : audit.fixes) {
+        ++e.pairs_tried;
+        const auto own = tracks.find(f.traverse), other = tracks.find(f.other);
+        if (own == tracks.end() || other == tracks.end()) continue;
+        const auto v = velocityAt(*own->second, f.time_s);
+        const auto w = velocityAt(*other->second, f.other_time_s);
+        if (!v || !w) continue;
+        fixes.push_back({*w - *v, {f.dx_m, f.dy_m}, f.traverse + "|" + f.other});
+    }
+    e.pairs_measured = fixes.size();
+    const auto finish = [&] {
+        e.time_s =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+        return e;
+    };
+    if (fixes.size() < std::size_t(o.time_offset_min_pairs)) {
+        e.warning = notEstimated(e, std::to_string(fixes.size()) +
+                                        " fixes across traverses (time_offset_min_pairs = " +
+                                        std::to_string(o.time_offset_min_pairs) + ")");
+        return finish();
+    }
+    const CrossFit fit = fitLateness(fixes);
+    e.fitted_s = applied_s - fit.late_s - middleRowLag(o);
+    e.sigma_s = consistentCrossSigma(fixes, fit);
+    e.rms_m = fit.rms_m;
+    e.pairs_used = fit.used;
+    char buf[320];
+    if (!(e.sigma_s <= o.time_offset_max_sigma_s)) {
+        std::snprintf(buf, sizeof(buf),
+                      "the traverses' velocities differ too little where they overlap (rms "
+                      "%.3f m): fit %.4f s +- %.4f s over %zu fixes across traverses, more "
+                      "uncertain than time_offset_max_sigma_s = %.4f s",
+                      fit.rms_m, e.fitted_s, e.sigma_s, fit.used, o.time_offset_max_sigma_s);
+        e.warning = notEstimated(e, buf);
+    } else if (std::abs(e.fitted_s - e.configured_s) > o.time_offset_max_s) {
+        std::snprintf(buf, sizeof(buf),
+                      "fit %.4f s beyond the search range (time_offset_max_s = %.3f s)", e.fitted_s,
+                      o.time_offset_max_s);
+        e.warning = notEstimated(e, buf);
+    } else {
+        e.source = "estimated";
+        e.offset_s = e.fitted_s;
+    }
+    e.applied_sigma_s = appliedSigma(e, o);
+    return finish();
+}
+
 void shiftStamps(std::vector<mrpt::obs::CObservationImage::Ptr>& images, double offset_s) {
     if (offset_s == 0) return;
     for (auto& im : images) {
@@ -471,6 +611,7 @@ nlohmann::ordered_json timeOffsetJson(const TimeOffsetEstimate& e) {
     };
     return {{"label", e.label},
             {"source", e.source},
+            {"method", e.method},
             {"offset_s", e.offset_s},
             {"configured_s", e.configured_s},
             {"estimated", e.source == "estimated"},

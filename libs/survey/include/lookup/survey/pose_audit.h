@@ -35,6 +35,17 @@ struct SuspectStretch {
     std::string against;        ///< the traverse whose images placed it there
 };
 
+/// One frame's fix against another traverse's images: what the camera's time offset is fitted
+/// from across traverses (time_offset.h).
+struct AuditFix {
+    std::string traverse;     ///< the frame's
+    std::string other;        ///< the traverse whose images placed it
+    double time_s = 0;        ///< the frame's image time [s]
+    double other_time_s = 0;  ///< the other traverse's nearest image time [s]
+    double dx_m = 0;          ///< fix - laser pose, map frame [m]
+    double dy_m = 0;
+};
+
 struct PoseAudit {
     bool ran = false;
     std::string note;  ///< why nothing was audited (off, one traverse, no overlap); else empty
@@ -48,6 +59,7 @@ struct PoseAudit {
     double p95_m = 0;
     double max_agreed_m = 0;
     std::vector<SuspectStretch> stretches;
+    std::vector<AuditFix> fixes;  ///< every agreeing or disagreeing comparison's fix
     double time_s = 0;
 
     /// Whether an image of traverse `traverse` at `time_s` lies in a suspect stretch.

@@ -107,6 +107,9 @@ struct SurveyResult {
     std::vector<TimeOffsetEstimate> time_offsets;
     LidarSweepEstimate lidar_sweep;  ///< the lidar's sweep as applied to every scan
     PoseAudit pose_audit;            ///< the laser poses checked by the images
+    /// The ceiling camera's offset from the audit's fixes across traverses (tried when the
+    /// image motion did not pin it down; applied, and copied into time_offsets, if estimated).
+    TimeOffsetEstimate time_offset_across;
     /// Refused or skipped input, one line each (file, record, reason, count); lookup-survey
     /// prints them on stderr.
     std::vector<std::string> warnings;
@@ -146,8 +149,10 @@ class Survey {
                      SurveyResult& result) const;
 
     /// The reference traverses' laser poses checked against one another's images
-    /// (pose_audit.h), recorded in `result` with a warning per suspect stretch.
-    void auditPoses(const SurveyInputs& in, const std::vector<TraverseData>& data,
+    /// (pose_audit.h), recorded in `result` with a warning per suspect stretch. Where the
+    /// ceiling camera's offset was not estimated from the image motion, the audit's fixes
+    /// across traverses may estimate it: then it is applied to the stamps and the audit rerun.
+    void auditPoses(const SurveyInputs& in, std::vector<TraverseData>& data,
                     const std::vector<LaserTrack>& tracks, double ceiling_height_m,
                     SurveyResult& result) const;
 

@@ -25,13 +25,14 @@
 namespace lookup::survey {
 
 struct TimeOffsetEstimate {
-    std::string label;        ///< the camera's sensor label
-    std::string source;       ///< "estimated" or "configured"
-    double offset_s = 0;      ///< applied: added to the camera's stamps [s]
-    double configured_s = 0;  ///< the [survey] option [s]
-    bool tried = false;       ///< an estimate was attempted
-    double fitted_s = 0;      ///< the fit's total offset, used or not (when tried) [s]
-    double sigma_s = 0;       ///< its standard deviation (when tried) [s]
+    std::string label;                    ///< the camera's sensor label
+    std::string source;                   ///< "estimated" or "configured"
+    std::string method = "image motion";  ///< of the estimate: or "across traverses"
+    double offset_s = 0;                  ///< applied: added to the camera's stamps [s]
+    double configured_s = 0;              ///< the [survey] option [s]
+    bool tried = false;                   ///< an estimate was attempted
+    double fitted_s = 0;                  ///< the fit's total offset, used or not (when tried) [s]
+    double sigma_s = 0;                   ///< its standard deviation (when tried) [s]
     /// The applied offset's standard deviation: the fit's when estimated, else the configured
     /// one's, or what the fit allows of the configured offset if tighter [s].
     double applied_sigma_s = 0;
@@ -51,6 +52,20 @@ struct TimeOffsetEstimate {
 /// Never throws for bad images: unreadable pairs count as not measured.
 TimeOffsetEstimate estimateTimeOffset(const std::vector<CeilingTraverse>& traverses,
                                       double ceiling_height_m, const SurveyOptions& options);
+
+struct PoseAudit;
+
+/// The same offset from the pose audit's fixes across traverses (pose_audit.h), for when the
+/// image motion does not pin it down. A frame refined against another traverse's images lands
+/// where those images are placed: with stamps late by L (after `applied_s`, the offset the
+/// stamps already carry) every reference sits speed x L along its own motion, so the fix lies
+/// (v_other - v_own) x L from the frame's laser pose. Observable where the traverses' velocities
+/// differ: driven in opposite directions, at other speeds. `offset_s` of the result is the total
+/// to apply (`applied_s` when not estimated; then `warning` says why).
+TimeOffsetEstimate estimateTimeOffsetAcrossTraverses(const PoseAudit& audit,
+                                                     const std::vector<CeilingTraverse>& traverses,
+                                                     double applied_s,
+                                                     const SurveyOptions& options);
 
 /// Adds `offset_s` to every image's time stamp.
 void shiftStamps(std::vector<mrpt::obs::CObservationImage::Ptr>& images, double offset_s);
