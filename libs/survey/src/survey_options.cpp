@@ -53,6 +53,8 @@ void SurveyOptions::declareKeys(common::OptionsTable& t) {
     t.add("time_offset_max_pairs", time_offset_max_pairs, 1, 1000000);
     t.add("time_offset_min_pairs", time_offset_min_pairs, 1, 1000000);
     t.add("time_offset_max_sigma_s", time_offset_max_sigma_s, common::kPositive);
+    t.add("time_offset_min_velocity_difference_mps", time_offset_min_velocity_difference_mps, 0.0,
+          100.0);
     t.add("pose_audit", pose_audit);
     t.add("pose_audit_spacing_m", pose_audit_spacing_m, common::kPositive);
     t.add("pose_audit_view_distance_m", pose_audit_view_distance_m, common::kPositive);

@@ -556,18 +556,26 @@ TimeOffsetEstimate estimateTimeOffsetAcrossTraverses(const PoseAudit& audit,
         const auto v = velocityAt(*own->second, f.time_s);
         const auto w = velocityAt(*other->second, f.other_time_s);
         if (!v || !w) continue;
+        ++e.pairs_measured;
+        // Where the velocities differ little, the laser poses' own relative error of a few
+        // centimetres would pass for lateness: only velocities that differ clearly count.
+        if ((*w - *v).norm() < o.time_offset_min_velocity_difference_mps) continue;
         fixes.push_back({*w - *v, {f.dx_m, f.dy_m}, f.traverse + "|" + f.other});
     }
-    e.pairs_measured = fixes.size();
     const auto finish = [&] {
         e.time_s =
             std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
         return e;
     };
     if (fixes.size() < std::size_t(o.time_offset_min_pairs)) {
-        e.warning = notEstimated(e, std::to_string(fixes.size()) +
-                                        " fixes across traverses (time_offset_min_pairs = " +
-                                        std::to_string(o.time_offset_min_pairs) + ")");
+        char why[240];
+        std::snprintf(why, sizeof(why),
+                      "%zu fixes across traverses whose velocities differ by %.1f m/s or more "
+                      "(time_offset_min_velocity_difference_mps), fewer than "
+                      "time_offset_min_pairs = %d",
+                      fixes.size(), o.time_offset_min_velocity_difference_mps,
+                      o.time_offset_min_pairs);
+        e.warning = notEstimated(e, why);
         return finish();
     }
     const CrossFit fit = fitLateness(fixes);
@@ -577,11 +585,12 @@ TimeOffsetEstimate estimateTimeOffsetAcrossTraverses(const PoseAudit& audit,
     e.pairs_used = fit.used;
     char buf[320];
     if (!(e.sigma_s <= o.time_offset_max_sigma_s)) {
-        std::snprintf(buf, sizeof(buf),
-                      "the traverses' velocities differ too little where they overlap (rms "
-                      "%.3f m): fit %.4f s +- %.4f s over %zu fixes across traverses, more "
-                      "uncertain than time_offset_max_sigma_s = %.4f s",
-                      fit.rms_m, e.fitted_s, e.sigma_s, fit.used, o.time_offset_max_sigma_s);
+        std::snprintf(
+            buf, sizeof(buf),
+            "the fixes across traverses scatter too much for their velocity "
+            "differences (rms %.3f m): fit %.4f s +- %.4f s over %zu fixes across traverses, more "
+            "uncertain than time_offset_max_sigma_s = %.4f s",
+            fit.rms_m, e.fitted_s, e.sigma_s, fit.used, o.time_offset_max_sigma_s);
         e.warning = notEstimated(e, buf);
     } else if (std::abs(e.fitted_s - e.configured_s) > o.time_offset_max_s) {
         std::snprintf(buf, sizeof(buf),

@@ -92,6 +92,9 @@ struct SurveyOptions : public common::TableOptions<SurveyOptions> {
     /// A fit less certain than this (too little acceleration or turning) = warning, configured
     /// offset used [s].
     double time_offset_max_sigma_s = 0.005;
+    /// The estimate across traverses (pose_audit.h) counts only fixes where the two traverses'
+    /// velocities differ by this much (driven in opposite directions, or at other speeds) [m/s].
+    double time_offset_min_velocity_difference_mps = 2.0;
 
     // --- the laser poses checked by the images (pose_audit.h) ------------------------------
     bool pose_audit = true;
