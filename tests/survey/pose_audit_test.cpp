@@ -165,6 +165,17 @@ TEST(PoseAudit, OneTraverseOrTheAuditOffIsNotAudited) {
     EXPECT_FALSE(a.excludes("left", timeAt(two[0], 11)));
 }
 
+TEST(PoseAudit, AnUnreadableImageIsInconclusiveNotAnError) {
+    std::vector<Drive> drives{makeDrive("left", 100, 0.5), makeDrive("middle", 200, 0),
+                              makeDrive("right", 300, -0.5)};
+    for (auto& obs : drives[1].images) obs->image.setExternalStorage("/nonexistent/lookup.png");
+    PoseAudit a;
+    ASSERT_NO_THROW(a = audit(drives));
+    EXPECT_TRUE(a.stretches.empty());
+    EXPECT_GT(a.inconclusive, 0u);
+    EXPECT_GT(a.agreed, 0u);  // left and right still agree with each other
+}
+
 TEST(TimeOffsetAcrossTraverses, TraversesDrivenBothWaysPinDownALateCamera) {
     // Stamps 40 ms late: each traverse's references sit 0.12 m ahead along its own motion,
     // so fixes across the two directions lie 0.24 m from the laser poses.

@@ -203,7 +203,13 @@ void auditTraverse(const std::vector<AuditedTraverse>& all, std::size_t ai, doub
         std::optional<std::pair<double, std::size_t>> worst;  ///< disagreement, against
         for (std::size_t bi = 0; bi < all.size(); ++bi) {
             if (bi == ai) continue;
-            const auto c = compare(a, j, all[bi], h, step_m, o, refiner, images);
+            Comparison c;
+            try {
+                c = compare(a, j, all[bi], h, step_m, o, refiner, images);
+            } catch (const std::exception&) {
+                images.clear();  // an unreadable image: nothing to compare with
+                c.verdict = Verdict::Inconclusive;
+            }
             if (c.verdict == Verdict::NotCompared) continue;
             ++out.compared;
             if (c.verdict == Verdict::Inconclusive) ++out.inconclusive;

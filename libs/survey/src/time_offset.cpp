@@ -383,6 +383,17 @@ double middleRowLag(const SurveyOptions& o) {
     return o.ceiling_stamp_row == common::StampRow::First ? 0.5e-3 * o.ceiling_readout_ms : 0.0;
 }
 
+// The fit becomes the offset unless `refusal` says why not (then the configured one stays).
+void decide(TimeOffsetEstimate& e, const std::string& refusal, const SurveyOptions& o) {
+    if (refusal.empty()) {
+        e.source = "estimated";
+        e.offset_s = e.fitted_s;
+    } else {
+        e.warning = notEstimated(e, refusal);
+    }
+    e.applied_sigma_s = appliedSigma(e, o);
+}
+
 }  // namespace
 
 TimeOffsetEstimate estimateTimeOffset(const std::vector<CeilingTraverse>& traverses,
@@ -437,24 +448,19 @@ TimeOffsetEstimate estimateTimeOffset(const std::vector<CeilingTraverse>& traver
     e.scale = fit.scale;
     e.rms_m = fit.rms;
     e.pairs_used = fit.used;
-    char buf[320];
+    char buf[320] = "";
     if (!(fit.sigma <= o.time_offset_max_sigma_s)) {
         std::snprintf(buf, sizeof(buf),
                       "the image motion does not pin it down (too little acceleration or "
                       "turning for its noise, rms %.3f m): fit %.4f s +- %.4f s over %zu pairs, "
                       "more uncertain than time_offset_max_sigma_s = %.4f s",
                       fit.rms, e.fitted_s, fit.sigma, fit.used, o.time_offset_max_sigma_s);
-        e.warning = notEstimated(e, buf);
     } else if (std::abs(fit.dt) > o.time_offset_max_s - 0.01) {
         std::snprintf(buf, sizeof(buf),
                       "fit %.4f s at the edge of the search range (time_offset_max_s = %.3f s)",
                       e.fitted_s, o.time_offset_max_s);
-        e.warning = notEstimated(e, buf);
-    } else {
-        e.source = "estimated";
-        e.offset_s = e.fitted_s;
     }
-    e.applied_sigma_s = appliedSigma(e, o);
+    decide(e, buf, o);
     return finish();
 }
 
@@ -583,7 +589,7 @@ TimeOffsetEstimate estimateTimeOffsetAcrossTraverses(const PoseAudit& audit,
     e.sigma_s = consistentCrossSigma(fixes, fit);
     e.rms_m = fit.rms_m;
     e.pairs_used = fit.used;
-    char buf[320];
+    char buf[320] = "";
     if (!(e.sigma_s <= o.time_offset_max_sigma_s)) {
         std::snprintf(
             buf, sizeof(buf),
@@ -591,17 +597,12 @@ TimeOffsetEstimate estimateTimeOffsetAcrossTraverses(const PoseAudit& audit,
             "differences (rms %.3f m): fit %.4f s +- %.4f s over %zu fixes across traverses, more "
             "uncertain than time_offset_max_sigma_s = %.4f s",
             fit.rms_m, e.fitted_s, e.sigma_s, fit.used, o.time_offset_max_sigma_s);
-        e.warning = notEstimated(e, buf);
     } else if (std::abs(e.fitted_s - e.configured_s) > o.time_offset_max_s) {
         std::snprintf(buf, sizeof(buf),
                       "fit %.4f s beyond the search range (time_offset_max_s = %.3f s)", e.fitted_s,
                       o.time_offset_max_s);
-        e.warning = notEstimated(e, buf);
-    } else {
-        e.source = "estimated";
-        e.offset_s = e.fitted_s;
     }
-    e.applied_sigma_s = appliedSigma(e, o);
+    decide(e, buf, o);
     return finish();
 }
 
