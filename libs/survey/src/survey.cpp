@@ -1006,7 +1006,6 @@ void Survey::auditPoses(const SurveyInputs& in, std::vector<TraverseData>& data,
     std::vector<mrpt::poses::CPose3DInterpolator> interps;
     interps.reserve(data.size());
     std::vector<CeilingTraverse> traverses;
-    std::vector<TraverseData*> audited;
     for (std::size_t i = 0; i < data.size(); ++i) {
         interps.push_back(common::makeInterpolator(tracks[i].poses, options_.max_pose_gap_s));
         if (!in.traverses[i].reference || tracks[i].poses.empty()) continue;
