@@ -832,10 +832,23 @@ void checkUniqueNames(const SurveyInputs& in) {
     }
 }
 
-std::vector<bool> referenceFlags(const SurveyInputs& in) {
-    std::vector<bool> reference;
-    for (const auto& t : in.traverses) reference.push_back(t.reference);
-    return reference;
+/// The reference traverses' ceiling frames on their laser poses, as the ceiling-height estimate
+/// and the pose audit read them; `traverses` points into `interps` and into the caller's data.
+struct LaserPosedCeilings {
+    std::vector<mrpt::poses::CPose3DInterpolator> interps;
+    std::vector<CeilingTraverse> traverses;
+};
+
+LaserPosedCeilings laserPosedCeilings(const SurveyInputs& in, const std::vector<TraverseData>& data,
+                                      const std::vector<LaserTrack>& tracks, double max_gap_s) {
+    LaserPosedCeilings c;
+    c.interps.reserve(data.size());  // the pointers below must stay valid
+    for (std::size_t i = 0; i < data.size(); ++i) {
+        c.interps.push_back(common::makeInterpolator(tracks[i].poses, max_gap_s));
+        if (!in.traverses[i].reference || tracks[i].poses.empty()) continue;
+        c.traverses.push_back({in.traverses[i].name, &data[i].ceiling, &c.interps.back()});
+    }
+    return c;
 }
 
 }  // namespace
@@ -942,14 +955,8 @@ double Survey::ceilingHeight(const SurveyInputs& in, const std::vector<TraverseD
         result.ceiling.ceiling_height_m = result.ceiling.prior_m = options_.ceiling_height_m;
         return options_.ceiling_height_m;
     }
-    std::vector<mrpt::poses::CPose3DInterpolator> interps;
-    interps.reserve(data.size());
-    std::vector<CeilingTraverse> traverses;
-    for (std::size_t i = 0; i < data.size(); ++i) {
-        interps.push_back(common::makeInterpolator(tracks[i].poses, options_.max_pose_gap_s));
-        if (!in.traverses[i].reference || tracks[i].poses.empty()) continue;
-        traverses.push_back({in.traverses[i].name, &data[i].ceiling, &interps.back()});
-    }
+    const auto posed = laserPosedCeilings(in, data, tracks, options_.max_pose_gap_s);
+    const auto& traverses = posed.traverses;
     result.ceiling = estimateCeilingDistance(traverses, options_);
     result.ceiling_source = result.ceiling.estimated ? "estimated" : "configured";
     if (!result.ceiling.warning.empty()) result.warnings.push_back(result.ceiling.warning);
@@ -972,8 +979,8 @@ void Survey::lidarSweep(const SurveyInputs& in, std::vector<TraverseData>& data,
     for (auto& d : data) d.scans_deskewed = deskewTraverse(d, 1e-3 * e.sweep_ms);
 }
 
-void Survey::timeOffsets(std::vector<TraverseData>& data, const std::vector<LaserTrack>& tracks,
-                         const std::vector<bool>& reference, double ceiling_height_m,
+void Survey::timeOffsets(const SurveyInputs& in, std::vector<TraverseData>& data,
+                         const std::vector<LaserTrack>& tracks, double ceiling_height_m,
                          SurveyResult& result) const {
     TimeOffsetEstimate ceiling;
     ceiling.label = options_.ceiling_camera_label;
@@ -981,15 +988,8 @@ void Survey::timeOffsets(std::vector<TraverseData>& data, const std::vector<Lase
     ceiling.offset_s = ceiling.configured_s = options_.ceiling_time_offset_s;
     ceiling.applied_sigma_s = options_.ceiling_time_offset_sigma_s;
     if (options_.time_offset_estimate) {
-        std::vector<mrpt::poses::CPose3DInterpolator> interps;
-        interps.reserve(data.size());
-        std::vector<CeilingTraverse> traverses;
-        for (std::size_t i = 0; i < data.size(); ++i) {
-            interps.push_back(common::makeInterpolator(tracks[i].poses, options_.max_pose_gap_s));
-            if (!reference[i] || tracks[i].poses.empty()) continue;
-            traverses.push_back({"", &data[i].ceiling, &interps.back()});
-        }
-        ceiling = estimateTimeOffset(traverses, ceiling_height_m, options_);
+        const auto posed = laserPosedCeilings(in, data, tracks, options_.max_pose_gap_s);
+        ceiling = estimateTimeOffset(posed.traverses, ceiling_height_m, options_);
         if (!ceiling.warning.empty()) result.warnings.push_back(ceiling.warning);
         for (auto& d : data) shiftStamps(d.ceiling, ceiling.offset_s - ceiling.configured_s);
     }
@@ -1003,14 +1003,8 @@ void Survey::timeOffsets(std::vector<TraverseData>& data, const std::vector<Lase
 void Survey::auditPoses(const SurveyInputs& in, std::vector<TraverseData>& data,
                         const std::vector<LaserTrack>& tracks, double ceiling_height_m,
                         SurveyResult& result) const {
-    std::vector<mrpt::poses::CPose3DInterpolator> interps;
-    interps.reserve(data.size());
-    std::vector<CeilingTraverse> traverses;
-    for (std::size_t i = 0; i < data.size(); ++i) {
-        interps.push_back(common::makeInterpolator(tracks[i].poses, options_.max_pose_gap_s));
-        if (!in.traverses[i].reference || tracks[i].poses.empty()) continue;
-        traverses.push_back({in.traverses[i].name, &data[i].ceiling, &interps.back()});
-    }
+    const auto posed = laserPosedCeilings(in, data, tracks, options_.max_pose_gap_s);
+    const auto& traverses = posed.traverses;
     result.pose_audit = auditLaserPoses(traverses, ceiling_height_m, options_);
     // Where the image motion left the camera's offset as configured, the audit's fixes across
     // traverses may pin it down; the audit then runs again on the stamps corrected.
@@ -1066,7 +1060,7 @@ SurveyResult Survey::run(const SurveyInputs& in) const {
         if (poses.grid) writer.setMap(*poses.grid);
         database::DatabaseInfo info = databaseInfo(in, options_);
         info.ceiling_height_m = ceilingHeight(in, survey.data, poses.tracks, result);
-        timeOffsets(survey.data, poses.tracks, referenceFlags(in), info.ceiling_height_m, result);
+        timeOffsets(in, survey.data, poses.tracks, info.ceiling_height_m, result);
         auditPoses(in, survey.data, poses.tracks, info.ceiling_height_m, result);
         info.pose_source = result.pose_source;
         const std::string track_name = laser ? std::string("the laser track") : in.poses_file;

@@ -144,8 +144,8 @@ class Survey {
     /// The ceiling camera's time offset: estimated from the images (time_offset.h) unless
     /// disabled, applied to the traverses' ceiling stamps, recorded in `result` with the
     /// forward camera's configured one.
-    void timeOffsets(std::vector<TraverseData>& data, const std::vector<LaserTrack>& tracks,
-                     const std::vector<bool>& reference, double ceiling_height_m,
+    void timeOffsets(const SurveyInputs& in, std::vector<TraverseData>& data,
+                     const std::vector<LaserTrack>& tracks, double ceiling_height_m,
                      SurveyResult& result) const;
 
     /// The reference traverses' laser poses checked against one another's images
