@@ -272,6 +272,56 @@ TEST(Localize, FixesThatKeepDisagreeingWithOdometryDropTheTrack) {
               1u);
 }
 
+// From frame 5 the ceiling is another one (new shotcrete: textured, but nothing of it in the
+// references) and the wheel slips, reading 25 % more distance than the vehicle drives: 1 m
+// too far by frame 19. Measured on the ceiling between consecutive frames, the dead
+// reckoning follows the vehicle; from the odometry alone it runs ahead. Either way the frames
+// are fallbacks with the same uncertainty.
+TEST(Localize, OnAChangedCeilingTheDeadReckoningFollowsTheCeilingsOwnMotion) {
+    const auto run = [](const std::string& name, const std::string& ini_text) {
+        const auto dir = lookup::test::freshDir("lookup_localize_ceiling_odometry_" + name);
+        Scene changed;
+        changed.ceiling = refine::synthetic::SyntheticCeiling::make(kCeilingHeight, 40.0, 0.01, 8);
+        auto req = planarRun(
+            dir,
+            [&](int i, mrpt::obs::CObservationImage& img, mrpt::obs::CObservationOdometry& odo) {
+                if (i < 5) return;
+                odo.odometry.x(-5 + 0.3 * 5 + 1.25 * 0.3 * (i - 5));
+                img.image = changed
+                                .image(mrpt::poses::CPose3D(-5 + 0.3 * i, 0.4, 0, 0.05, 0, 0),
+                                       kT0 + 0.1 * i)
+                                ->image;
+            },
+            20);
+        req.ini_file = (dir / "localize.ini").string();
+        std::ofstream(req.ini_file) << ini_text;
+        localize::runLocalization(req);
+        return eval::loadRun(req.out_dir);
+    };
+    const auto followed = run("on", "[localizer]\n");
+    const auto odometry = run("off", "[localizer]\nceiling_odometry = false\n");
+    ASSERT_EQ(followed.frames.size(), 20u);
+    ASSERT_EQ(odometry.frames.size(), 20u);
+    ASSERT_EQ(followed.frames[4].status, "refined") << followed.frames[4].reason;
+    const auto error = [](const eval::FrameRow& f, int i) {
+        return std::hypot(f.x - (-5 + 0.3 * i), f.y - 0.4);
+    };
+    for (int i = 5; i < 20; ++i) {
+        const auto &f = followed.frames[i], &o = odometry.frames[i];
+        ASSERT_EQ(f.status, "fallback") << i << ": " << f.reason;
+        ASSERT_EQ(o.status, "fallback") << i << ": " << o.reason;
+        EXPECT_LT(error(f, i), 0.1) << i;
+        EXPECT_NEAR(f.cov_xx, o.cov_xx, 1e-9) << i;
+        if (i > 5) {  // frame 5 has no frame of its own ceiling before it
+            EXPECT_NE(f.reason.find("ceiling's own motion"), std::string::npos)
+                << i << ": " << f.reason;
+        }
+        EXPECT_EQ(o.reason.find("ceiling's own motion"), std::string::npos)
+            << i << ": " << o.reason;
+    }
+    EXPECT_GT(error(odometry.frames[19], 19), 0.9);
+}
+
 // A wheel that slips once: from frame 8 the odometry reads 0.6 m farther along than the
 // vehicle went, so the prediction lies beyond the SAD window. A tracked frame that fails
 // searches the references around its prediction (tracking_acquisition_sigmas) and fixes

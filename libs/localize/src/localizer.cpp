@@ -141,6 +141,12 @@ bool finite(const mrpt::poses::CPosePDFGaussian& p) {
     return ok;
 }
 
+/// The refiner's options with grid sample points (a query frame as the reference has no heat map).
+refine::RefinerOptions gridSampling(refine::RefinerOptions o) {
+    o.sampler.mode = refine::SamplingMode::Grid;
+    return o;
+}
+
 }  // namespace
 
 std::unique_ptr<coarse::CoarseSource> makeSequenceCoarseSource(
@@ -193,7 +199,8 @@ Localizer::Localizer(const database::ReferenceDatabase& db, const LocalizerOptio
       refiner_(refiner_options),
       rectifier_(db.info().ceiling_camera),
       coarse_(std::move(coarse)),
-      coarse_uses_images_(coarse_uses_images) {
+      coarse_uses_images_(coarse_uses_images),
+      ceiling_refiner_(gridSampling(refiner_options)) {
     options_.check();
 }
 
@@ -305,6 +312,8 @@ void Localizer::restart() {
     travelled_since_forward_ = 0;
     forward_had_odometry_ = false;
     last_fix_.reset();
+    previous_frame_.reset();
+    ceiling_motion_.reset();
     fine_tracking_ = false;
     last_startup_seed_ = std::numeric_limits<std::size_t>::max();
     seed_turn_ = 0;
@@ -369,6 +378,14 @@ std::optional<Localizer::Prediction> Localizer::deadReckon(double t) const {
         return Prediction{last_fix_->pose, {0.0, t - last_fix_->time_s, false}};
     }
     const mrpt::poses::CPose2D delta = odo_now->pose - odo_fix->pose;
+    // Where the ceiling measured the motion since the fix, the odometry continues from there;
+    // the uncertainty stays that of the odometry's distance.
+    auto pose = last_fix_->pose + delta;
+    if (ceiling_motion_ && ceiling_motion_->time_s > last_fix_->time_s) {
+        if (const auto odo_then = odometryAt(ceiling_motion_->time_s)) {
+            pose = last_fix_->pose + ceiling_motion_->from_fix + (odo_now->pose - odo_then->pose);
+        }
+    }
     // Both ends extrapolated lie in the same gap in the readings: the later one's error bounds
     // the motion's. An end interpolated inside a dropout is as uncertain as one extrapolated
     // from the nearer reading.
@@ -376,7 +393,7 @@ std::optional<Localizer::Prediction> Localizer::deadReckon(double t) const {
         return p.extrapolated_s + (p.gap_s > options_.odometry_timeout_s ? p.inside_gap_s : 0.0);
     };
     const double extrapolated_s = std::max(uncovered_s(*odo_now), uncovered_s(*odo_fix));
-    return Prediction{last_fix_->pose + delta, {delta.translation().norm(), extrapolated_s, true}};
+    return Prediction{pose, {delta.translation().norm(), extrapolated_s, true}};
 }
 
 void Localizer::processForward(const mrpt::obs::CObservationImage& image) {
@@ -844,12 +861,17 @@ FrameResult Localizer::processCeiling(const mrpt::obs::CObservationImage& query)
     mrpt::system::CTicTac total;
     FrameResult out = startFrame(query);
     const auto coarse_fix = coarseStep(out);
-    const auto prediction = options_.use_tracking ? predict(out.time_s) : std::nullopt;
+    auto prediction = options_.use_tracking ? predict(out.time_s) : std::nullopt;
     Attempt attempt = locate(query, coarse_fix, prediction, out);
     auditCoarse(attempt.result, coarse_fix, prediction.has_value());
     checkTrack(query, prediction, attempt, out);
+    const bool followed = followCeiling(query, attempt, out);
+    if (followed && prediction) prediction = predict(out.time_s);
     emit(attempt, prediction, out);
+    if (followed && out.pose_source == "prediction")
+        out.reason += "; dead-reckoned on the ceiling's own motion";
     finishFrame(out);
+    keepFrame(query, out);
     out.times.total_ms = 1e3 * total.Tac() + out.times.coarse_ms;
     return out;
 }
@@ -1013,6 +1035,66 @@ void Localizer::checkTrack(const mrpt::obs::CObservationImage& query,
     }
     frames_since_check_ = 0;
     a.ambiguous = trackContradicted(query, *a.result, out);
+}
+
+bool Localizer::followCeiling(const mrpt::obs::CObservationImage& query, const Attempt& a,
+                              FrameResult& out) {
+    if (!options_.ceiling_odometry || !previous_frame_ || !last_fix_) return false;
+    if ((a.result && a.result->accepted()) || a.ambiguous || a.dropped) return false;
+    const auto dead = deadReckon(out.time_s);
+    if (!dead || !dead->motion.velocity_known) return false;
+    mrpt::system::CTicTac timer;
+    const auto& prev = *previous_frame_;
+    refine::ReferenceImage view;
+    view.id = -1;
+    view.timestamp = mrpt::Clock::fromDouble(prev.time_s);
+    view.image = prev.image;
+    view.camera = prev.camera;
+    view.camera_on_vehicle = prev.camera_on_vehicle;
+    view.vehicle_in_map =
+        mrpt::poses::CPose3D(prev.pose.x(), prev.pose.y(), 0, prev.pose.phi(), 0, 0);
+    const auto& shutter = ceiling_refiner_.options().rolling_shutter;
+    if (shutter.readout_ms > 0) {
+        view.timing.readout_s = 1e-3 * shutter.readout_ms;
+        view.timing.rows = view.image.rows;
+        view.timing.stamp_row = shutter.stampRow(view.image.rows);
+        if (const auto v = velocityAt(prev.time_s)) view.timing.velocity = *v;
+    }
+    view.prepare(ceiling_refiner_.options().matcher);
+    view.prepareSamplePoints(ceiling_refiner_.options().sampler);
+    refine::CoarseHint hint;
+    hint.vehicle_pose =
+        mrpt::poses::CPose3D(dead->pose.x(), dead->pose.y(), 0, dead->pose.phi(), 0, 0);
+    if (db_.info().ceiling_height_m > 0) hint.ceiling_height_m = db_.info().ceiling_height_m;
+    if (shutter.readout_ms > 0) hint.vehicle_motion = velocityAt(out.time_s);
+    const auto r = ceiling_refiner_.refine(query, hint, {view});
+    out.times.refine_ms += 1e3 * timer.Tac();
+    ++out.refinement_attempts;
+    if (!r.accepted()) return false;
+    // The camera's position from the ceiling, the heading from the odometry: chained frame to
+    // frame, the ceiling's small rotations drift by degrees over tens of frames, the odometry's
+    // do not.
+    const mrpt::poses::CPose2D mount(query.cameraPose.x(), query.cameraPose.y(), 0);
+    const auto camera = r.pose.mean + mount;
+    const auto moved = mrpt::poses::CPose2D(camera.x(), camera.y(), dead->pose.phi()) +
+                       mrpt::poses::CPose2D(-mount.x(), -mount.y(), 0);
+    ceiling_motion_ = CeilingMotion{out.time_s, moved - last_fix_->pose};
+    return true;
+}
+
+void Localizer::keepFrame(const mrpt::obs::CObservationImage& query, const FrameResult& out) {
+    previous_frame_.reset();
+    if (!options_.ceiling_odometry || !last_fix_ || !out.has_pose) return;
+    const auto dead = deadReckon(out.time_s);  // the fix itself on a refined frame
+    if (!dead) return;
+    try {
+        const cv::Mat& m = query.image.asCvMatRef();
+        if (m.type() != CV_8UC1) return;
+        previous_frame_ =
+            PreviousFrame{out.time_s, m, query.cameraParams, query.cameraPose, dead->pose};
+    } catch (const std::exception&) {
+        // process() checked the image; one that cannot be read now is no reference
+    }
 }
 
 void Localizer::emit(const Attempt& a, const std::optional<Prediction>& prediction,

@@ -302,6 +302,30 @@ class Localizer {
         mrpt::math::CMatrixDouble33 cov = mrpt::math::CMatrixDouble33::Zero();  ///< as emitted
     };
     std::optional<Fix> last_fix_;
+
+    /// Ceiling odometry (LocalizerOptions::ceiling_odometry): the previous ceiling frame with
+    /// the pose the dead reckoning gave it, and the motion since the last fix that the ceiling
+    /// measured up to `time_s` (the odometry continues from there).
+    struct PreviousFrame {
+        double time_s = 0;
+        cv::Mat image;  ///< rectified
+        mrpt::img::TCamera camera;
+        mrpt::poses::CPose3D camera_on_vehicle;
+        mrpt::poses::CPose2D pose;
+    };
+    struct CeilingMotion {
+        double time_s = 0;
+        mrpt::poses::CPose2D from_fix;
+    };
+    std::optional<PreviousFrame> previous_frame_;
+    std::optional<CeilingMotion> ceiling_motion_;
+    refine::Refiner ceiling_refiner_;  ///< grid points: the previous frame has no heat map
+    /// A frame no reference refined: its motion from the previous frame measured on the
+    /// ceiling, kept in ceiling_motion_ when the refiner accepts it. True when it did.
+    bool followCeiling(const mrpt::obs::CObservationImage& query, const Attempt& a,
+                       FrameResult& out);
+    /// Keeps `query` as the next frame's reference for ceiling odometry.
+    void keepFrame(const mrpt::obs::CObservationImage& query, const FrameResult& out);
     std::optional<mrpt::poses::CPosePDFGaussian> hypothesis_;  ///< see offerHypothesis
     int hypothesis_frames_ = 0;                                ///< frames it was tried on
     std::shared_ptr<const refine::RefineResult> tryHypothesis(
