@@ -1078,8 +1078,22 @@ bool Localizer::followCeiling(const mrpt::obs::CObservationImage& query, const A
     const auto camera = r.pose.mean + mount;
     const auto moved = mrpt::poses::CPose2D(camera.x(), camera.y(), dead->pose.phi()) +
                        mrpt::poses::CPose2D(-mount.x(), -mount.y(), 0);
+    if (!slipped(prev, moved, out.time_s)) return false;
     ceiling_motion_ = CeilingMotion{out.time_s, moved - last_fix_->pose};
     return true;
+}
+
+bool Localizer::slipped(const PreviousFrame& prev, const mrpt::poses::CPose2D& moved,
+                        double time_s) const {
+    // Frame to frame the ceiling's relief puts its steps a few per cent off: a wheel that grips
+    // does better, so the ceiling's step replaces the odometry's only where they disagree.
+    const auto odo_prev = odometryAt(prev.time_s), odo_now = odometryAt(time_s);
+    if (!odo_prev || !odo_now) return true;
+    const auto odo_step = (odo_now->pose - odo_prev->pose).translation();
+    const auto ceiling_step = (moved - prev.pose).translation();
+    const double limit =
+        std::max(kCeilingStepPrecision_m, options_.ceiling_odometry_min_slip * odo_step.norm());
+    return (ceiling_step - odo_step).norm() > limit;
 }
 
 void Localizer::keepFrame(const mrpt::obs::CObservationImage& query, const FrameResult& out) {

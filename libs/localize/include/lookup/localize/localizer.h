@@ -324,6 +324,11 @@ class Localizer {
     /// ceiling, kept in ceiling_motion_ when the refiner accepts it. True when it did.
     bool followCeiling(const mrpt::obs::CObservationImage& query, const Attempt& a,
                        FrameResult& out);
+    /// Whether the ceiling's step from `prev` to `moved` disagrees with the odometry's by more
+    /// than ceiling_odometry_min_slip of it (and than the ceiling's own precision).
+    bool slipped(const PreviousFrame& prev, const mrpt::poses::CPose2D& moved, double time_s) const;
+    /// The ceiling's step precision frame to frame [m]: below it, steps agree.
+    static constexpr double kCeilingStepPrecision_m = 0.02;
     /// Keeps `query` as the next frame's reference for ceiling odometry.
     void keepFrame(const mrpt::obs::CObservationImage& query, const FrameResult& out);
     std::optional<mrpt::poses::CPosePDFGaussian> hypothesis_;  ///< see offerHypothesis

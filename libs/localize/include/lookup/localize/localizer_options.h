@@ -32,10 +32,12 @@ struct LocalizerOptions : public common::TableOptions<LocalizerOptions> {
     /// vehicle in a place the survey never entered, a stop under a bare ceiling) [s].
     double max_dead_reckoning_s = 60.0;
     /// Where no reference matches (a changed ceiling), the vehicle's motion since the previous
-    /// ceiling frame is measured on the ceiling itself (that frame as the reference) and
-    /// replaces the odometry's in the dead reckoning, so a slipping wheel does not stretch it.
-    /// The dead reckoning's uncertainty stays the odometry's.
+    /// ceiling frame is measured on the ceiling itself (that frame as the reference); where it
+    /// disagrees with the odometry's by more than ceiling_odometry_min_slip of the odometry's
+    /// step (a slipping wheel), it replaces the odometry's position in the dead reckoning.
+    /// Elsewhere the odometry's step is the more precise. The uncertainty stays the odometry's.
     bool ceiling_odometry = true;
+    double ceiling_odometry_min_slip = 0.1;  ///< share of the odometry's step
     /// No odometry reading for this long is a dropout: the coarse stage matches without
     /// odometry and predictions are extrapolated with a growing uncertainty [s].
     double odometry_timeout_s = 0.2;
