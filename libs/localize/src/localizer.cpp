@@ -1045,6 +1045,31 @@ bool Localizer::followCeiling(const mrpt::obs::CObservationImage& query, const A
     if (!dead || !dead->motion.velocity_known) return false;
     mrpt::system::CTicTac timer;
     const auto& prev = *previous_frame_;
+    const auto view = previousView();
+    refine::CoarseHint hint;
+    hint.vehicle_pose =
+        mrpt::poses::CPose3D(dead->pose.x(), dead->pose.y(), 0, dead->pose.phi(), 0, 0);
+    if (db_.info().ceiling_height_m > 0) hint.ceiling_height_m = db_.info().ceiling_height_m;
+    const auto& shutter = ceiling_refiner_.options().rolling_shutter;
+    if (shutter.readout_ms > 0) hint.vehicle_motion = velocityAt(out.time_s);
+    const auto r = ceiling_refiner_.refine(query, hint, {view});
+    out.times.refine_ms += 1e3 * timer.Tac();
+    ++out.refinement_attempts;
+    if (!r.accepted()) return false;
+    // The camera's position from the ceiling, the heading from the odometry: chained frame to
+    // frame, the ceiling's small rotations drift by degrees over tens of frames, the odometry's
+    // do not.
+    const mrpt::poses::CPose2D mount(query.cameraPose.x(), query.cameraPose.y(), 0);
+    const auto camera = r.pose.mean + mount;
+    const auto moved = mrpt::poses::CPose2D(camera.x(), camera.y(), dead->pose.phi()) +
+                       mrpt::poses::CPose2D(-mount.x(), -mount.y(), 0);
+    if (!slipped(prev, moved, out.time_s)) return false;
+    ceiling_motion_ = CeilingMotion{out.time_s, moved - last_fix_->pose};
+    return true;
+}
+
+refine::ReferenceImage Localizer::previousView() const {
+    const auto& prev = *previous_frame_;
     refine::ReferenceImage view;
     view.id = -1;
     view.timestamp = mrpt::Clock::fromDouble(prev.time_s);
@@ -1062,25 +1087,7 @@ bool Localizer::followCeiling(const mrpt::obs::CObservationImage& query, const A
     }
     view.prepare(ceiling_refiner_.options().matcher);
     view.prepareSamplePoints(ceiling_refiner_.options().sampler);
-    refine::CoarseHint hint;
-    hint.vehicle_pose =
-        mrpt::poses::CPose3D(dead->pose.x(), dead->pose.y(), 0, dead->pose.phi(), 0, 0);
-    if (db_.info().ceiling_height_m > 0) hint.ceiling_height_m = db_.info().ceiling_height_m;
-    if (shutter.readout_ms > 0) hint.vehicle_motion = velocityAt(out.time_s);
-    const auto r = ceiling_refiner_.refine(query, hint, {view});
-    out.times.refine_ms += 1e3 * timer.Tac();
-    ++out.refinement_attempts;
-    if (!r.accepted()) return false;
-    // The camera's position from the ceiling, the heading from the odometry: chained frame to
-    // frame, the ceiling's small rotations drift by degrees over tens of frames, the odometry's
-    // do not.
-    const mrpt::poses::CPose2D mount(query.cameraPose.x(), query.cameraPose.y(), 0);
-    const auto camera = r.pose.mean + mount;
-    const auto moved = mrpt::poses::CPose2D(camera.x(), camera.y(), dead->pose.phi()) +
-                       mrpt::poses::CPose2D(-mount.x(), -mount.y(), 0);
-    if (!slipped(prev, moved, out.time_s)) return false;
-    ceiling_motion_ = CeilingMotion{out.time_s, moved - last_fix_->pose};
-    return true;
+    return view;
 }
 
 bool Localizer::slipped(const PreviousFrame& prev, const mrpt::poses::CPose2D& moved,
@@ -1103,9 +1110,11 @@ void Localizer::keepFrame(const mrpt::obs::CObservationImage& query, const Frame
     if (!dead) return;
     try {
         const cv::Mat& m = query.image.asCvMatRef();
-        if (m.type() != CV_8UC1) return;
+        cv::Mat grey = m;
+        if (m.channels() == 3) cv::cvtColor(m, grey, cv::COLOR_BGR2GRAY);
+        if (grey.type() != CV_8UC1) return;
         previous_frame_ =
-            PreviousFrame{out.time_s, m, query.cameraParams, query.cameraPose, dead->pose};
+            PreviousFrame{out.time_s, grey, query.cameraParams, query.cameraPose, dead->pose};
     } catch (const std::exception&) {
         // process() checked the image; one that cannot be read now is no reference
     }

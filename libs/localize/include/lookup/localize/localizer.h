@@ -324,6 +324,8 @@ class Localizer {
     /// ceiling, kept in ceiling_motion_ when the refiner accepts it. True when it did.
     bool followCeiling(const mrpt::obs::CObservationImage& query, const Attempt& a,
                        FrameResult& out);
+    /// The previous frame as a reference: rectified, posed, prepared for ceiling_refiner_.
+    refine::ReferenceImage previousView() const;
     /// Whether the ceiling's step from `prev` to `moved` disagrees with the odometry's by more
     /// than ceiling_odometry_min_slip of it (and than the ceiling's own precision).
     bool slipped(const PreviousFrame& prev, const mrpt::poses::CPose2D& moved, double time_s) const;
