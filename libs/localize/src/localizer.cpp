@@ -1052,7 +1052,8 @@ bool Localizer::followCeiling(const mrpt::obs::CObservationImage& query, const A
     if (db_.info().ceiling_height_m > 0) hint.ceiling_height_m = db_.info().ceiling_height_m;
     const auto& shutter = ceiling_refiner_.options().rolling_shutter;
     if (shutter.readout_ms > 0) hint.vehicle_motion = velocityAt(out.time_s);
-    const auto r = ceiling_refiner_.refine(query, hint, {view});
+    // The same matcher options as refiner_'s: this frame's query pyramid serves both.
+    const auto r = ceiling_refiner_.refine(query, hint, {view}, framePyramid(query));
     out.times.refine_ms += 1e3 * timer.Tac();
     ++out.refinement_attempts;
     if (!r.accepted()) return false;
