@@ -42,6 +42,17 @@ database::ReferenceDatabase twoForwardTraverses(const std::string& name) {
     return database::ReferenceDatabase::load((dir / "db").string());
 }
 
+/// planarRun in a fresh folder `name`, localised with `ini_text` as its .ini: the run read back.
+eval::Run localisedPlanarRun(const std::string& name, const Spoiler& spoil, int frames,
+                             const std::string& ini_text) {
+    const auto dir = lookup::test::freshDir(name);
+    auto req = planarRun(dir, spoil, frames);
+    req.ini_file = (dir / "localize.ini").string();
+    std::ofstream(req.ini_file) << ini_text;
+    localize::runLocalization(req);
+    return eval::loadRun(req.out_dir);
+}
+
 }  // namespace
 
 TEST(Localize, RefinesCoarsePosesToCentimetresOnASyntheticCeiling) {
@@ -254,13 +265,10 @@ TEST(Localize, FixesThatKeepDisagreeingWithOdometryDropTheTrack) {
         odo.odometry.x(-5 + 0.8 * 0.3 * i);
     };
     const auto drops = [&](const std::string& name, const std::string& ini_text) {
-        const auto dir = lookup::test::freshDir("lookup_localize_track_" + name);
-        auto req = planarRun(dir, under_read, 16);
-        req.ini_file = (dir / "localize.ini").string();
-        std::ofstream(req.ini_file) << ini_text;
-        localize::runLocalization(req);
         std::size_t dropped = 0;
-        for (const auto& f : eval::loadRun(req.out_dir).frames) {
+        const auto run =
+            localisedPlanarRun("lookup_localize_track_" + name, under_read, 16, ini_text);
+        for (const auto& f : run.frames) {
             dropped += f.reason.find("from the odometry prediction") != std::string::npos;
         }
         return dropped;
@@ -278,25 +286,16 @@ TEST(Localize, FixesThatKeepDisagreeingWithOdometryDropTheTrack) {
 // reckoning follows the vehicle; from the odometry alone it runs ahead. Either way the frames
 // are fallbacks with the same uncertainty.
 TEST(Localize, OnAChangedCeilingTheDeadReckoningFollowsTheCeilingsOwnMotion) {
-    const auto run = [](const std::string& name, const std::string& ini_text) {
-        const auto dir = lookup::test::freshDir("lookup_localize_ceiling_odometry_" + name);
-        Scene changed;
-        changed.ceiling = refine::synthetic::SyntheticCeiling::make(kCeilingHeight, 40.0, 0.01, 8);
-        auto req = planarRun(
-            dir,
-            [&](int i, mrpt::obs::CObservationImage& img, mrpt::obs::CObservationOdometry& odo) {
-                if (i < 5) return;
-                odo.odometry.x(-5 + 0.3 * 5 + 1.25 * 0.3 * (i - 5));
-                img.image = changed
-                                .image(mrpt::poses::CPose3D(-5 + 0.3 * i, 0.4, 0, 0.05, 0, 0),
-                                       kT0 + 0.1 * i)
-                                ->image;
-            },
-            20);
-        req.ini_file = (dir / "localize.ini").string();
-        std::ofstream(req.ini_file) << ini_text;
-        localize::runLocalization(req);
-        return eval::loadRun(req.out_dir);
+    Scene changed;
+    changed.ceiling = refine::synthetic::SyntheticCeiling::make(kCeilingHeight, 40.0, 0.01, 8);
+    const auto spoil = [&](int i, mrpt::obs::CObservationImage& img,
+                           mrpt::obs::CObservationOdometry& odo) {
+        if (i < 5) return;
+        odo.odometry.x(-5 + 0.3 * 5 + 1.25 * 0.3 * (i - 5));
+        img.image = changed.image(PlanarDrive().vehicle(i), kT0 + 0.1 * i)->image;
+    };
+    const auto run = [&](const std::string& name, const std::string& ini_text) {
+        return localisedPlanarRun("lookup_localize_ceiling_odometry_" + name, spoil, 20, ini_text);
     };
     const auto followed = run("on", "[localizer]\n");
     const auto odometry = run("off", "[localizer]\nceiling_odometry = false\n");
@@ -332,12 +331,7 @@ TEST(Localize, AFailedTrackedFrameSearchesAroundItsPrediction) {
         if (i >= 8) odo.odometry.x(odo.odometry.x() + 0.6);
     };
     const auto run = [&](const std::string& name, const std::string& ini_text) {
-        const auto dir = lookup::test::freshDir("lookup_localize_tracked_search_" + name);
-        auto req = planarRun(dir, slipped, 14);
-        req.ini_file = (dir / "localize.ini").string();
-        std::ofstream(req.ini_file) << ini_text;
-        localize::runLocalization(req);
-        return eval::loadRun(req.out_dir);
+        return localisedPlanarRun("lookup_localize_tracked_search_" + name, slipped, 14, ini_text);
     };
     const auto searched = run("on", "[localizer]\n");
     const auto waited = run("off", "[localizer]\ntracking_acquisition_sigmas = 0\n");
@@ -361,26 +355,21 @@ TEST(Localize, AFailedTrackedFrameSearchesAroundItsPrediction) {
 // ceiling. The fix of frame 10 disagrees with the odometry's heading and is refused, so the
 // dead reckoning that follows starts from frame 9's fix; accepted, it would carry 8 degrees.
 TEST(Localize, AFixWhoseHeadingDisagreesWithTheOdometryIsRefused) {
-    const auto run = [](const std::string& name, const std::string& ini_text) {
-        const auto dir = lookup::test::freshDir("lookup_localize_heading_" + name);
-        const Scene scene;
-        auto req = planarRun(
-            dir,
-            [&](int i, mrpt::obs::CObservationImage& img, mrpt::obs::CObservationOdometry&) {
-                const mrpt::poses::CPose3D vehicle(-5 + 0.3 * i, 0.4, 0, 0.05, 0, 0);
-                if (i == 10) {
-                    const mrpt::poses::CPose3D turned(0, 0, 0, mrpt::DEG2RAD(8.0), 0, 0);
-                    img.image = scene.image(vehicle + turned, 0)->image;
-                } else if (i > 10 && i < 16) {
-                    img.image = mrpt::img::CImage(cv::Mat(240, 320, CV_8UC1, cv::Scalar(128)),
-                                                  mrpt::img::DEEP_COPY);
-                }
-            },
-            16);
-        req.ini_file = (dir / "localize.ini").string();
-        std::ofstream(req.ini_file) << ini_text;
-        localize::runLocalization(req);
-        return eval::loadRun(req.out_dir);
+    const Scene scene;
+    const auto turned_then_flat = [&](int i, mrpt::obs::CObservationImage& img,
+                                      mrpt::obs::CObservationOdometry&) {
+        const mrpt::poses::CPose3D vehicle(-5 + 0.3 * i, 0.4, 0, 0.05, 0, 0);
+        if (i == 10) {
+            const mrpt::poses::CPose3D turned(0, 0, 0, mrpt::DEG2RAD(8.0), 0, 0);
+            img.image = scene.image(vehicle + turned, 0)->image;
+        } else if (i > 10 && i < 16) {
+            img.image = mrpt::img::CImage(cv::Mat(240, 320, CV_8UC1, cv::Scalar(128)),
+                                          mrpt::img::DEEP_COPY);
+        }
+    };
+    const auto run = [&](const std::string& name, const std::string& ini_text) {
+        return localisedPlanarRun("lookup_localize_heading_" + name, turned_then_flat, 16,
+                                  ini_text);
     };
     const auto yawError = [](const eval::FrameRow& f) {
         return std::abs(mrpt::RAD2DEG(mrpt::math::wrapToPi(f.yaw - 0.05)));
@@ -462,13 +451,10 @@ TEST(Localize, DrivingAgainstTheSurveyTheReferencesAreThoseWhoseCamerasSawTheCei
 // uncertain by 0.1 s adds (0.3 m)^2 along the motion to every emitted pose, nothing across it.
 TEST(Localize, AnUncertainImageTimeWidensThePoseAlongTheMotion) {
     const auto run = [&](const std::string& name, const std::string& ini_text) {
-        const auto dir = lookup::test::freshDir("lookup_localize_image_time_" + name);
-        auto req = planarRun(
-            dir, [](int, mrpt::obs::CObservationImage&, mrpt::obs::CObservationOdometry&) {}, 8);
-        req.ini_file = (dir / "localize.ini").string();
-        std::ofstream(req.ini_file) << ini_text;
-        localize::runLocalization(req);
-        return eval::loadRun(req.out_dir);
+        return localisedPlanarRun(
+            "lookup_localize_image_time_" + name,
+            [](int, mrpt::obs::CObservationImage&, mrpt::obs::CObservationOdometry&) {}, 8,
+            ini_text);
     };
     const auto exact = run("exact", "[localizer]\n");
     const auto uncertain = run("uncertain", "[localizer]\nimage_time_sigma_s = 0.1\n");

@@ -597,7 +597,7 @@ std::shared_ptr<const refine::RefineResult> Localizer::refineAgainst(
 
     timer.Tic();
     refine::CoarseHint coarse_hint;
-    coarse_hint.vehicle_pose = mrpt::poses::CPose3D(hint.x(), hint.y(), 0, hint.phi(), 0, 0);
+    coarse_hint.vehicle_pose = mrpt::poses::CPose3D(hint);
     if (db_.info().ceiling_height_m > 0) coarse_hint.ceiling_height_m = db_.info().ceiling_height_m;
     if (refiner_.options().rolling_shutter.readout_ms > 0) {
         coarse_hint.vehicle_motion = velocityAt(mrpt::Clock::toDouble(query.timestamp));
@@ -1047,8 +1047,7 @@ bool Localizer::followCeiling(const mrpt::obs::CObservationImage& query, const A
     const auto& prev = *previous_frame_;
     const auto view = previousView();
     refine::CoarseHint hint;
-    hint.vehicle_pose =
-        mrpt::poses::CPose3D(dead->pose.x(), dead->pose.y(), 0, dead->pose.phi(), 0, 0);
+    hint.vehicle_pose = mrpt::poses::CPose3D(dead->pose);
     if (db_.info().ceiling_height_m > 0) hint.ceiling_height_m = db_.info().ceiling_height_m;
     const auto& shutter = ceiling_refiner_.options().rolling_shutter;
     if (shutter.readout_ms > 0) hint.vehicle_motion = velocityAt(out.time_s);
@@ -1074,11 +1073,14 @@ refine::ReferenceImage Localizer::previousView() const {
     refine::ReferenceImage view;
     view.id = -1;
     view.timestamp = mrpt::Clock::fromDouble(prev.time_s);
-    view.image = prev.image;
+    if (prev.image.channels() == 3) {
+        cv::cvtColor(prev.image, view.image, cv::COLOR_BGR2GRAY);
+    } else {
+        view.image = prev.image;
+    }
     view.camera = prev.camera;
     view.camera_on_vehicle = prev.camera_on_vehicle;
-    view.vehicle_in_map =
-        mrpt::poses::CPose3D(prev.pose.x(), prev.pose.y(), 0, prev.pose.phi(), 0, 0);
+    view.vehicle_in_map = mrpt::poses::CPose3D(prev.pose);
     const auto& shutter = ceiling_refiner_.options().rolling_shutter;
     if (shutter.readout_ms > 0) {
         view.timing.readout_s = 1e-3 * shutter.readout_ms;
@@ -1111,11 +1113,9 @@ void Localizer::keepFrame(const mrpt::obs::CObservationImage& query, const Frame
     if (!dead) return;
     try {
         const cv::Mat& m = query.image.asCvMatRef();
-        cv::Mat grey = m;
-        if (m.channels() == 3) cv::cvtColor(m, grey, cv::COLOR_BGR2GRAY);
-        if (grey.type() != CV_8UC1) return;
+        if (m.depth() != CV_8U || (m.channels() != 1 && m.channels() != 3)) return;
         previous_frame_ =
-            PreviousFrame{out.time_s, grey, query.cameraParams, query.cameraPose, dead->pose};
+            PreviousFrame{out.time_s, m, query.cameraParams, query.cameraPose, dead->pose};
     } catch (const std::exception&) {
         // process() checked the image; one that cannot be read now is no reference
     }

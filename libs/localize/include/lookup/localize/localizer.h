@@ -308,7 +308,7 @@ class Localizer {
     /// measured up to `time_s` (the odometry continues from there).
     struct PreviousFrame {
         double time_s = 0;
-        cv::Mat image;  ///< rectified
+        cv::Mat image;  ///< rectified, grey or BGR (made grey only when used)
         mrpt::img::TCamera camera;
         mrpt::poses::CPose3D camera_on_vehicle;
         mrpt::poses::CPose2D pose;
