@@ -212,6 +212,35 @@ TEST(Database, SpatialAndTimeQueriesMatchBruteForce) {
     EXPECT_EQ(db.nearest(mrpt::math::TPoint2D(0, 0), 1000).size(), 60u);
 }
 
+// The localiser's online refresh: references added in memory are found by the spatial queries
+// at once with their own image, the ones they supersede no longer; the folder is not written.
+TEST(Database, ReferencesAddedInMemoryReplaceTheSupersededOnes) {
+    const auto dir = lookup::test::freshDir("lookup_database_in_memory");
+    writeDatabase(dir / "db", 20);
+    auto db = ReferenceDatabase::load((dir / "db").string());
+    const auto near = db.nearestCameras(mrpt::math::TPoint2D(3.0, 0.0), 1);
+    ASSERT_EQ(near.size(), 1u);
+    const std::size_t old = near[0].index;
+    Reference added = db.reference(old);
+    added.source = added.traverse = "online";
+    const cv::Mat image(12, 16, CV_8UC1, cv::Scalar(77));
+    db.addInMemory({{added, image}}, {old}, "online");
+
+    EXPECT_EQ(db.size(), 21u);
+    EXPECT_EQ(db.inMemoryCount(), 1u);
+    EXPECT_EQ(db.reference(20).id, 20u);
+    EXPECT_EQ(db.reference(old).superseded_by, "online");
+    const auto now = db.nearestCameras(mrpt::math::TPoint2D(3.0, 0.0), 1);
+    ASSERT_EQ(now.size(), 1u);
+    EXPECT_EQ(now[0].index, 20u);
+    EXPECT_EQ(db.nearest(db.reference(20).vehicle_pose, 1).at(0).index, 20u);
+    EXPECT_EQ(db.ceilingImage(20).at<uchar>(5, 5), 77);
+    for (const auto& n : db.withinRadius(mrpt::math::TPoint2D(3.0, 0.0), 100)) {
+        EXPECT_NE(n.index, old);
+    }
+    EXPECT_EQ(ReferenceDatabase::load((dir / "db").string()).size(), 20u);
+}
+
 TEST(Database, UncommittedWriterLeavesNothingAndKeepsExistingDatabase) {
     const auto dir = lookup::test::freshDir("lookup_database_atomic");
     { DatabaseWriter w((dir / "fresh").string()); }  // e.g. a survey that threw

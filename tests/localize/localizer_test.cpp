@@ -321,6 +321,56 @@ TEST(Localize, OnAChangedCeilingTheDeadReckoningFollowsTheCeilingsOwnMotion) {
     EXPECT_GT(error(odometry.frames[19], 19), 0.9);
 }
 
+// Forward to x = 1.9 m, then reversing back along the same line. Where the vehicle stands at
+// x in [-2.5, -0.5] the ceiling is another one (new shotcrete over the surveyed rock), and the
+// wheel reads 2 % long. On the way in those frames refine against nothing; the fix after them
+// closes the stretch, whose frames, bridged on the odometry, the online refresh adds as
+// references. On the way back the same ceiling is then refined, within centimetres.
+TEST(Localize, OnlineRefreshRefinesAChangedStretchOnTheWayBack) {
+    Scene changed;
+    changed.ceiling = refine::synthetic::SyntheticCeiling::make(kCeilingHeight, 40.0, 0.01, 8);
+    PlanarDrive drive;
+    drive.vehicle = [](int i) {
+        const double x = i <= 23 ? -5 + 0.3 * i : 1.9 - 0.3 * (i - 23);
+        return mrpt::poses::CPose3D(x, 0.4, 0, 0.05, 0, 0);
+    };
+    const auto on_new_shotcrete = [&](int i) {
+        const double x = drive.vehicle(i).x();
+        return x >= -2.5 && x <= -0.5;
+    };
+    const auto spoil = [&](int i, mrpt::obs::CObservationImage& img,
+                           mrpt::obs::CObservationOdometry& odo) {
+        odo.odometry.x(-5 + 1.02 * (drive.vehicle(i).x() + 5));
+        if (on_new_shotcrete(i)) img.image = changed.image(drive.vehicle(i), kT0 + 0.1 * i)->image;
+    };
+    const auto run = [&](const std::string& name, const std::string& ini_text) {
+        const auto dir = lookup::test::freshDir("lookup_localize_online_refresh_" + name);
+        auto req = planarRun(dir, spoil, 48, drive);
+        req.ini_file = (dir / "localize.ini").string();
+        std::ofstream(req.ini_file) << ini_text;
+        localize::runLocalization(req);
+        return eval::loadRun(req.out_dir);
+    };
+    const auto refreshed = run("on", "[localizer]\n");
+    const auto surveyed = run("off", "[localizer]\nonline_refresh = false\n");
+    ASSERT_EQ(refreshed.frames.size(), 48u);
+    ASSERT_EQ(surveyed.frames.size(), 48u);
+    int way_in = 0, way_back = 0, way_back_surveyed = 0;
+    for (int i = 0; i < 48; ++i) {
+        if (!on_new_shotcrete(i)) continue;
+        const auto &f = refreshed.frames[i], &s = surveyed.frames[i];
+        (i <= 23 ? way_in : way_back) += f.status == "refined";
+        way_back_surveyed += i > 23 && s.status == "refined";
+        const auto truth = drive.vehicle(i);
+        if (f.status == "refined") {
+            EXPECT_LT(std::hypot(f.x - truth.x(), f.y - truth.y()), 0.05) << i;
+        }
+    }
+    EXPECT_EQ(way_in, 0);
+    EXPECT_EQ(way_back_surveyed, 0);
+    EXPECT_GE(way_back, 6) << "of 7";
+}
+
 // A wheel that slips once: from frame 8 the odometry reads 0.6 m farther along than the
 // vehicle went, so the prediction lies beyond the SAD window. A tracked frame that fails
 // searches the references around its prediction (tracking_acquisition_sigmas) and fixes
@@ -586,7 +636,7 @@ TEST(Localize, AcquisitionCandidatesCoverEveryNearbyTraverse) {
     const auto dir = lookup::test::freshDir("lookup_localize_candidates");
     writeDatabase(scene, (dir / "db").string(),
                   {{"near", 40, 100.0, 0, /*y_m=*/0.0}, {"far", 40, 200.0, 0, /*y_m=*/0.4}});
-    const auto db = database::ReferenceDatabase::load((dir / "db").string());
+    auto db = database::ReferenceDatabase::load((dir / "db").string());
     localize::LocalizerOptions options;
     options.acquisition_radius_m = 2.0;
     options.acquisition_step_m = 0.5;

@@ -170,7 +170,7 @@ TEST(Refresh, TheChangedStretchGetsTheDrivesImagesPosedBetweenItsFixes) {
         for (std::size_t b : bridged) {
             nearest = std::min(nearest, cameraDistance(after.reference(i), after.reference(b)));
         }
-        EXPECT_EQ(after.reference(i).current(), nearest > o.refresh_supersede_radius_m) << i;
+        EXPECT_EQ(after.reference(i).current(), nearest > o.refresh.supersede_radius_m) << i;
         if (!after.reference(i).current()) {
             EXPECT_EQ(after.reference(i).superseded_by, "today");
         }

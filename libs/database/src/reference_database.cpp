@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <array>
 #include <filesystem>
+#include <map>
 
 #include "lookup/common/camera_params.h"
 #include "lookup/common/rawlog_io.h"
@@ -193,6 +194,18 @@ struct ReferenceDatabase::Impl {
     std::vector<std::size_t> by_time;  // reference indices sorted by time_s
     std::vector<std::size_t> forward_sequence;
     std::unique_ptr<ImageCache> cache;
+    std::map<std::size_t, cv::Mat> in_memory;  // addInMemory's ceiling images by index
+
+    // The spatial and time indices over `refs`.
+    void index() {
+        current = currentOf(refs);
+        cloud = positionsOf(refs, current, &Reference::vehicle_pose);
+        tree = treeOver(cloud);
+        camera_cloud = positionsOf(refs, current, &Reference::ceiling_camera_pose);
+        camera_tree = treeOver(camera_cloud);
+        by_time = timeOrder(refs);
+        forward_sequence = forwardOrder(refs);
+    }
 };
 
 ReferenceDatabase::ReferenceDatabase(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
@@ -210,13 +223,7 @@ ReferenceDatabase ReferenceDatabase::load(const std::string& dir, std::size_t ca
     verifyHeatMaps(impl->dir, impl->info.heatmaps_dir);
     impl->refs = readReferences(impl->dir + "/" + kRefsRawlog, impl->info);
 
-    impl->current = currentOf(impl->refs);
-    impl->cloud = positionsOf(impl->refs, impl->current, &Reference::vehicle_pose);
-    impl->tree = treeOver(impl->cloud);
-    impl->camera_cloud = positionsOf(impl->refs, impl->current, &Reference::ceiling_camera_pose);
-    impl->camera_tree = treeOver(impl->camera_cloud);
-    impl->by_time = timeOrder(impl->refs);
-    impl->forward_sequence = forwardOrder(impl->refs);
+    impl->index();
     impl->cache = std::make_unique<ImageCache>(std::max<std::size_t>(1, cache_capacity));
     return ReferenceDatabase(std::move(impl));
 }
@@ -283,7 +290,23 @@ const std::vector<std::size_t>& ReferenceDatabase::forwardSequence() const {
     return impl_->forward_sequence;
 }
 
+void ReferenceDatabase::addInMemory(std::vector<std::pair<Reference, cv::Mat>> added,
+                                    const std::vector<std::size_t>& superseded,
+                                    const std::string& by) {
+    for (std::size_t i : superseded) impl_->refs.at(i).superseded_by = by;
+    for (auto& [ref, image] : added) {
+        CV_Assert(image.type() == CV_8UC1);
+        ref.id = static_cast<uint32_t>(impl_->refs.size());
+        impl_->in_memory[ref.id] = std::move(image);
+        impl_->refs.push_back(std::move(ref));
+    }
+    impl_->index();
+}
+
+std::size_t ReferenceDatabase::inMemoryCount() const { return impl_->in_memory.size(); }
+
 cv::Mat ReferenceDatabase::ceilingImage(std::size_t i) const {
+    if (const auto it = impl_->in_memory.find(i); it != impl_->in_memory.end()) return it->second;
     return impl_->cache->get(reference(i).ceiling_image_path);
 }
 

@@ -436,6 +436,7 @@ class Session {
             std::cerr << "lookup-localize: warning: " << source_ << ": " << n
                       << " observation(s) skipped: " << kind << "\n";
         }
+        reportOnlineRefresh();
         timing_.wall_s = wall_.Tac();
         writer_->finish(timing_);
         link_->finish(writer_->directory(), wall_.Tac());
@@ -444,6 +445,20 @@ class Session {
     }
 
   private:
+    void reportOnlineRefresh() {
+        if (!localizer_->options().online_refresh) return;
+        const auto& r = localizer_->onlineRefresh();
+        timing_.online_refresh = {{"stretches", r.stretches},
+                                  {"stretches_refused", r.refused},
+                                  {"references_added", r.references},
+                                  {"references_superseded", r.superseded}};
+        if (r.stretches + r.refused == 0) return;
+        std::cerr << "lookup-localize: online refresh: " << r.stretches
+                  << " changed stretch(es) bridged (" << r.refused << " left alone), "
+                  << r.references << " references added in memory, " << r.superseded
+                  << " superseded\n";
+    }
+
     /// Counts a refused observation and names it on stderr (the first few of each kind).
     void skip(const mrpt::obs::CObservation& obs, const Rejection& why, std::size_t record) {
         constexpr std::size_t kWarningsPerKind = 5;

@@ -191,7 +191,7 @@ std::unique_ptr<coarse::CoarseSource> makeSequenceCoarseSource(
     return source;
 }
 
-Localizer::Localizer(const database::ReferenceDatabase& db, const LocalizerOptions& options,
+Localizer::Localizer(database::ReferenceDatabase& db, const LocalizerOptions& options,
                      const refine::RefinerOptions& refiner_options,
                      std::unique_ptr<coarse::CoarseSource> coarse, bool coarse_uses_images)
     : db_(db),
@@ -314,6 +314,9 @@ void Localizer::restart() {
     last_fix_.reset();
     previous_frame_.reset();
     ceiling_motion_.reset();
+    drive_.clear();
+    last_refined_.reset();
+    drive_odometry_.reset();
     fine_tracking_ = false;
     last_startup_seed_ = std::numeric_limits<std::size_t>::max();
     seed_turn_ = 0;
@@ -534,11 +537,19 @@ std::vector<std::size_t> Localizer::acquisitionCandidates(const mrpt::poses::CPo
 
 refine::RowTiming Localizer::surveyRowTiming(std::size_t index, int rows) const {
     refine::RowTiming t;
-    t.readout_s = 1e-3 * db_.info().ceiling_readout_ms;
-    t.rows = rows;
-    t.stamp_row = db_.info().ceiling_stamp_row == common::StampRow::Middle ? 0.5 * (rows - 1) : 0.0;
-    // The survey vehicle's velocity from the neighbouring references of its traverse.
     const auto& ref = db_.reference(index);
+    t.rows = rows;
+    if (ref.source == "online") {  // this run's own camera (refreshOnline)
+        const auto& shutter = refiner_.options().rolling_shutter;
+        t.readout_s = 1e-3 * shutter.readout_ms;
+        t.stamp_row = shutter.stampRow(rows);
+    } else {
+        t.readout_s = 1e-3 * db_.info().ceiling_readout_ms;
+        t.stamp_row =
+            db_.info().ceiling_stamp_row == common::StampRow::Middle ? 0.5 * (rows - 1) : 0.0;
+    }
+    if (!(t.readout_s > 0)) return t;
+    // The vehicle's velocity from the neighbouring references of its traverse.
     const auto neighbour = [&](std::size_t j) {
         if (j >= db_.size()) return &ref;
         const auto& r = db_.reference(j);
@@ -571,9 +582,10 @@ const refine::ReferenceImage& Localizer::referenceView(std::size_t index) {
     view.camera = ref.ceiling_camera;
     view.vehicle_in_map = ref.vehicle_pose;
     view.camera_on_vehicle = ref.ceiling_camera_mount;
-    if (db_.info().ceiling_readout_ms > 0) view.timing = surveyRowTiming(index, view.image.rows);
-    // A grid run on a database with heat maps does not pay for decoding them.
-    if (refiner_.options().sampler.mode != refine::SamplingMode::Grid) {
+    view.timing = surveyRowTiming(index, view.image.rows);
+    // A grid run on a database with heat maps does not pay for decoding them; a reference the
+    // run added has none.
+    if (refiner_.options().sampler.mode != refine::SamplingMode::Grid && ref.source != "online") {
         view.heat_map = database::loadHeatMap(db_, index);
     }
     rectifier_.rectify(view);
@@ -872,6 +884,7 @@ FrameResult Localizer::processCeiling(const mrpt::obs::CObservationImage& query)
         out.reason += "; dead-reckoned on the ceiling's own motion";
     finishFrame(out);
     keepFrame(query, out);
+    refreshOnline(query, out);
     out.times.total_ms = 1e3 * total.Tac() + out.times.coarse_ms;
     return out;
 }

@@ -20,6 +20,10 @@ void LocalizerOptions::declareKeys(common::OptionsTable& t) {
     t.add("max_dead_reckoning_s", max_dead_reckoning_s, 0.0);
     t.add("ceiling_odometry", ceiling_odometry);
     t.add("ceiling_odometry_min_slip", ceiling_odometry_min_slip, 0.0, 10.0);
+    t.add("online_refresh", online_refresh);
+    t.add("online_refresh_spacing_m", online_refresh_spacing_m, common::kPositive);
+    t.add("online_refresh_max_references", online_refresh_max_references, 0, 100000000);
+    refresh.declareKeys(t);
     t.add("odometry_timeout_s", odometry_timeout_s, common::kPositive);
     t.add("image_time_sigma_s", image_time_sigma_s, 0.0, 1.0);
     t.add("acquisition_radius_m", acquisition_radius_m, 0.0);

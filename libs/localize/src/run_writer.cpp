@@ -232,6 +232,7 @@ void RunWriter::finish(const RunTiming& t) {
     }
     j["skipped"] = nlohmann::json::object();
     for (const auto& [kind, count] : t.skipped) j["skipped"][kind] = count;
+    if (!t.online_refresh.empty()) j["online_refresh"] = t.online_refresh;
     // Last: its presence, with the frame count, marks the run complete (lookup-eval checks).
     common::writeFileAtomically(dir_ + "/timing.json", j.dump(2) + "\n");
     common::syncDirectory(dir_);

@@ -121,48 +121,32 @@ struct Posed {
     ImageQuality quality;     ///< measured when it was kept as a keyframe
 };
 
-/// The stretch's frames posed from the fixes at `a` and `b` and the odometry between them: run
-/// forward from one fix and back from the other, blended by travel, so both ends are met.
-/// Empty, with `s.refused` set, when the odometry does not join the fixes.
+/// The stretch's frames posed from the fixes at `a` and `b` and the odometry between them
+/// (database::bridgeStretch). Empty, with `s.refused` set, when the odometry does not join the
+/// fixes.
 std::vector<Posed> bridge(const std::vector<DriveFrame>& frames, std::size_t a, std::size_t b,
                           const SurveyOptions& o, RefreshStretch& s) {
-    const DriveFrame &A = frames[a], &B = frames[b];
+    std::vector<database::DriveFramePose> posed(b - a + 1);
     for (std::size_t f = a; f <= b; ++f) {
         if (!frames[f].odometry) {
             s.refused = "no odometry at t=" + std::to_string(frames[f].time_s);
             return {};
         }
+        posed[f - a] = {*frames[f].odometry, frames[f].travelled_m, frames[f].pose, frames[f].cov};
     }
-    const auto forward = [&](std::size_t f) {
-        return A.pose + (*frames[f].odometry - *A.odometry);
-    };
-    const auto backward = [&](std::size_t f) {
-        return B.pose + (*frames[f].odometry - *B.odometry);
-    };
-    const mrpt::poses::CPose2D arrived = forward(b);
-    s.closure_m = arrived.distanceTo(B.pose);
-    const double closure_yaw = mrpt::math::wrapToPi(arrived.phi() - B.pose.phi());
-    if (s.closure_m > o.refresh_max_closure_m + 0.02 * s.length_m) {
-        s.refused =
-            "the odometry from one fix misses the other by " + std::to_string(s.closure_m) + " m";
-        return {};
-    }
+    const std::vector<database::DriveFramePose> between(posed.begin() + 1, posed.end() - 1);
+    const database::Bridge bridged =
+        database::bridgeStretch(posed.front(), posed.back(), between, o.refresh);
+    s.closure_m = bridged.closure_m;
+    s.refused = bridged.refused;
     std::vector<Posed> out;
-    for (std::size_t f = a + 1; f < b; ++f) {
-        const double from_a = frames[f].travelled_m - A.travelled_m;
-        const double w = s.length_m > 0 ? std::clamp(from_a / s.length_m, 0.0, 1.0) : 0.5;
-        const auto p = forward(f), q = backward(f);
-        Posed posed;
-        posed.frame = f;
-        posed.bridged = true;
-        posed.pose = mrpt::poses::CPose2D((1 - w) * p.x() + w * q.x(), (1 - w) * p.y() + w * q.y(),
-                                          p.phi() + w * mrpt::math::wrapToPi(q.phi() - p.phi()));
-        const double drift = o.refresh_odometry_drift * std::min(from_a, s.length_m - from_a);
-        posed.cov = w < 0.5 ? A.cov : B.cov;
-        posed.cov(0, 0) += drift * drift + 0.25 * s.closure_m * s.closure_m;
-        posed.cov(1, 1) += drift * drift + 0.25 * s.closure_m * s.closure_m;
-        posed.cov(2, 2) += 0.25 * closure_yaw * closure_yaw;
-        out.push_back(posed);
+    for (std::size_t k = 0; k < bridged.poses.size(); ++k) {
+        Posed p;
+        p.frame = a + 1 + k;
+        p.bridged = true;
+        p.pose = bridged.poses[k];
+        p.cov = bridged.covs[k];
+        out.push_back(p);
     }
     return out;
 }
@@ -294,17 +278,12 @@ std::vector<Posed> refreshedStretches(const std::vector<DriveFrame>& frames, con
         s.to_s = frames[b].time_s;
         s.length_m = frames[b].travelled_m - frames[a].travelled_m;
         s.frames = b - a - 1;
-        if (s.length_m < o.refresh_min_stretch_m) continue;
-        std::vector<Posed> posed;
-        if (s.length_m > o.refresh_max_stretch_m) {
-            s.refused = "longer than refresh_max_stretch_m";
-        } else {
-            posed = bridge(frames, a, b, o, s);
-        }
+        if (s.length_m < o.refresh.min_stretch_m) continue;
+        const std::vector<Posed> posed = bridge(frames, a, b, o, s);
         if (s.refused.empty()) {
-            std::vector<Posed> all = margin(frames, a, -1, o.refresh_margin_m);
+            std::vector<Posed> all = margin(frames, a, -1, o.refresh.margin_m);
             all.insert(all.end(), posed.begin(), posed.end());
-            const auto after = margin(frames, b, +1, o.refresh_margin_m);
+            const auto after = margin(frames, b, +1, o.refresh.margin_m);
             all.insert(all.end(), after.begin(), after.end());
             for (Posed p : keyframesOf(all, d, o)) {
                 if (!taken.insert(p.frame).second) continue;
@@ -335,7 +314,7 @@ std::vector<std::string> supersededAfter(const std::vector<Posed>& added, const 
         for (std::size_t i = 0; i < db.size(); ++i) {
             const auto& c = db.reference(i).ceiling_camera_pose;
             if (!superseded_by[i].empty() ||
-                std::hypot(c.x() - camera.x(), c.y() - camera.y()) > o.refresh_supersede_radius_m) {
+                std::hypot(c.x() - camera.x(), c.y() - camera.y()) > o.refresh.supersede_radius_m) {
                 continue;
             }
             superseded_by[i] = result.name;

@@ -80,12 +80,7 @@ void SurveyOptions::declareKeys(common::OptionsTable& t) {
     t.add("map_std_yaw_deg", map_std_yaw_deg, 0.0);
     t.add("pose_file_std_xy_m", pose_file_std_xy_m, 0.0);
     t.add("pose_file_std_yaw_deg", pose_file_std_yaw_deg, 0.0);
-    t.add("refresh_min_stretch_m", refresh_min_stretch_m, 0.0);
-    t.add("refresh_max_stretch_m", refresh_max_stretch_m, common::kPositive);
-    t.add("refresh_max_closure_m", refresh_max_closure_m, common::kPositive);
-    t.add("refresh_odometry_drift", refresh_odometry_drift, 0.0, 1.0);
-    t.add("refresh_margin_m", refresh_margin_m, 0.0, 50.0);
-    t.add("refresh_supersede_radius_m", refresh_supersede_radius_m, 0.0, 50.0);
+    refresh.declareKeys(t);
 }
 
 void SurveyOptions::check() const {

@@ -8,6 +8,7 @@
 
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <opencv2/core/mat.hpp>
@@ -59,6 +60,15 @@ class ReferenceDatabase {
     /// The `k` references whose ceiling time stamps are nearest to `time_s`, nearest first
     /// (superseded ones included).
     std::vector<Neighbour> nearestInTime(double time_s, std::size_t k) const;
+
+    /// Adds references held in memory only (the localiser's online refresh: nothing is written
+    /// to the folder), each with its 8-bit grey ceiling image, ids set to their indices, and
+    /// marks the references `superseded` as superseded by `by`. The spatial queries see the
+    /// change at once. Invalidates references to Reference objects obtained before.
+    void addInMemory(std::vector<std::pair<Reference, cv::Mat>> added,
+                     const std::vector<std::size_t>& superseded, const std::string& by);
+    /// References added by addInMemory.
+    std::size_t inMemoryCount() const;
 
     /// Reference indices with a forward image, in increasing forward-image time: the sequence
     /// the coarse stage builds its descriptors from.

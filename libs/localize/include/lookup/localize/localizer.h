@@ -92,7 +92,8 @@ class Localizer {
     /// known initial pose works: see setInitialPose). `coarse_uses_images`: the source is fed
     /// forward-camera frames (SeqSLAM); otherwise it is asked at each ceiling frame's time
     /// (coarse results from a file or another localiser).
-    Localizer(const database::ReferenceDatabase& db, const LocalizerOptions& options,
+    /// The localiser adds references to `db` in memory (LocalizerOptions::online_refresh).
+    Localizer(database::ReferenceDatabase& db, const LocalizerOptions& options,
               const refine::RefinerOptions& refiner_options,
               std::unique_ptr<coarse::CoarseSource> coarse, bool coarse_uses_images = true);
     ~Localizer();
@@ -133,6 +134,15 @@ class Localizer {
     void setPlaceIndex(const place::PlaceIndex* index) { places_ = index; }
 
     const LocalizerOptions& options() const { return options_; }
+
+    /// What the online refresh did so far (LocalizerOptions::online_refresh).
+    struct OnlineRefreshCounts {
+        std::size_t stretches = 0;   ///< stretches bridged and added
+        std::size_t refused = 0;     ///< stretches left alone (too long, no closure, full)
+        std::size_t references = 0;  ///< references added
+        std::size_t superseded = 0;  ///< references superseded by them
+    };
+    const OnlineRefreshCounts& onlineRefresh() const { return online_refresh_; }
 
     /// References an acquisition around `pose` refines against, one by one: those within
     /// acquisition_radius_m, nearest first, each survey traverse thinned to
@@ -277,7 +287,7 @@ class Localizer {
     int disagreeing_fixes_ = 0;  ///< tracked fixes in a row far from the odometry prediction
     int heading_refusals_ = 0;   ///< tracked fixes in a row refused for their heading
 
-    const database::ReferenceDatabase& db_;
+    database::ReferenceDatabase& db_;
     LocalizerOptions options_;
     refine::Refiner refiner_;
     std::shared_ptr<const refine::ImagePyramid> frame_pyramid_;  ///< framePyramid()'s
@@ -333,6 +343,34 @@ class Localizer {
     static constexpr double kCeilingStepPrecision_m = 0.02;
     /// Keeps `query` as the next frame's reference for ceiling odometry.
     void keepFrame(const mrpt::obs::CObservationImage& query, const FrameResult& out);
+    /// Online refresh (LocalizerOptions::online_refresh): the frames of the drive kept since
+    /// the refined ones before the last stretch no reference refined, one per
+    /// online_refresh_spacing_m of travel (each change between refined and not kept too).
+    struct DriveFrame {
+        double time_s = 0;
+        cv::Mat image;  ///< rectified, grey
+        mrpt::img::TCamera camera;
+        mrpt::poses::CPose3D camera_on_vehicle;
+        bool refined = false;
+        database::DriveFramePose posed;  ///< odometry and travel; the fix where refined
+    };
+    std::vector<DriveFrame> drive_;
+    OnlineRefreshCounts online_refresh_;
+    std::optional<DriveFrame> last_refined_;  ///< the newest refined frame not in drive_
+    double drive_travelled_m_ = 0;
+    std::optional<mrpt::poses::CPose2D> drive_odometry_;  ///< the odometry at the last frame
+    /// Keeps the frame in drive_ and, once a fix has closed a stretch and the margin after it
+    /// is passed (or a new stretch begins), adds the stretch's references to the database.
+    void refreshOnline(const mrpt::obs::CObservationImage& query, const FrameResult& out);
+    /// drive_ from its first unrefined frame to the fix after the stretch, and the margin
+    /// after it: the stretch bridged and added; drive_ keeps its refined tail.
+    void addStretch(std::size_t first_unrefined, std::size_t fix_after);
+    /// The current references the frames `added` supersede (`bridged`: frame not refined).
+    std::vector<std::size_t> supersededBy(
+        const std::vector<std::pair<database::Reference, cv::Mat>>& added,
+        const std::vector<bool>& bridged) const;
+    /// drive_ without frames older than the margin before the newest refined frame.
+    void trimDrive();
     std::optional<mrpt::poses::CPosePDFGaussian> hypothesis_;  ///< see offerHypothesis
     int hypothesis_frames_ = 0;                                ///< frames it was tried on
     std::shared_ptr<const refine::RefineResult> tryHypothesis(

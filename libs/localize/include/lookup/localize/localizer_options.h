@@ -6,6 +6,7 @@
 #include <string>
 
 #include "lookup/common/options_table.h"
+#include "lookup/database/refresh_bridge.h"
 
 namespace lookup::localize {
 
@@ -38,6 +39,16 @@ struct LocalizerOptions : public common::TableOptions<LocalizerOptions> {
     /// Elsewhere the odometry's step is the more precise. The uncertainty stays the odometry's.
     bool ceiling_odometry = true;
     double ceiling_odometry_min_slip = 0.1;  ///< share of the odometry's step
+    /// Online refresh: where a fix follows a stretch that no reference refined (a changed
+    /// ceiling), the stretch's frames, posed on the odometry between the two fixes as
+    /// lookup-survey --refresh poses them (the refresh_* keys), become references for the rest
+    /// of the run and supersede the survey's there: the next pass over the stretch (an LHD's
+    /// cycle, a vehicle reversing) matches today's ceiling. In memory only; the database folder
+    /// is not written.
+    bool online_refresh = true;
+    double online_refresh_spacing_m = 0.25;            ///< travel between the frames kept [m]
+    std::size_t online_refresh_max_references = 2000;  ///< then no more are added
+    database::RefreshOptions refresh;
     /// No odometry reading for this long is a dropout: the coarse stage matches without
     /// odometry and predictions are extrapolated with a growing uncertainty [s].
     double odometry_timeout_s = 0.2;

@@ -28,6 +28,8 @@ struct RunTiming {
     std::vector<int> cold_start_frames;
     /// Observations refused at the localiser's edge, by reason (Rejection::kind).
     std::map<std::string, std::size_t> skipped;
+    /// The online refresh's counts by name (Localizer::OnlineRefreshCounts); empty when off.
+    std::map<std::string, std::size_t> online_refresh;
 
     /// Frames the localiser processed (not dropped): per-frame times divide by this.
     std::size_t processed() const { return frames > frames_dropped ? frames - frames_dropped : 0; }

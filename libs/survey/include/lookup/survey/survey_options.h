@@ -14,6 +14,7 @@
 
 #include "lookup/common/options_table.h"
 #include "lookup/common/stamp_row.h"
+#include "lookup/database/refresh_bridge.h"
 
 namespace lookup::survey {
 
@@ -148,23 +149,8 @@ struct SurveyOptions : public common::TableOptions<SurveyOptions> {
     // --- pose file (--poses) ---------------------------------------------------------------
     double pose_file_std_xy_m = 0.02;    ///< stated std of surveyed positions [m]
     double pose_file_std_yaw_deg = 0.5;  ///< stated std of surveyed headings [deg]
-    // --- refresh from an operating drive (--refresh, refresh.h) --------------------------
-    /// A stretch the localiser did not refine, between two refined fixes, shorter than this is
-    /// a bad view (dust, blur, a pipe), not a changed ceiling: left alone [m].
-    double refresh_min_stretch_m = 1.0;
-    /// Longer stretches are not bridged: the odometry between the fixes drifts too far [m].
-    double refresh_max_stretch_m = 40.0;
-    /// The odometry run from one fix must meet the other within this plus 2 % of the stretch;
-    /// otherwise a fix or the odometry is wrong and the stretch is left alone [m].
-    double refresh_max_closure_m = 0.3;
-    /// Odometry error per metre from the nearer fix: the bridged references' added sigma.
-    double refresh_odometry_drift = 0.02;
-    /// The drive's refined frames this far on each side of a stretch are added too, so that
-    /// the changed ceiling's edges have references of today [m].
-    double refresh_margin_m = 1.0;
-    /// Survey references whose ceiling cameras stood this near a bridged reference's camera are
-    /// superseded: their ceiling did not match the drive's [m].
-    double refresh_supersede_radius_m = 2.0;
+    // --- refresh from an operating drive (--refresh, refresh.h): the refresh_* keys ---------
+    database::RefreshOptions refresh;
 
     /// Adds every key of its .ini section to `t` (load, save and the unknown-key check).
     void declareKeys(common::OptionsTable& t);
