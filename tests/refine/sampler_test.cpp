@@ -134,3 +134,18 @@ TEST(Sampler, AutoModeUsesHeatMapWhenPresent) {
     EXPECT_EQ(selectSamplePoints(heat.size(), heat, o)[0], cv::Point2f(80, 60));
     EXPECT_EQ(selectSamplePoints(heat.size(), cv::Mat(), o).size(), size_t(o.grid_points));
 }
+
+// A reference without a heat map in a heat-map run (one the localiser's online refresh added):
+// the grid, not no points at all.
+TEST(Sampler, HeatMapModeWithoutAHeatMapUsesTheGrid) {
+    SamplerOptions o;
+    o.mode = SamplingMode::HeatMap;
+    const cv::Size size(160, 120);
+    EXPECT_EQ(selectSamplePoints(size, cv::Mat(), o),
+              gridPoints(size, o.grid_points, o.border_margin_px));
+    cv::Mat heat(size, CV_32F, cv::Scalar(0.0f));
+    heat.at<float>(60, 80) = 1.0f;
+    EXPECT_EQ(selectSamplePoints(size, heat, o).size(), size_t(o.heat_map_points));
+    o.mode = SamplingMode::Grid;
+    EXPECT_EQ(selectSamplePoints(size, heat, o).size(), size_t(o.grid_points));
+}

@@ -57,10 +57,7 @@ database::Reference referenceOf(const Frame& f, const mrpt::poses::CPose2D& pose
 }  // namespace
 
 void Localizer::refreshOnline(const mrpt::obs::CObservationImage& query, const FrameResult& out) {
-    // Heat-map sampling has no points on a reference without a heat map.
-    if (!options_.online_refresh ||
-        refiner_.options().sampler.mode == refine::SamplingMode::HeatMap)
-        return;
+    if (!options_.online_refresh) return;
     const auto odometry = odometryAt(out.time_s);
     if (!odometry) {  // nothing to bridge on
         drive_.clear();

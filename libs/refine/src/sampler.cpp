@@ -139,9 +139,7 @@ std::vector<cv::Point2f> heatMapPoints(const cv::Mat& heat_map, int count, doubl
 
 std::vector<cv::Point2f> selectSamplePoints(cv::Size image_size, const cv::Mat& heat_map,
                                             const SamplerOptions& o) {
-    const bool use_heat =
-        o.mode == SamplingMode::HeatMap || (o.mode == SamplingMode::Auto && !heat_map.empty());
-    if (use_heat) {
+    if (o.mode != SamplingMode::Grid && !heat_map.empty()) {
         if (heat_map.size() != image_size) return {};
         return heatMapPoints(heat_map, o.heat_map_points, o.damping_ratio, o.damping_side_px,
                              o.heatMapMargin());

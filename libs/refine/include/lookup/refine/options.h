@@ -17,9 +17,12 @@ namespace lookup::refine {
 
 /// Where the sample points of a reference come from (paper Sec. III-B).
 enum class SamplingMode {
-    Grid,     ///< regular grid of grid_points points
-    HeatMap,  ///< greedy selection on the reference's quality heat map (FCN)
-    Auto      ///< heat map when the reference has one, grid otherwise
+    Grid,  ///< regular grid of grid_points points
+    /// Greedy selection on the reference's quality heat map (FCN); the localiser requires the
+    /// database to have them. A reference without one (added during a run by the online
+    /// refresh) gets the grid.
+    HeatMap,
+    Auto  ///< heat map when the reference has one, grid otherwise
 };
 
 /// Sample Point Selector (paper Sec. III-B).

@@ -23,7 +23,7 @@ std::vector<cv::Point2f> heatMapPoints(const cv::Mat& heat_map, int count, doubl
 /// True when `a` and `b` select the same points from the same image and heat map.
 bool sameSelection(const SamplerOptions& a, const SamplerOptions& b);
 
-/// Applies `options.mode` (Auto: heat map when `heat_map` is not empty).
+/// Applies `options.mode`: the heat map unless Grid or `heat_map` is empty, else the grid.
 std::vector<cv::Point2f> selectSamplePoints(cv::Size image_size, const cv::Mat& heat_map,
                                             const SamplerOptions& options);
 
