@@ -348,7 +348,7 @@ class Localizer {
     /// online_refresh_spacing_m of travel (each change between refined and not kept too).
     struct DriveFrame {
         double time_s = 0;
-        cv::Mat image;  ///< rectified, grey
+        cv::Mat image;  ///< rectified, grey or BGR (made grey when added)
         mrpt::img::TCamera camera;
         mrpt::poses::CPose3D camera_on_vehicle;
         bool refined = false;
