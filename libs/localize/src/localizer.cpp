@@ -539,7 +539,7 @@ refine::RowTiming Localizer::surveyRowTiming(std::size_t index, int rows) const 
     refine::RowTiming t;
     const auto& ref = db_.reference(index);
     t.rows = rows;
-    if (ref.source == "online") {  // this run's own camera (refreshOnline)
+    if (ref.source == database::kOnlineSource) {  // this run's own camera (refreshOnline)
         const auto& shutter = refiner_.options().rolling_shutter;
         t.readout_s = 1e-3 * shutter.readout_ms;
         t.stamp_row = shutter.stampRow(rows);
@@ -585,7 +585,8 @@ const refine::ReferenceImage& Localizer::referenceView(std::size_t index) {
     view.timing = surveyRowTiming(index, view.image.rows);
     // A grid run on a database with heat maps does not pay for decoding them; a reference the
     // run added has none.
-    if (refiner_.options().sampler.mode != refine::SamplingMode::Grid && ref.source != "online") {
+    if (refiner_.options().sampler.mode != refine::SamplingMode::Grid &&
+        ref.source != database::kOnlineSource) {
         view.heat_map = database::loadHeatMap(db_, index);
     }
     rectifier_.rectify(view);

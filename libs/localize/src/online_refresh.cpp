@@ -15,9 +15,6 @@
 namespace lookup::localize {
 namespace {
 
-/// Reference::traverse and Reference::source of the references a run adds.
-constexpr const char* kOnline = "online";
-
 // (Templates: Localizer::DriveFrame is private.)
 template <class Frame>
 std::size_t firstUnrefined(const std::vector<Frame>& drive, std::size_t from = 0) {
@@ -42,7 +39,7 @@ database::Reference referenceOf(const Frame& f, const mrpt::poses::CPose2D& pose
         grey = f.image;
     }
     database::Reference r;
-    r.traverse = r.source = kOnline;
+    r.traverse = r.source = database::kOnlineSource;
     r.time_s = f.time_s;
     r.vehicle_pose = mrpt::poses::CPose3D(pose);
     r.vehicle_cov = cov;
@@ -150,7 +147,7 @@ void Localizer::addStretch(std::size_t first_unrefined, std::size_t fix_after) {
             ++online_refresh_.stretches;
             online_refresh_.references += added.size();
             online_refresh_.superseded += superseded.size();
-            db_.addInMemory(std::move(added), superseded, kOnline);
+            db_.addInMemory(std::move(added), superseded, database::kOnlineSource);
         } else {
             ++online_refresh_.refused;
         }

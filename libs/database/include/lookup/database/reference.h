@@ -28,6 +28,9 @@ inline constexpr const char* kReport = "survey_report.json";  ///< lookup-survey
 inline constexpr const char* kPoseLabel = "SURVEY_POSE";      ///< CObservationRobotPose
 inline constexpr const char* kReferenceLabel = "LOOKUP_REF";  ///< CObservationLookupReference
 
+/// Reference::source (and traverse) of the references a localiser run adds in memory.
+inline constexpr const char* kOnlineSource = "online";
+
 /// A database folder that cannot be read or written: the message names the file (and record).
 class DatabaseError : public std::runtime_error {
   public:
@@ -55,7 +58,8 @@ struct Reference {
     double mean_intensity = 0;                 ///< mean grey level of the ceiling image [0..255]
     double travelled_m = 0;                    ///< distance along the traverse [m]
     /// "survey", or "refresh": an operating drive's image added where the ceiling changed
-    /// (lookup-survey --refresh).
+    /// (lookup-survey --refresh), or kOnlineSource: one the localiser added in memory during
+    /// its run (ReferenceDatabase::addInMemory).
     std::string source = "survey";
     /// The operating drive over which this reference no longer matched ("" = current). A
     /// superseded reference stays in the database but no spatial query returns it.
