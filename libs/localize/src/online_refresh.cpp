@@ -17,9 +17,9 @@ namespace {
 
 // (Templates: Localizer::DriveFrame is private.)
 template <class Frame>
-std::size_t firstUnrefined(const std::vector<Frame>& drive, std::size_t from = 0) {
-    const auto it = std::find_if(drive.begin() + std::ptrdiff_t(from), drive.end(),
-                                 [](const Frame& f) { return !f.refined; });
+std::size_t firstUnrefined(const std::vector<Frame>& drive) {
+    const auto it =
+        std::find_if(drive.begin(), drive.end(), [](const Frame& f) { return !f.refined; });
     return std::size_t(it - drive.begin());
 }
 
@@ -121,39 +121,43 @@ void Localizer::refreshOnline(const mrpt::obs::CObservationImage& query, const F
 }
 
 void Localizer::addStretch(std::size_t first_unrefined, std::size_t fix_after) {
-    const std::size_t a = first_unrefined - 1, b = fix_after;
-    const database::RefreshOptions& o = options_.refresh;
-    const double length_m = drive_[b].posed.travelled_m - drive_[a].posed.travelled_m;
-    const bool full = db_.inMemoryCount() + drive_.size() > options_.online_refresh_max_references;
-    if (length_m >= o.min_stretch_m) online_refresh_.refused += full ? 1 : 0;
-    if (length_m >= o.min_stretch_m && !full) {
-        std::vector<database::DriveFramePose> between;
-        for (std::size_t k = first_unrefined; k < b; ++k) between.push_back(drive_[k].posed);
-        const auto bridge = database::bridgeStretch(drive_[a].posed, drive_[b].posed, between, o);
-        if (bridge.refused.empty()) {
-            std::vector<std::pair<database::Reference, cv::Mat>> added;
-            std::vector<bool> bridged;
-            for (std::size_t k = 0; k < drive_.size(); ++k) {
-                const bool inside = k >= first_unrefined && k < b;
-                const auto& pose =
-                    inside ? bridge.poses[k - first_unrefined] : drive_[k].posed.pose;
-                const auto& cov = inside ? bridge.covs[k - first_unrefined] : drive_[k].posed.cov;
-                cv::Mat grey;
-                auto ref = referenceOf(drive_[k], pose, cov, grey);
-                added.emplace_back(std::move(ref), grey);
-                bridged.push_back(inside);
-            }
-            const auto superseded = supersededBy(added, bridged);
-            ++online_refresh_.stretches;
-            online_refresh_.references += added.size();
-            online_refresh_.superseded += superseded.size();
-            db_.addInMemory(std::move(added), superseded, database::kOnlineSource);
-        } else {
-            ++online_refresh_.refused;
-        }
-    }
-    drive_.erase(drive_.begin(), drive_.begin() + std::ptrdiff_t(b));
+    // Shorter than refresh_min_stretch_m: a bad view (dust, a pipe), not a changed ceiling.
+    const double length_m =
+        drive_[fix_after].posed.travelled_m - drive_[first_unrefined - 1].posed.travelled_m;
+    if (length_m >= options_.refresh.min_stretch_m) addBridged(first_unrefined, fix_after);
+    drive_.erase(drive_.begin(), drive_.begin() + std::ptrdiff_t(fix_after));
     trimDrive();
+}
+
+void Localizer::addBridged(std::size_t first_unrefined, std::size_t b) {
+    if (db_.inMemoryCount() + drive_.size() > options_.online_refresh_max_references) {
+        ++online_refresh_.refused;
+        return;
+    }
+    std::vector<database::DriveFramePose> between;
+    for (std::size_t k = first_unrefined; k < b; ++k) between.push_back(drive_[k].posed);
+    const auto bridge = database::bridgeStretch(drive_[first_unrefined - 1].posed, drive_[b].posed,
+                                                between, options_.refresh);
+    if (!bridge.refused.empty()) {
+        ++online_refresh_.refused;
+        return;
+    }
+    std::vector<std::pair<database::Reference, cv::Mat>> added;
+    std::vector<bool> bridged;
+    for (std::size_t k = 0; k < drive_.size(); ++k) {
+        const bool inside = k >= first_unrefined && k < b;
+        const auto& pose = inside ? bridge.poses[k - first_unrefined] : drive_[k].posed.pose;
+        const auto& cov = inside ? bridge.covs[k - first_unrefined] : drive_[k].posed.cov;
+        cv::Mat grey;
+        auto ref = referenceOf(drive_[k], pose, cov, grey);
+        added.emplace_back(std::move(ref), grey);
+        bridged.push_back(inside);
+    }
+    const auto superseded = supersededBy(added, bridged);
+    ++online_refresh_.stretches;
+    online_refresh_.references += added.size();
+    online_refresh_.superseded += superseded.size();
+    db_.addInMemory(std::move(added), superseded, database::kOnlineSource);
 }
 
 std::vector<std::size_t> Localizer::supersededBy(

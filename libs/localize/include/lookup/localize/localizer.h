@@ -365,6 +365,9 @@ class Localizer {
     /// drive_ from its first unrefined frame to the fix after the stretch, and the margin
     /// after it: the stretch bridged and added; drive_ keeps its refined tail.
     void addStretch(std::size_t first_unrefined, std::size_t fix_after);
+    /// The stretch bridged from drive_'s frames and added with its margins, or counted as
+    /// refused (the odometry does not close it, or online_refresh_max_references is reached).
+    void addBridged(std::size_t first_unrefined, std::size_t fix_after);
     /// The current references the frames `added` supersede (`bridged`: frame not refined).
     std::vector<std::size_t> supersededBy(
         const std::vector<std::pair<database::Reference, cv::Mat>>& added,
