@@ -7,6 +7,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "lookup/common/grey.h"
+
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
@@ -22,14 +24,7 @@ Descriptor computeDescriptor(const mrpt::img::CImage& image, const CoarseOptions
     }
     const cv::Mat& input = image.asCvMatRef();
     if (input.empty()) throw std::invalid_argument("computeDescriptor: empty image");
-    cv::Mat grey;
-    if (input.channels() == 1) {
-        grey = input;
-    } else if (input.channels() == 3) {
-        cv::cvtColor(input, grey, cv::COLOR_BGR2GRAY);
-    } else {
-        cv::cvtColor(input, grey, cv::COLOR_BGRA2GRAY);
-    }
+    const cv::Mat grey = common::greyOf(input);
     cv::Mat thumb;
     cv::resize(grey, thumb, cv::Size(options.thumb_width_px, options.thumb_height_px), 0, 0,
                cv::INTER_AREA);

@@ -22,6 +22,7 @@
 
 #include "lookup/common/camera_params.h"
 #include "lookup/common/errors.h"
+#include "lookup/common/grey.h"
 #include "lookup/common/pose_files.h"
 #include "lookup/database/manifest.h"
 #include "lookup/database/reference_database.h"
@@ -44,12 +45,7 @@ cv::Mat greyPixels(const mrpt::obs::CObservationImage& src, const std::string& t
         if (src.image.isExternallyStored()) {
             grey = cv::imread(src.image.getExternalStorageFileAbsolutePath(), cv::IMREAD_GRAYSCALE);
         } else {
-            const cv::Mat& m = src.image.asCvMatRef();
-            if (m.channels() == 3) {
-                cv::cvtColor(m, grey, cv::COLOR_BGR2GRAY);
-            } else if (m.channels() == 1) {
-                grey = m;
-            }
+            grey = common::greyOf(src.image.asCvMatRef());
             if (!grey.empty() && grey.depth() != CV_8U) grey.convertTo(grey, CV_8U);
         }
     } catch (const std::exception& e) {

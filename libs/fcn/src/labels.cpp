@@ -7,11 +7,11 @@
 #include <filesystem>
 #include <limits>
 #include <map>
-#include <opencv2/imgproc.hpp>
 #include <optional>
 #include <stdexcept>
 
 #include "lookup/common/camera_params.h"
+#include "lookup/common/grey.h"
 #include "lookup/common/pose_files.h"
 #include "lookup/common/rawlog_io.h"
 #include "lookup/refine/geometry.h"
@@ -32,11 +32,7 @@ cv::Mat greyOf(const mrpt::obs::CObservationImage& obs, const std::string& where
     cv::Mat grey;
     try {
         const cv::Mat& m = obs.image.asCvMatRef();  // loads an external image
-        if (m.channels() == 3) {
-            cv::cvtColor(m, grey, cv::COLOR_BGR2GRAY);
-        } else {
-            grey = m.clone();
-        }
+        grey = m.channels() == 1 ? m.clone() : common::greyOf(m);
     } catch (const std::exception& e) {
         throw std::runtime_error(where + ": cannot read the ceiling image: " + e.what());
     }

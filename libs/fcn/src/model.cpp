@@ -6,6 +6,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "lookup/common/errors.h"
+#include "lookup/common/grey.h"
 #include "model_impl.h"
 
 namespace lookup::fcn {
@@ -65,8 +66,7 @@ torch::Tensor SamplePointNetImpl::forward(torch::Tensor x) {
 }
 
 torch::Tensor HeatMapModel::Impl::toInput(const cv::Mat& image) const {
-    cv::Mat grey = image;
-    if (image.channels() == 3) cv::cvtColor(image, grey, cv::COLOR_BGR2GRAY);
+    const cv::Mat grey = common::greyOf(image);
     CV_Assert(grey.type() == CV_8UC1 && !grey.empty());
     cv::Mat small;
     const cv::Size size(std::max(1, int(std::lround(grey.cols * options.input_scale))),

@@ -10,11 +10,11 @@
 #include <cstdio>
 #include <map>
 #include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
 
 #include "lookup/coarse/descriptor.h"
 #include "lookup/coarse/traverse_sources.h"
 #include "lookup/common/camera_params.h"
+#include "lookup/common/grey.h"
 #include "lookup/database/heat_maps.h"
 #include "lookup/localize/place_search.h"
 
@@ -1087,11 +1087,7 @@ refine::ReferenceImage Localizer::previousView() const {
     refine::ReferenceImage view;
     view.id = -1;
     view.timestamp = mrpt::Clock::fromDouble(prev.time_s);
-    if (prev.image.channels() == 3) {
-        cv::cvtColor(prev.image, view.image, cv::COLOR_BGR2GRAY);
-    } else {
-        view.image = prev.image;
-    }
+    view.image = common::greyOf(prev.image);
     view.camera = prev.camera;
     view.camera_on_vehicle = prev.camera_on_vehicle;
     view.vehicle_in_map = mrpt::poses::CPose3D(prev.pose);

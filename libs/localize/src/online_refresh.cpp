@@ -5,11 +5,11 @@
 // so a stopped vehicle keeps one frame and memory stays bounded by refresh_max_stretch_m.
 
 #include <opencv2/core.hpp>
-#include <opencv2/imgproc.hpp>
 
 #include <algorithm>
 #include <cmath>
 
+#include "lookup/common/grey.h"
 #include "lookup/localize/localizer.h"
 
 namespace lookup::localize {
@@ -33,11 +33,7 @@ std::size_t firstRefined(const std::vector<Frame>& drive, std::size_t from) {
 template <class Frame>
 database::Reference referenceOf(const Frame& f, const mrpt::poses::CPose2D& pose,
                                 const mrpt::math::CMatrixDouble33& cov, cv::Mat& grey) {
-    if (f.image.channels() == 3) {
-        cv::cvtColor(f.image, grey, cv::COLOR_BGR2GRAY);
-    } else {
-        grey = f.image;
-    }
+    grey = common::greyOf(f.image);
     database::Reference r;
     r.traverse = r.source = database::kOnlineSource;
     r.time_s = f.time_s;

@@ -3,8 +3,8 @@
 #include <mrpt/system/CTicTac.h>
 
 #include <cmath>
-#include <opencv2/imgproc.hpp>
 
+#include "lookup/common/grey.h"
 #include "lookup/database/reference_database.h"
 #include "lookup/place/place_index.h"
 #include "lookup/place/place_pose.h"
@@ -15,9 +15,7 @@ namespace {
 
 cv::Mat greyOf(const mrpt::img::CImage& image) {
     if (image.isExternallyStored()) image.forceLoad();
-    cv::Mat m = image.asCvMat<cv::Mat>(mrpt::img::SHALLOW_COPY);
-    if (m.channels() == 3) cv::cvtColor(m, m, cv::COLOR_BGR2GRAY);
-    return m;
+    return common::greyOf(image.asCvMat<cv::Mat>(mrpt::img::SHALLOW_COPY));
 }
 
 }  // namespace

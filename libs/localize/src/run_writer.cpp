@@ -11,6 +11,7 @@
 
 #include "lookup/common/config.h"
 #include "lookup/common/errors.h"
+#include "lookup/common/grey.h"
 #include "lookup/eval/run_io.h"
 #include "lookup/obs/observation_lookup_result.h"
 
@@ -193,8 +194,7 @@ void RunWriter::write(const FrameResult& frame, const mrpt::obs::CObservationIma
         overlay.timestamp = stamp;
         overlay.cameraParams = query->cameraParams;
         overlay.cameraPose = query->cameraPose;
-        cv::Mat grey = query->image.asCvMatRef();
-        if (grey.channels() == 3) cv::cvtColor(grey, grey, cv::COLOR_BGR2GRAY);
+        const cv::Mat grey = common::greyOf(query->image.asCvMatRef());
         overlay.image =
             mrpt::img::CImage(drawFlowOverlay(grey, *frame.refinement), mrpt::img::DEEP_COPY);
         char name[64];

@@ -14,11 +14,11 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 #include <numeric>
-#include <opencv2/imgproc.hpp>
 
 #include "lookup/common/cli.h"
 #include "lookup/common/config.h"
 #include "lookup/common/errors.h"
+#include "lookup/common/grey.h"
 #include "lookup/common/options_table.h"
 #include "lookup/common/pose_files.h"
 #include "lookup/common/rawlog_io.h"
@@ -160,10 +160,8 @@ struct PlaceScore {
 // The ceiling image rectified to the database's camera, in grey.
 cv::Mat ceilingGrey(const mrpt::obs::CObservationImage& img, const refine::Rectifier& rectifier) {
     if (img.image.isExternallyStored()) img.image.forceLoad();
-    cv::Mat grey =
-        rectifier.rectify(img.image.asCvMat<cv::Mat>(mrpt::img::SHALLOW_COPY), img.cameraParams);
-    if (grey.channels() == 3) cv::cvtColor(grey, grey, cv::COLOR_BGR2GRAY);
-    return grey;
+    return common::greyOf(
+        rectifier.rectify(img.image.asCvMat<cv::Mat>(mrpt::img::SHALLOW_COPY), img.cameraParams));
 }
 
 // The vehicle poses the index's candidates for one frame imply, best first.

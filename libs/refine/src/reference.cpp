@@ -1,8 +1,8 @@
 #include <mrpt/img/CImage.h>
 
-#include <opencv2/imgproc.hpp>
 #include <stdexcept>
 
+#include "lookup/common/grey.h"
 #include "lookup/refine/matcher.h"
 #include "lookup/refine/sampler.h"
 #include "lookup/refine/types.h"
@@ -38,11 +38,7 @@ ReferenceImage ReferenceImage::fromObservation(std::int64_t id,
     r.camera_on_vehicle = obs.cameraPose;
     try {
         const cv::Mat& m = obs.image.asCvMatRef();  // loads an external image
-        if (m.channels() == 3) {
-            cv::cvtColor(m, r.image, cv::COLOR_BGR2GRAY);
-        } else {
-            r.image = m.clone();
-        }
+        r.image = m.channels() == 1 ? m.clone() : common::greyOf(m);
     } catch (const std::exception& e) {
         throw std::runtime_error("reference " + std::to_string(id) + " (label '" + obs.sensorLabel +
                                  "'): cannot read its image: " + e.what());

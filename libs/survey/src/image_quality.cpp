@@ -2,13 +2,14 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "lookup/common/grey.h"
+
 namespace lookup::survey {
 
 ImageQuality measureImageQuality(const cv::Mat& image) {
     ImageQuality q;
     if (image.empty()) return q;
-    cv::Mat grey = image;
-    if (image.channels() == 3) cv::cvtColor(image, grey, cv::COLOR_BGR2GRAY);
+    const cv::Mat grey = common::greyOf(image);
     cv::Mat lap;
     cv::Laplacian(grey, lap, CV_64F);
     cv::Scalar mean, stddev;

@@ -14,6 +14,7 @@
 #include <opencv2/imgproc.hpp>
 #include <opencv2/video/tracking.hpp>
 
+#include "lookup/common/grey.h"
 #include "lookup/common/pose_files.h"
 #include "lookup/refine/geometry.h"
 #include "lookup/survey/pose_audit.h"
@@ -115,7 +116,7 @@ cv::Mat loadGrey(const mrpt::obs::CObservationImage& obs) {
         return m;
     }
     obs.image.asCvMat(m, mrpt::img::DEEP_COPY);
-    if (m.channels() == 3) cv::cvtColor(m, m, cv::COLOR_BGR2GRAY);
+    m = common::greyOf(m);
     return m.depth() == CV_8U && m.channels() == 1 ? m : cv::Mat();
 }
 
