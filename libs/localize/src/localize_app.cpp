@@ -23,6 +23,7 @@
 #include "lookup/common/camera_params.h"
 #include "lookup/common/config.h"
 #include "lookup/common/errors.h"
+#include "lookup/common/heap.h"
 #include "lookup/common/options_table.h"
 #include "lookup/common/rawlog_io.h"
 #include "lookup/localize/sensor_clock.h"
@@ -292,6 +293,7 @@ class Session {
         used.getContent(used_text);
         writer_ = std::make_unique<RunWriter>(req.out_dir, used_text, options_.write_debug_images,
                                               options_.debug_image_every);
+        common::prefaultHeap(referenceCacheBytes());
         // The replay clock starts now: start-up must not make the first frames late (realtime
         // drops them) nor count in frames_per_s.
         timing_.startup_s = wall_.Tac();
@@ -354,6 +356,15 @@ class Session {
     }
 
   private:
+    // The reference caches' images, pyramids and the temporaries of building them, per pixel of
+    // a reference: about 8 bytes, and 4 more for a heat map (docs/benchmarks.md, "Page faults
+    // on a reference's first load").
+    std::size_t referenceCacheBytes() const {
+        const auto& camera = db_->info().ceiling_camera;
+        const bool heat_maps = refiner_options_.sampler.mode != refine::SamplingMode::Grid;
+        return options_.image_cache_capacity * camera.ncols * camera.nrows * (heat_maps ? 12 : 8);
+    }
+
     /// The first refined frame since the last kidnapping closes its count.
     void countColdStart(const FrameResult& frame) {
         if (timing_.cold_start_frames.empty() || timing_.cold_start_frames.back() >= 0) return;

@@ -141,7 +141,8 @@ struct LocalizerOptions : public common::TableOptions<LocalizerOptions> {
     bool write_debug_images = false;  ///< flow overlays into results.rawlog
     int debug_image_every = 10;       ///< one debug image every N frames
 
-    std::size_t image_cache_capacity = 64;  ///< reference images kept in memory
+    /// Reference images kept in memory; lookup-localize faults in their heap at start-up.
+    std::size_t image_cache_capacity = 64;
 
     // On the vehicle (docs/run-format.md: pose stream, health messages, persisted fix).
     double health_interval_s = 1.0;  ///< health message and log line every so often; 0 = none
