@@ -116,8 +116,10 @@ cv::Mat loadGrey(const mrpt::obs::CObservationImage& obs) {
         return m;
     }
     obs.image.asCvMat(m, mrpt::img::DEEP_COPY);
+    // An image of another layout is skipped here; the database writer names it.
+    if (m.channels() == 2 || m.channels() > 4) return cv::Mat();
     m = common::greyOf(m);
-    return m.depth() == CV_8U && m.channels() == 1 ? m : cv::Mat();
+    return m.depth() == CV_8U ? m : cv::Mat();
 }
 
 // Pixels to the pinhole part of the camera (lens distortion removed).
