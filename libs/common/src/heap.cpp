@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <climits>
 #include <cstdlib>
 #include <vector>
 
@@ -11,10 +12,14 @@ namespace lookup::common {
 
 std::size_t prefaultHeap(std::size_t bytes) {
     if (bytes == 0) return 0;
+    // mallopt takes an int; a cache configured beyond 1 GiB fills the rest as it is used.
+    constexpr std::size_t kMaxBytes = std::size_t(1) << 30;
+    bytes = std::min(bytes, kMaxBytes);
     // glibc refuses an mmap threshold above HEAP_MAX_SIZE / 2 (32 MiB on 64-bit systems).
     constexpr std::size_t kMaxMmapThreshold = std::size_t(32) << 20;
     mallopt(M_MMAP_THRESHOLD, int(std::min(bytes, kMaxMmapThreshold)));
-    mallopt(M_TRIM_THRESHOLD, int(std::min<std::size_t>(2 * bytes, 1u << 30)));
+    // Above the heap's top chunk once all of it is freed: glibc would trim it to nothing.
+    mallopt(M_TRIM_THRESHOLD, int(std::min<std::size_t>(2 * bytes, INT_MAX)));
     // Blocks of an image's size, so the freed heap is one top chunk that later blocks split.
     constexpr std::size_t kBlock = std::size_t(256) << 10;
     const std::size_t page = std::size_t(std::max(1L, sysconf(_SC_PAGESIZE)));

@@ -11,8 +11,8 @@ namespace lookup::common {
 
 /// Keeps the heap for the rest of the process (glibc; process-wide, call once on the thread
 /// that runs the loop, before it): blocks up to `bytes` (at most 32 MiB) come from the heap,
-/// freed memory stays with the process up to `bytes`, and `bytes` of heap is faulted in now,
-/// so the loop reuses pages already mapped. Returns the bytes faulted in (0 for 0 bytes).
+/// freed memory stays with the process up to `bytes`, and `bytes` of heap (at most 1 GiB) is
+/// faulted in now, so the loop reuses pages already mapped. Returns the bytes faulted in.
 std::size_t prefaultHeap(std::size_t bytes);
 
 }  // namespace lookup::common
