@@ -7,6 +7,7 @@
 #include <limits>
 #include <map>
 #include <optional>
+#include <stdexcept>
 
 #include <Eigen/Core>
 #include <opencv2/calib3d.hpp>
@@ -116,9 +117,11 @@ cv::Mat loadGrey(const mrpt::obs::CObservationImage& obs) {
         return m;
     }
     obs.image.asCvMat(m, mrpt::img::DEEP_COPY);
-    // An image of another layout is skipped here; the database writer names it.
-    if (m.channels() == 2 || m.channels() > 4) return cv::Mat();
-    m = common::greyOf(m);
+    try {
+        m = common::greyOf(m);
+    } catch (const std::invalid_argument&) {
+        return cv::Mat();  // a layout greyOf refuses is skipped here; the database writer names it
+    }
     return m.depth() == CV_8U ? m : cv::Mat();
 }
 
