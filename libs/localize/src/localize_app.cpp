@@ -448,6 +448,7 @@ class Session {
                       << " observation(s) skipped: " << kind << "\n";
         }
         reportOnlineRefresh();
+        reportCameraClock();
         timing_.wall_s = wall_.Tac();
         writer_->finish(timing_);
         link_->finish(writer_->directory(), wall_.Tac());
@@ -456,6 +457,19 @@ class Session {
     }
 
   private:
+    void reportCameraClock() {
+        const auto& clock = localizer_->cameraClock();
+        if (!clock.estimate()) return;
+        const auto& e = *clock.estimate();
+        timing_.camera_time_offset = {{"estimate_s", e.offset_s},
+                                      {"sigma_s", e.sigma_s},
+                                      {"pairs", double(e.pairs)},
+                                      {"applied_s", clock.applied()}};
+        std::cerr << "lookup-localize: ceiling camera's time offset against the odometry: "
+                  << e.offset_s << " +- " << e.sigma_s << " s from " << e.pairs
+                  << " pairs of fixes; applied " << clock.applied() << " s\n";
+    }
+
     void reportOnlineRefresh() {
         if (!localizer_->options().online_refresh) return;
         const auto& r = localizer_->onlineRefresh();

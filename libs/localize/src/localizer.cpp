@@ -200,6 +200,7 @@ Localizer::Localizer(database::ReferenceDatabase& db, const LocalizerOptions& op
       rectifier_(db.info().ceiling_camera),
       coarse_(std::move(coarse)),
       coarse_uses_images_(coarse_uses_images),
+      camera_clock_(options.camera_clock),
       ceiling_refiner_(gridSampling(refiner_options)) {
     options_.check();
 }
@@ -253,7 +254,7 @@ std::optional<FrameResult> Localizer::process(const mrpt::obs::CObservation::Ptr
         return std::nullopt;
     }
     if (obs->sensorLabel == options_.ceiling_camera_label) {
-        return processCeiling(rectifier_.rectify(*image));
+        return processCeilingOnClock(*image);
     }
     return std::nullopt;
 }
@@ -870,6 +871,16 @@ std::optional<std::string> Localizer::trackDisagreesWithOdometry(
 
 // Per ceiling frame: coarse -> locate (track, hypothesis, the ceiling's places, around the
 // coarse match, start-up seeds) -> audit of the coarse stage -> track checks -> emit.
+FrameResult Localizer::processCeilingOnClock(const mrpt::obs::CObservationImage& image) {
+    const double stamp_s = mrpt::Clock::toDouble(image.timestamp);
+    camera_clock_.update(odometry_);
+    mrpt::obs::CObservationImage query = rectifier_.rectify(image);
+    query.timestamp = mrpt::Clock::fromDouble(stamp_s + camera_clock_.applied());
+    FrameResult out = processCeiling(query);
+    if (out.status == FrameStatus::Refined) camera_clock_.addFix(stamp_s, out.pose.mean.phi());
+    return out;
+}
+
 FrameResult Localizer::processCeiling(const mrpt::obs::CObservationImage& query) {
     mrpt::system::CTicTac total;
     FrameResult out = startFrame(query);
@@ -1220,14 +1231,14 @@ mrpt::math::CMatrixDouble33 Localizer::imageTimeCovariance(double time_s, double
     // The vehicle moves and turns over the image time's uncertainty; velocity in its frame.
     mrpt::math::CMatrixDouble33 cov;
     cov.setZero();
-    if (options_.image_time_sigma_s <= 0) return cov;
+    const double sigma_s = std::hypot(options_.image_time_sigma_s, camera_clock_.appliedSigma());
+    if (sigma_s <= 0) return cov;
     const auto v = velocityAt(time_s);
     if (!v) return cov;
     const double c = std::cos(yaw), s = std::sin(yaw);
     const Eigen::Vector3d rate(c * v->vx_mps - s * v->vy_mps, s * v->vx_mps + c * v->vy_mps,
                                v->yaw_rate_radps);
-    cov.asEigen() =
-        options_.image_time_sigma_s * options_.image_time_sigma_s * rate * rate.transpose();
+    cov.asEigen() = sigma_s * sigma_s * rate * rate.transpose();
     return cov;
 }
 

@@ -25,6 +25,7 @@
 #include "lookup/coarse/coarse_source.h"
 #include "lookup/common/odometry_track.h"
 #include "lookup/database/reference_database.h"
+#include "lookup/localize/camera_clock.h"
 #include "lookup/localize/localizer_options.h"
 #include "lookup/refine/rectifier.h"
 #include "lookup/refine/refiner.h"
@@ -134,6 +135,8 @@ class Localizer {
     void setPlaceIndex(const place::PlaceIndex* index) { places_ = index; }
 
     const LocalizerOptions& options() const { return options_; }
+    /// The ceiling camera's time offset against the odometry, as estimated and applied so far.
+    const CameraClock& cameraClock() const { return camera_clock_; }
 
     /// What the online refresh did so far (LocalizerOptions::online_refresh).
     struct OnlineRefreshCounts {
@@ -159,6 +162,9 @@ class Localizer {
         mrpt::poses::CPose2D pose;
         double extrapolated_s = 0;  ///< time since the last reading (0: interpolated)
     };
+    /// A ceiling frame at its image time: its stamp moved by the camera's estimated offset
+    /// against the odometry, and a refined frame's heading given to that estimate.
+    FrameResult processCeilingOnClock(const mrpt::obs::CObservationImage& image);
     FrameResult processCeiling(const mrpt::obs::CObservationImage& query);
     /// What a frame found: the refinement to report, or why there is no place.
     struct Attempt {
@@ -303,6 +309,7 @@ class Localizer {
     std::optional<coarse::CoarseResult> last_coarse_;
     double coarse_ms_since_frame_ = 0;
     common::OdometryTrack odometry_;
+    CameraClock camera_clock_;
     double travelled_since_forward_ = 0;
     bool forward_had_odometry_ = false;  ///< the previous forward frame had live odometry
 

@@ -7,6 +7,7 @@
 
 #include "lookup/common/options_table.h"
 #include "lookup/database/refresh_bridge.h"
+#include "lookup/localize/camera_clock.h"
 
 namespace lookup::localize {
 
@@ -57,6 +58,10 @@ struct LocalizerOptions : public common::TableOptions<LocalizerOptions> {
     /// this much in time it is off by the vehicle's speed x this along its motion, which every
     /// emitted pose's covariance carries.
     double image_time_sigma_s = 0.0;
+    /// The ceiling camera's offset against the odometry, estimated from the drive's turns and
+    /// applied to its stamps once precise and significant (camera_clock.h); its sigma adds to
+    /// image_time_sigma_s.
+    CameraClockOptions camera_clock;
     /// Acquisition (not tracking): also try references within this distance of the coarse
     /// match, one by one, before giving up, since the SAD window covers only +-L_SR/2 [m].
     double acquisition_radius_m = 4.0;

@@ -30,6 +30,9 @@ struct RunTiming {
     std::map<std::string, std::size_t> skipped;
     /// The online refresh's counts by name (Localizer::OnlineRefreshCounts); empty when off.
     std::map<std::string, std::size_t> online_refresh;
+    /// The ceiling camera's time offset against the odometry (estimate_s, sigma_s, pairs,
+    /// applied_s); empty when nothing was estimated.
+    std::map<std::string, double> camera_time_offset;
 
     /// Frames the localiser processed (not dropped): per-frame times divide by this.
     std::size_t processed() const { return frames > frames_dropped ? frames - frames_dropped : 0; }

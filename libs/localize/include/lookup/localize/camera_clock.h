@@ -1,0 +1,79 @@
+#pragma once
+// The ceiling camera's time offset against the odometry, estimated from the drive itself.
+//
+// A camera whose stamps are late by tau against the odometry shows, between two fixes, the
+// heading change the odometry made tau earlier: the fixes' heading change minus the odometry's
+// over the same stamps is -tau x the change of the yaw rate between them. A weave or a bend
+// changes the yaw rate; a straight drive does not, and then nothing is estimated. Headings,
+// not positions: wheel slip swamps the few centimetres a speed change would show, while the
+// odometry's heading drifts slowly and the references' heading errors are nearly rigid, so
+// both cancel in the differences over a second.
+//
+// Only the offset against the odometry is observable; a latency common to every sensor of the
+// vehicle is not (docs/vehicle.md, "Time offset").
+
+#include <deque>
+#include <optional>
+
+#include "lookup/common/odometry_track.h"
+
+namespace lookup::localize {
+
+struct CameraClockOptions {
+    bool enabled = true;
+    /// Two fixes are paired when this far apart in time: long enough for the yaw rate to
+    /// change, short enough for the odometry's heading drift to stay small [s].
+    double min_pair_s = 0.3, max_pair_s = 1.0;
+    std::size_t min_pairs = 50;    ///< before anything is estimated
+    std::size_t max_pairs = 1000;  ///< the newest kept (the offset is the vehicle's, fixed)
+    double max_sigma_s = 0.005;    ///< an estimate more uncertain is not applied [s]
+    double significance = 3.0;     ///< nor one within this many sigmas of zero
+    double max_offset_s = 0.2;     ///< nor one larger (a broken clock, not an offset) [s]
+};
+
+class CameraClock {
+  public:
+    struct Estimate {
+        double offset_s = 0;  ///< to add to the camera's stamps (a late camera: negative) [s]
+        double sigma_s = 0;   ///< its standard deviation (residual scatter, formal) [s]
+        std::size_t pairs = 0;
+    };
+
+    explicit CameraClock(const CameraClockOptions& options = {}) : options_(options) {}
+
+    /// A refined frame: its stamp as the camera gave it (before applied()) and its heading.
+    void addFix(double stamp_s, double yaw);
+    /// Pairs the fixes the odometry now covers (it must reach a little past them for the yaw
+    /// rate) and refits; then applies the fit when it is precise and significant, or follows
+    /// it once applied.
+    void update(const common::OdometryTrack& odometry);
+
+    /// The latest fit (at least min_pairs pairs).
+    const std::optional<Estimate>& estimate() const { return estimate_; }
+    /// The offset the localiser adds to the camera's stamps now (0 until one is applied) [s].
+    double applied() const { return applied_ ? applied_->offset_s : 0.0; }
+    double appliedSigma() const { return applied_ ? applied_->sigma_s : 0.0; }
+    bool isApplied() const { return applied_.has_value(); }
+
+  private:
+    /// A fix with the odometry's heading and yaw rate at its stamp.
+    struct Sample {
+        double t = 0, yaw = 0, odo_yaw = 0, odo_rate = 0;
+    };
+    /// Fixes' heading change minus the odometry's, against minus the change of yaw rate.
+    struct Pair {
+        double residual = 0, rate_change = 0, dt = 0;
+    };
+    std::optional<Sample> sampleAt(double t, double yaw,
+                                   const common::OdometryTrack& odometry) const;
+    void addPair(const Sample& s);
+    void fit();
+
+    CameraClockOptions options_;
+    std::deque<std::pair<double, double>> pending_;  ///< fixes awaiting odometry: stamp, yaw
+    std::deque<Sample> samples_;                     ///< the last max_pair_s of fixes
+    std::deque<Pair> pairs_;
+    std::optional<Estimate> estimate_, applied_;
+};
+
+}  // namespace lookup::localize

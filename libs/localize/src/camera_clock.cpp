@@ -1,0 +1,105 @@
+#include "lookup/localize/camera_clock.h"
+
+#include <mrpt/math/wrap2pi.h>
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+namespace lookup::localize {
+
+namespace {
+// The yaw rate is taken over the odometry's velocity span, centred on the fix.
+constexpr double kRateHalfSpan_s = 0.5 * common::OdometryTrack::kVelocitySpanS;
+// A reading gap longer than this (a dropout) leaves the heading between unknown.
+constexpr double kMaxReadingGap_s = 0.1;
+constexpr int kRobustIterations = 5;
+constexpr double kInlierMads = 3.0;
+}  // namespace
+
+void CameraClock::addFix(double stamp_s, double yaw) {
+    if (options_.enabled && std::isfinite(stamp_s) && std::isfinite(yaw))
+        pending_.emplace_back(stamp_s, yaw);
+}
+
+std::optional<CameraClock::Sample> CameraClock::sampleAt(
+    double t, double yaw, const common::OdometryTrack& odometry) const {
+    const auto at = odometry.at(t), before = odometry.at(t - kRateHalfSpan_s),
+               after = odometry.at(t + kRateHalfSpan_s);
+    for (const auto& p : {at, before, after}) {
+        if (!p || p->extrapolated_s > 0 || p->gap_s > kMaxReadingGap_s) return std::nullopt;
+    }
+    const double turned = mrpt::math::wrapToPi(after->pose.phi() - before->pose.phi());
+    return Sample{t, yaw, at->pose.phi(), turned / (2 * kRateHalfSpan_s)};
+}
+
+void CameraClock::update(const common::OdometryTrack& odometry) {
+    if (odometry.empty()) return;
+    bool added = false;
+    while (!pending_.empty() && pending_.front().first + kRateHalfSpan_s <= odometry.lastTime()) {
+        const auto [t, yaw] = pending_.front();
+        pending_.pop_front();
+        if (const auto s = sampleAt(t, yaw, odometry)) {
+            addPair(*s);
+            added = true;
+        }
+    }
+    if (added) fit();
+}
+
+void CameraClock::addPair(const Sample& s) {
+    while (!samples_.empty() && s.t - samples_.front().t > options_.max_pair_s) {
+        samples_.pop_front();
+    }
+    // The newest earlier fix at least min_pair_s before: one pair per fix.
+    for (auto it = samples_.rbegin(); it != samples_.rend(); ++it) {
+        const double dt = s.t - it->t;
+        if (dt < options_.min_pair_s) continue;
+        const double fix_turn = mrpt::math::wrapToPi(s.yaw - it->yaw);
+        const double odo_turn = mrpt::math::wrapToPi(s.odo_yaw - it->odo_yaw);
+        pairs_.push_back({fix_turn - odo_turn, -(s.odo_rate - it->odo_rate), dt});
+        if (pairs_.size() > options_.max_pairs) pairs_.pop_front();
+        break;
+    }
+    samples_.push_back(s);
+}
+
+void CameraClock::fit() {
+    if (pairs_.size() < options_.min_pairs) return;
+    // residual = tau x rate_change + drift x dt, by least squares, outliers dropped by MAD.
+    std::vector<double> w(pairs_.size(), 1.0), res(pairs_.size());
+    double tau = 0, det = 0, s11 = 0, mad = 0;
+    for (int it = 0; it < kRobustIterations; ++it) {
+        double sxx = 0, sx1 = 0, sxr = 0, s1r = 0;
+        s11 = 0;
+        for (std::size_t k = 0; k < pairs_.size(); ++k) {
+            const Pair& p = pairs_[k];
+            sxx += w[k] * p.rate_change * p.rate_change;
+            sx1 += w[k] * p.rate_change * p.dt;
+            s11 += w[k] * p.dt * p.dt;
+            sxr += w[k] * p.rate_change * p.residual;
+            s1r += w[k] * p.dt * p.residual;
+        }
+        det = sxx * s11 - sx1 * sx1;
+        if (!(det > 0)) return;  // the yaw rate never changed: nothing to see
+        tau = (sxr * s11 - sx1 * s1r) / det;
+        const double drift = (sxx * s1r - sx1 * sxr) / det;
+        for (std::size_t k = 0; k < pairs_.size(); ++k) {
+            res[k] =
+                std::abs(pairs_[k].residual - tau * pairs_[k].rate_change - drift * pairs_[k].dt);
+        }
+        std::vector<double> sorted = res;
+        std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+        mad = 1.4826 * sorted[sorted.size() / 2] + 1e-9;
+        for (std::size_t k = 0; k < pairs_.size(); ++k) w[k] = res[k] < kInlierMads * mad ? 1 : 0;
+    }
+    estimate_ = Estimate{-tau, mad * std::sqrt(s11 / det), pairs_.size()};
+    const Estimate& e = *estimate_;
+    const bool precise =
+        e.sigma_s <= options_.max_sigma_s && std::abs(e.offset_s) <= options_.max_offset_s;
+    if (precise && (applied_ || std::abs(e.offset_s) >= options_.significance * e.sigma_s)) {
+        applied_ = e;
+    }
+}
+
+}  // namespace lookup::localize
