@@ -1,6 +1,6 @@
 // The ceiling camera's time offset against the odometry, estimated from how the fixes' heading
-// follows the odometry's through a weave: found and applied when the camera is late, left at
-// zero when it is on time or the drive is straight.
+// follows the odometry's through a weave: found and (on request) applied when the camera is
+// late, left at zero when it is on time or the drive is straight.
 
 #include <gtest/gtest.h>
 
@@ -20,14 +20,16 @@ constexpr double kOdometryHz = 50, kCameraHz = 14, kDuration_s = 25;
 /// A vehicle weaving at `weave_rad` heading amplitude with a 5 s period (a 40 m zigzag at
 /// 28 km/h), its odometry heading drifting slowly; fixes of the camera stamped `late_s` after
 /// their exposure, their heading off by a constant and by noise.
-CameraClock drive(double weave_rad, double late_s, unsigned seed = 7) {
+CameraClock drive(double weave_rad, double late_s, unsigned seed = 7, bool apply = true) {
     const auto yaw = [weave_rad](double t) {
         return weave_rad * std::sin(2 * M_PI * (t - kT0) / 5.0);
     };
     std::mt19937 rng(seed);
     std::normal_distribution<double> fix_noise(0, 0.0015), odo_noise(0, 0.0003);
     OdometryTrack odometry;
-    CameraClock clock;
+    lookup::localize::CameraClockOptions options;
+    options.apply = apply;
+    CameraClock clock(options);
     double odo_walk = 0, next_frame = kT0 + 0.5;
     for (double t = kT0; t < kT0 + kDuration_s; t += 1 / kOdometryHz) {
         odo_walk += odo_noise(rng);
@@ -52,6 +54,12 @@ TEST(CameraClock, ALateCameraIsFoundFromAWeaveAndApplied) {
     EXPECT_LT(clock.estimate()->sigma_s, 0.003);
     EXPECT_TRUE(clock.isApplied());
     EXPECT_NEAR(clock.applied(), -0.020, 0.006);
+    // Without `apply` the same drive is estimated and reported, the stamps left as they are.
+    const CameraClock reported = drive(0.19, 0.020, 7, false);
+    ASSERT_TRUE(reported.estimate());
+    EXPECT_DOUBLE_EQ(reported.estimate()->offset_s, clock.estimate()->offset_s);
+    EXPECT_FALSE(reported.isApplied());
+    EXPECT_EQ(reported.applied(), 0.0);
 }
 
 TEST(CameraClock, ACameraOnTimeIsLeftAlone) {

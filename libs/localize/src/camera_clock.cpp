@@ -97,7 +97,8 @@ void CameraClock::fit() {
     const Estimate& e = *estimate_;
     const bool precise =
         e.sigma_s <= options_.max_sigma_s && std::abs(e.offset_s) <= options_.max_offset_s;
-    if (precise && (applied_ || std::abs(e.offset_s) >= options_.significance * e.sigma_s)) {
+    if (options_.apply && precise &&
+        (applied_ || std::abs(e.offset_s) >= options_.significance * e.sigma_s)) {
         applied_ = e;
     }
 }

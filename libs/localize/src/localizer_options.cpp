@@ -27,6 +27,7 @@ void LocalizerOptions::declareKeys(common::OptionsTable& t) {
     t.add("odometry_timeout_s", odometry_timeout_s, common::kPositive);
     t.add("image_time_sigma_s", image_time_sigma_s, 0.0, 1.0);
     t.add("estimate_camera_time_offset", camera_clock.enabled);
+    t.add("apply_camera_time_offset", camera_clock.apply);
     t.add("camera_time_offset_min_pairs", camera_clock.min_pairs, 3, 100000000);
     t.add("camera_time_offset_max_sigma_s", camera_clock.max_sigma_s, common::kPositive);
     t.add("camera_time_offset_significance", camera_clock.significance, 0.0, 100.0);

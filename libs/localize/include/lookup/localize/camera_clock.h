@@ -10,7 +10,8 @@
 // both cancel in the differences over a second.
 //
 // Only the offset against the odometry is observable; a latency common to every sensor of the
-// vehicle is not (docs/vehicle.md, "Time offset").
+// vehicle is not (docs/vehicle.md, "Time offset"). Estimated on every run and reported;
+// applied to the stamps only on request (CameraClockOptions::apply).
 
 #include <deque>
 #include <optional>
@@ -20,7 +21,12 @@
 namespace lookup::localize {
 
 struct CameraClockOptions {
-    bool enabled = true;
+    bool enabled = true;  ///< estimate (and report)
+    /// Also apply it to the stamps. Off by default: the references carry their own survey
+    /// camera's lateness, which a query driven the same way partly cancels; correcting the
+    /// vehicle's side alone helps only on a database whose survey clocks were calibrated
+    /// (docs/benchmarks.md, "The camera's offset against the odometry, from the fixes' heading").
+    bool apply = false;
     /// Two fixes are paired when this far apart in time: long enough for the yaw rate to
     /// change, short enough for the odometry's heading drift to stay small [s].
     double min_pair_s = 0.3, max_pair_s = 1.0;
@@ -44,8 +50,8 @@ class CameraClock {
     /// A refined frame: its stamp as the camera gave it (before applied()) and its heading.
     void addFix(double stamp_s, double yaw);
     /// Pairs the fixes the odometry now covers (it must reach a little past them for the yaw
-    /// rate) and refits; then applies the fit when it is precise and significant, or follows
-    /// it once applied.
+    /// rate) and refits; then, with CameraClockOptions::apply, applies the fit when it is
+    /// precise and significant, or follows it once applied.
     void update(const common::OdometryTrack& odometry);
 
     /// The latest fit (at least min_pairs pairs).

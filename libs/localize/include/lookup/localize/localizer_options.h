@@ -59,8 +59,8 @@ struct LocalizerOptions : public common::TableOptions<LocalizerOptions> {
     /// emitted pose's covariance carries.
     double image_time_sigma_s = 0.0;
     /// The ceiling camera's offset against the odometry, estimated from the drive's turns and
-    /// applied to its stamps once precise and significant (camera_clock.h); its sigma adds to
-    /// image_time_sigma_s.
+    /// reported; with apply_camera_time_offset applied to its stamps once precise and
+    /// significant (camera_clock.h), its sigma then adding to image_time_sigma_s.
     CameraClockOptions camera_clock;
     /// Acquisition (not tracking): also try references within this distance of the coarse
     /// match, one by one, before giving up, since the SAD window covers only +-L_SR/2 [m].
