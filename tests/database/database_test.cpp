@@ -6,6 +6,7 @@
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <optional>
 
 #include "lookup/database/database_writer.h"
 #include "lookup/database/reference_database.h"
@@ -23,7 +24,8 @@ mrpt::poses::CPose3D poseOf(int i) {
 
 // Writes `n` references whose ceiling image i is filled with grey level i; with
 // `superseded_every` > 0 every such reference is marked superseded by a drive "today".
-void writeDatabase(const fs::path& out, int n, int superseded_every = 0) {
+void writeDatabase(const fs::path& out, int n, int superseded_every = 0,
+                   std::optional<double> clock_sigma_s = std::nullopt) {
     DatabaseWriter w(out.string());
     mrpt::img::TCamera cam;
     cam.ncols = 16;
@@ -60,6 +62,7 @@ void writeDatabase(const fs::path& out, int n, int superseded_every = 0) {
     info.ceiling_camera = cam;
     info.ceiling_height_m = 4.5;
     info.source_rawlogs = {"/x/a.rawlog", "/x/b.rawlog"};
+    info.ceiling_time_offset_sigma_s = clock_sigma_s;
     w.commit(info);
 }
 
@@ -98,6 +101,15 @@ TEST(Database, RoundTripPosesIntrinsicsAndLazyBoundedImages) {
     EXPECT_EQ(db.forwardImage(0).cols, 8);
     EXPECT_TRUE(db.forwardImage(1).empty());
     EXPECT_TRUE(fs::exists(dir / "db" / "refs.tum"));
+    EXPECT_FALSE(db.info().ceiling_time_offset_sigma_s);  // not recorded: unknown
+}
+
+TEST(Database, TheSurveyCameraClocksSigmaIsKept) {
+    const auto dir = lookup::test::freshDir("lookup_database_clock_sigma");
+    writeDatabase(dir / "db", 4, 0, 0.004);
+    const auto info = readDatabaseInfo((dir / "db" / "db.ini").string());
+    ASSERT_TRUE(info.ceiling_time_offset_sigma_s);
+    EXPECT_DOUBLE_EQ(*info.ceiling_time_offset_sigma_s, 0.004);
 }
 
 TEST(Database, ImagesStoredAsTheGreyPixelsTheLocaliserReads) {

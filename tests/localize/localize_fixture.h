@@ -14,6 +14,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -83,6 +84,7 @@ struct SurveyTraverse {
 struct SurveyCamera {
     refine::RowTiming timing;
     double recorded_readout_ms = 0;
+    std::optional<double> time_offset_sigma_s;  ///< db.ini's ceiling_time_offset_sigma_s
 };
 
 inline void writeDatabase(const Scene& scene, const std::string& dir,
@@ -117,6 +119,7 @@ inline void writeDatabase(const Scene& scene, const std::string& dir,
     info.ceiling_height_m = kCeilingHeight;
     info.pose_source = "test";
     info.ceiling_readout_ms = survey_camera.recorded_readout_ms;
+    info.ceiling_time_offset_sigma_s = survey_camera.time_offset_sigma_s;
     writer.commit(info);
 }
 
@@ -145,13 +148,14 @@ struct PlanarDrive {
     };
     mrpt::poses::CPose3D coarse_error{0.6, -0.4, 0, -0.05, 0, 0};
     mrpt::poses::CPose3D camera_ahead;
+    SurveyCamera survey_camera;
 };
 
 inline localize::LocalizeRequest planarRun(const fs::path& dir, const Spoiler& spoil,
                                            int frames = 20, const PlanarDrive& drive = {}) {
     Scene scene;
     scene.mount = drive.camera_ahead + scene.mount;
-    writeDatabase(scene, (dir / "db").string(), {{"survey", 65, 100.0}});
+    writeDatabase(scene, (dir / "db").string(), {{"survey", 65, 100.0}}, drive.survey_camera);
     common::PoseTrack coarse;
     common::RawlogWriter rawlog((dir / "query.rawlog").string());
     for (int i = 0; i < frames; ++i) {

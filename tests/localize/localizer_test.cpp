@@ -665,6 +665,35 @@ TEST(Localize, AcquisitionCandidatesCoverEveryNearbyTraverse) {
     EXPECT_NEAR(db.reference(candidates.front()).vehicle_pose.y(), 0.0, 1e-9);
 }
 
+TEST(Localize, TheCameraClockIsAppliedWhereTheSurveysOwnClockIsKnown) {
+    // The references carry the survey camera's lateness: the vehicle's is corrected alone only
+    // against a database whose survey clock was known (db.ini), unless forced either way.
+    const Scene scene;
+    const auto dir = lookup::test::freshDir("lookup_localize_camera_clock");
+    using Apply = localize::CameraClockApply;
+    struct Case {
+        std::optional<double> survey_sigma_s;
+        Apply apply;
+        bool applies;
+    };
+    for (const Case& c :
+         {Case{0.004, Apply::Auto, true}, Case{0.012, Apply::Auto, false},
+          Case{std::nullopt, Apply::Auto, false}, Case{std::nullopt, Apply::Always, true},
+          Case{0.004, Apply::Never, false}}) {
+        const std::string db_dir = (dir / "db").string();
+        fs::remove_all(db_dir);
+        SurveyCamera survey;
+        survey.time_offset_sigma_s = c.survey_sigma_s;
+        writeDatabase(scene, db_dir, {{"survey", 4, 100.0}}, survey);
+        auto db = database::ReferenceDatabase::load(db_dir);
+        localize::LocalizerOptions options;
+        options.apply_camera_time_offset = c.apply;
+        const localize::Localizer localizer(db, options, refine::RefinerOptions{}, nullptr, false);
+        EXPECT_EQ(localizer.cameraClock().applies(), c.applies)
+            << "survey sigma " << c.survey_sigma_s.value_or(-1) << ", mode " << int(c.apply);
+    }
+}
+
 TEST(Localize, SkippedCoarseSearchesStillBuildTheSequence) {
     // coarse_while_tracking = false: while LookUP tracks, forward frames only join the coarse
     // sequence. The first frame searched must match at once (a full sequence), not start over.

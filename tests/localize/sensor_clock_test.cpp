@@ -3,6 +3,7 @@
 // the run's frame times.
 
 #include <gtest/gtest.h>
+#include <mrpt/config/CConfigFile.h>
 #include <mrpt/config/CConfigFileMemory.h>
 #include <mrpt/obs/CObservationOdometry.h>
 
@@ -108,4 +109,25 @@ TEST(SensorClock, AConfiguredCameraOffsetShiftsTheReportedFrameTimes) {
     const std::string text((std::istreambuf_iterator<char>(run_ini)), {});
     EXPECT_NE(text.find("[time_offsets]"), std::string::npos);
     EXPECT_NE(text.find("CEILING_CAM"), std::string::npos);
+}
+
+TEST(SensorClock, AConfiguredCameraOffsetIsCheckedNotReplacedByTheEstimate) {
+    // On a database whose survey clock is known, the camera's estimated offset is applied by
+    // default; a vehicle whose camera offset is configured keeps its measurement.
+    const auto dir = lookup::test::freshDir("lookup_localize_clock_auto");
+    PlanarDrive drive;
+    drive.survey_camera.time_offset_sigma_s = 0.004;
+    auto req = planarRun(
+        dir, [](int, mrpt::obs::CObservationImage&, auto&) {}, 20, drive);
+    const auto applyMode = [&](const std::string& ini_text, const std::string& run) {
+        std::ofstream((dir / (run + ".ini")).string()) << ini_text;
+        req.ini_file = (dir / (run + ".ini")).string();
+        req.out_dir = (dir / run).string();
+        localize::runLocalization(req);
+        mrpt::config::CConfigFile used((dir / run / "run.ini").string());
+        return used.read_string("localizer", "apply_camera_time_offset", "");
+    };
+    EXPECT_EQ(applyMode("[localizer]\nreferences_per_query = 3\n", "estimated"), "auto");
+    EXPECT_EQ(applyMode("[time_offsets]\nCEILING_CAM = -0.010\n", "configured"), "never");
+    EXPECT_EQ(applyMode("[time_offsets]\nODOMETRY = -0.020\n", "odometry_only"), "auto");
 }

@@ -81,7 +81,8 @@ DatabaseInfo readDatabaseInfo(const std::string& path) {
         common::IniSection db(cfg, "database", path);
         db.rejectUnknownKeys({"format_version", "name", "reference_count", "ceiling_camera_label",
                               "forward_camera_label", "ceiling_height_m", "pose_source", "map",
-                              "source_rawlogs", "ceiling_readout_ms", "ceiling_stamp_row"});
+                              "source_rawlogs", "ceiling_readout_ms", "ceiling_stamp_row",
+                              "ceiling_time_offset_sigma_s"});
         if (db.requireInt("format_version") != 1) {
             throw DatabaseError(db.where("format_version") + "unsupported version");
         }
@@ -97,6 +98,10 @@ DatabaseInfo readDatabaseInfo(const std::string& path) {
         info.source_rawlogs = split(db.getString("source_rawlogs", ""));
         info.ceiling_readout_ms = db.getDouble("ceiling_readout_ms", 0.0, 0.0, 999.999);
         info.ceiling_stamp_row = stampRowOf(db);
+        if (db.has("ceiling_time_offset_sigma_s")) {
+            info.ceiling_time_offset_sigma_s =
+                db.getDouble("ceiling_time_offset_sigma_s", 0.0, 0.0, 1.0);
+        }
         common::IniSection heat(cfg, "heatmaps", path);
         info.heatmaps_dir = heat.getString("directory", "");
     } catch (const common::ConfigError& e) {
@@ -124,6 +129,9 @@ void writeDatabaseInfo(const std::string& path, const DatabaseInfo& info) {
         cfg.write("database", "ceiling_readout_ms", info.ceiling_readout_ms);
         cfg.write("database", "ceiling_stamp_row",
                   common::enumName(common::stampRowNames(), info.ceiling_stamp_row));
+    }
+    if (info.ceiling_time_offset_sigma_s) {
+        cfg.write("database", "ceiling_time_offset_sigma_s", *info.ceiling_time_offset_sigma_s);
     }
     info.ceiling_camera.saveToConfigFile("ceiling_camera", cfg);
     info.forward_camera.saveToConfigFile("forward_camera", cfg);

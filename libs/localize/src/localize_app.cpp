@@ -11,6 +11,7 @@
 #include <unistd.h>
 #include <atomic>
 #include <chrono>
+#include <cstdio>
 #include <exception>
 #include <filesystem>
 #include <iostream>
@@ -231,6 +232,12 @@ class Session {
             common::loadAndCheck(coarse_options_, ini, "coarse");
             common::loadAndCheck(place_options_, ini, "place_index");
             clock_ = SensorClock::fromConfig(ini, req.ini_file);
+        }
+        // A configured ceiling camera offset is the vehicle's calibration: the estimate then
+        // checks it and is applied only when asked to.
+        if (options_.apply_camera_time_offset == CameraClockApply::Auto &&
+            clock_.configures(options_.ceiling_camera_label)) {
+            options_.apply_camera_time_offset = CameraClockApply::Never;
         }
         if (req.realtime >= 0) options_.realtime = req.realtime == 1;
         if (!req.sampling.empty() && req.sampling != "grid" && req.sampling != "heatmap" &&
@@ -465,9 +472,14 @@ class Session {
                                       {"sigma_s", e.sigma_s},
                                       {"pairs", double(e.pairs)},
                                       {"applied_s", clock.applied()}};
-        std::cerr << "lookup-localize: ceiling camera's time offset against the odometry: "
-                  << e.offset_s << " +- " << e.sigma_s << " s from " << e.pairs
-                  << " pairs of fixes; applied " << clock.applied() << " s\n";
+        char line[160];
+        std::snprintf(line, sizeof line, "%+.1f +- %.1f ms from %zu pairs of fixes; ",
+                      1e3 * e.offset_s, 1e3 * e.sigma_s, e.pairs);
+        std::cerr << "lookup-localize: ceiling camera's time offset against the odometry: " << line
+                  << (!clock.applies()    ? "reported only (apply_camera_time_offset)"
+                      : clock.isApplied() ? "applied"
+                                          : "not applied (not precise and significant)")
+                  << "\n";
     }
 
     void reportOnlineRefresh() {

@@ -147,6 +147,17 @@ refine::RefinerOptions gridSampling(refine::RefinerOptions o) {
     return o;
 }
 
+// The camera clock's estimate is applied where the survey's own camera clock is known (or the
+// options force it either way).
+CameraClockOptions cameraClockOptions(const LocalizerOptions& o, const database::DatabaseInfo& db) {
+    CameraClockOptions c = o.camera_clock;
+    const auto& survey_sigma = db.ceiling_time_offset_sigma_s;
+    c.apply = o.apply_camera_time_offset == CameraClockApply::Always ||
+              (o.apply_camera_time_offset == CameraClockApply::Auto && survey_sigma &&
+               *survey_sigma <= o.survey_clock_max_sigma_s);
+    return c;
+}
+
 }  // namespace
 
 std::unique_ptr<coarse::CoarseSource> makeSequenceCoarseSource(
@@ -200,7 +211,7 @@ Localizer::Localizer(database::ReferenceDatabase& db, const LocalizerOptions& op
       rectifier_(db.info().ceiling_camera),
       coarse_(std::move(coarse)),
       coarse_uses_images_(coarse_uses_images),
-      camera_clock_(options.camera_clock),
+      camera_clock_(cameraClockOptions(options, db.info())),
       ceiling_refiner_(gridSampling(refiner_options)) {
     options_.check();
 }

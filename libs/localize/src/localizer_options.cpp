@@ -8,6 +8,9 @@ namespace {
 const common::EnumNames<CoarseMode> kCoarseModes = {{"sequence", CoarseMode::Sequence},
                                                     {"ceiling", CoarseMode::Ceiling},
                                                     {"none", CoarseMode::None}};
+const common::EnumNames<CameraClockApply> kCameraClockApply = {{"auto", CameraClockApply::Auto},
+                                                               {"always", CameraClockApply::Always},
+                                                               {"never", CameraClockApply::Never}};
 }  // namespace
 
 void LocalizerOptions::declareKeys(common::OptionsTable& t) {
@@ -27,7 +30,8 @@ void LocalizerOptions::declareKeys(common::OptionsTable& t) {
     t.add("odometry_timeout_s", odometry_timeout_s, common::kPositive);
     t.add("image_time_sigma_s", image_time_sigma_s, 0.0, 1.0);
     t.add("estimate_camera_time_offset", camera_clock.enabled);
-    t.add("apply_camera_time_offset", camera_clock.apply);
+    t.add("apply_camera_time_offset", apply_camera_time_offset, kCameraClockApply);
+    t.add("survey_clock_max_sigma_s", survey_clock_max_sigma_s, 0.0, 1.0);
     t.add("camera_time_offset_min_pairs", camera_clock.min_pairs, 3, 100000000);
     t.add("camera_time_offset_max_sigma_s", camera_clock.max_sigma_s, common::kPositive);
     t.add("camera_time_offset_significance", camera_clock.significance, 0.0, 100.0);

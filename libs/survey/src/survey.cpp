@@ -1062,6 +1062,7 @@ SurveyResult Survey::run(const SurveyInputs& in) const {
         info.ceiling_height_m = ceilingHeight(in, survey.data, poses.tracks, result);
         timeOffsets(in, survey.data, poses.tracks, info.ceiling_height_m, result);
         auditPoses(in, survey.data, poses.tracks, info.ceiling_height_m, result);
+        if (laser) info.ceiling_time_offset_sigma_s = result.time_offsets.front().applied_sigma_s;
         info.pose_source = result.pose_source;
         const std::string track_name = laser ? std::string("the laser track") : in.poses_file;
         Cameras cameras;

@@ -7,6 +7,7 @@
 #include <mrpt/poses/CPose3D.h>
 
 #include <cstdint>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -84,6 +85,10 @@ struct DatabaseInfo {
     /// "first" or "middle". db.ini lists them only for a rolling shutter.
     double ceiling_readout_ms = 0;
     common::StampRow ceiling_stamp_row = common::StampRow::First;
+    /// How well the survey ceiling camera's stamps are known against its laser poses, its time
+    /// offset applied (the survey's applied sigma) [s]; absent in databases written before it
+    /// was recorded, or with poses from a file: unknown.
+    std::optional<double> ceiling_time_offset_sigma_s;
     std::vector<std::string> source_rawlogs;  ///< absolute paths of the survey rawlogs
     std::string pose_source;                  ///< "laser" (ICP-SLAM + MCL) or "file:<path>"
     std::string map_file;                     ///< map file name in the folder ("" if none)

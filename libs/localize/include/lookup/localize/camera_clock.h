@@ -11,7 +11,7 @@
 //
 // Only the offset against the odometry is observable; a latency common to every sensor of the
 // vehicle is not (docs/vehicle.md, "Time offset"). Estimated on every run and reported;
-// applied to the stamps only on request (CameraClockOptions::apply).
+// applied to the stamps where LocalizerOptions::apply_camera_time_offset says.
 
 #include <deque>
 #include <optional>
@@ -22,11 +22,7 @@ namespace lookup::localize {
 
 struct CameraClockOptions {
     bool enabled = true;  ///< estimate (and report)
-    /// Also apply it to the stamps. Off by default: the references carry their own survey
-    /// camera's lateness, which a query driven the same way partly cancels; correcting the
-    /// vehicle's side alone helps only on a database whose survey clocks were calibrated
-    /// (docs/benchmarks.md, "The camera's offset against the odometry, from the fixes' heading").
-    bool apply = false;
+    bool apply = false;   ///< also apply it to the stamps (LocalizerOptions: when)
     /// Two fixes are paired when this far apart in time: long enough for the yaw rate to
     /// change, short enough for the odometry's heading drift to stay small [s].
     double min_pair_s = 0.3, max_pair_s = 1.0;
@@ -60,6 +56,8 @@ class CameraClock {
     double applied() const { return applied_ ? applied_->offset_s : 0.0; }
     double appliedSigma() const { return applied_ ? applied_->sigma_s : 0.0; }
     bool isApplied() const { return applied_.has_value(); }
+    /// Whether an estimate will be applied once precise and significant.
+    bool applies() const { return options_.enabled && options_.apply; }
 
   private:
     /// A fix with the odometry's heading and yaw rate at its stamp.

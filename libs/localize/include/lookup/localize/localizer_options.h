@@ -18,6 +18,8 @@ enum class CoarseMode {
     None       ///< only a start pose given or persisted
 };
 
+enum class CameraClockApply { Auto, Always, Never };
+
 struct LocalizerOptions : public common::TableOptions<LocalizerOptions> {
     std::string ceiling_camera_label = "CEILING_CAM";  ///< query ceiling images
     std::string forward_camera_label = "FORWARD_CAM";  ///< query forward images (coarse stage)
@@ -59,9 +61,17 @@ struct LocalizerOptions : public common::TableOptions<LocalizerOptions> {
     /// emitted pose's covariance carries.
     double image_time_sigma_s = 0.0;
     /// The ceiling camera's offset against the odometry, estimated from the drive's turns and
-    /// reported; with apply_camera_time_offset applied to its stamps once precise and
-    /// significant (camera_clock.h), its sigma then adding to image_time_sigma_s.
+    /// reported (camera_clock.h); where apply_camera_time_offset says, applied to its stamps
+    /// once precise and significant, its sigma then adding to image_time_sigma_s.
     CameraClockOptions camera_clock;
+    /// Auto: applied on a database whose survey camera's stamps are known within
+    /// survey_clock_max_sigma_s (db.ini ceiling_time_offset_sigma_s), unless [time_offsets]
+    /// configures the camera's (lookup-localize: then only reported). The references carry that
+    /// camera's lateness, which a query driven the same way partly cancels: on a database of
+    /// an uncalibrated survey, correcting the vehicle's side alone can add error
+    /// (docs/benchmarks.md, "The camera's offset against the odometry, from the fixes' heading").
+    CameraClockApply apply_camera_time_offset = CameraClockApply::Auto;
+    double survey_clock_max_sigma_s = 0.010;  ///< [s]
     /// Acquisition (not tracking): also try references within this distance of the coarse
     /// match, one by one, before giving up, since the SAD window covers only +-L_SR/2 [m].
     double acquisition_radius_m = 4.0;

@@ -33,6 +33,8 @@ class SensorClock {
                                   const std::string& file);
 
     bool empty() const { return offsets_.empty(); }
+    /// Whether `label`'s offset is configured (measured), zero or not.
+    bool configures(const std::string& label) const { return offsets_.count(label) > 0; }
     /// The offset of `label` (0 when not configured) [s].
     double offsetOf(const std::string& label) const;
     /// Writes the offsets as read ([time_offsets]) into a run's run.ini.
