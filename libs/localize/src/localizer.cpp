@@ -880,8 +880,6 @@ std::optional<std::string> Localizer::trackDisagreesWithOdometry(
            std::to_string(options_.track_disagreeing_fixes) + " frames in a row: track dropped";
 }
 
-// Per ceiling frame: coarse -> locate (track, hypothesis, the ceiling's places, around the
-// coarse match, start-up seeds) -> audit of the coarse stage -> track checks -> emit.
 FrameResult Localizer::processCeilingOnClock(const mrpt::obs::CObservationImage& image) {
     const double stamp_s = mrpt::Clock::toDouble(image.timestamp);
     camera_clock_.update(odometry_);
@@ -892,6 +890,8 @@ FrameResult Localizer::processCeilingOnClock(const mrpt::obs::CObservationImage&
     return out;
 }
 
+// Per ceiling frame: coarse -> locate (track, hypothesis, the ceiling's places, around the
+// coarse match, start-up seeds) -> audit of the coarse stage -> track checks -> emit.
 FrameResult Localizer::processCeiling(const mrpt::obs::CObservationImage& query) {
     mrpt::system::CTicTac total;
     FrameResult out = startFrame(query);
