@@ -9,12 +9,14 @@
 #include <unistd.h>
 
 #include <atomic>
+#include <cmath>
 #include <filesystem>
 #include <memory>
 #include <thread>
 
 #include "lookup/database/database_writer.h"
 #include "lookup/database/reference_database.h"
+#include "lookup/localize/camera_clock.h"
 #include "lookup/localize/localizer.h"
 #include "lookup/localize/pose_stream.h"
 #include "lookup/localize/vehicle_link.h"
@@ -186,5 +188,26 @@ void BM_PoseMessageSerialise(benchmark::State& state) {
     }
 }
 BENCHMARK(BM_PoseMessageSerialise)->Unit(benchmark::kMicrosecond);
+
+// What the camera clock costs a refined frame once its window is full: one fix paired and the
+// robust fit over the newest max_pairs pairs (a weaving drive, odometry at 50 Hz, 14 frames/s).
+void BM_CameraClockFixAndFit(benchmark::State& state) {
+    lookup::common::OdometryTrack odometry;
+    lookup::localize::CameraClock clock;
+    const auto yaw = [](double t) { return 0.19 * std::sin(2 * M_PI * t / 5.0); };
+    double t_odo = 0, t_frame = 0.5;
+    const auto frame = [&] {
+        for (; t_odo <= t_frame + 0.1; t_odo += 0.02)
+            odometry.add(t_odo, mrpt::poses::CPose2D(0, 0, yaw(t_odo)));
+        odometry.forgetBefore(t_frame - 3.0);
+        clock.update(odometry);
+        clock.addFix(t_frame, yaw(t_frame - 0.02));
+        t_frame += 1 / 14.0;
+    };
+    for (int i = 0; i < 1200; ++i) frame();  // the window full
+    for (auto _ : state) frame();
+    state.counters["pairs"] = clock.estimate() ? double(clock.estimate()->pairs) : 0.0;
+}
+BENCHMARK(BM_CameraClockFixAndFit)->Unit(benchmark::kMicrosecond);
 
 }  // namespace
