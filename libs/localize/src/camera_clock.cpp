@@ -18,8 +18,13 @@ constexpr double kInlierMads = 3.0;
 }  // namespace
 
 void CameraClock::addFix(double stamp_s, double yaw) {
-    if (options_.enabled && std::isfinite(stamp_s) && std::isfinite(yaw))
-        pending_.emplace_back(stamp_s, yaw);
+    if (!options_.enabled || !std::isfinite(stamp_s) || !std::isfinite(yaw)) return;
+    // Without odometry (none recorded, a dropout) fixes would wait here for ever. One still
+    // waiting a pair's span later lies in a gap of the readings, which sampleAt() refuses.
+    while (!pending_.empty() && stamp_s - pending_.front().first > options_.max_pair_s) {
+        pending_.pop_front();
+    }
+    pending_.emplace_back(stamp_s, yaw);
 }
 
 std::optional<CameraClock::Sample> CameraClock::sampleAt(

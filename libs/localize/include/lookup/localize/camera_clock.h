@@ -74,8 +74,9 @@ class CameraClock {
     void fit();
 
     CameraClockOptions options_;
-    std::deque<std::pair<double, double>> pending_;  ///< fixes awaiting odometry: stamp, yaw
-    std::deque<Sample> samples_;                     ///< the last max_pair_s of fixes
+    /// Fixes awaiting odometry (stamp, yaw), the last max_pair_s of them.
+    std::deque<std::pair<double, double>> pending_;
+    std::deque<Sample> samples_;  ///< the last max_pair_s of fixes
     std::deque<Pair> pairs_;
     std::optional<Estimate> estimate_, applied_;
 };
