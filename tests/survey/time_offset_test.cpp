@@ -128,6 +128,22 @@ TEST(TimeOffset, ConfiguredOffsetIsTheStartOfTheEstimate) {
     EXPECT_NEAR(e.offset_s, -0.040, 0.004);
 }
 
+TEST(TimeOffset, ARefusedFitBoundsTheConfiguredOffsetByTwiceItsDeviation) {
+    // A right configured offset and a fit refused for a (made) strict precision: the applied
+    // deviation is the fit's distance from the configured offset and twice its deviation.
+    Drive d = makeDrive(true, 0.040, true);
+    SurveyOptions o;
+    o.ceiling_time_offset_s = -0.040;
+    o.time_offset_max_sigma_s = 1e-5;
+    shiftStamps(d.images, o.ceiling_time_offset_s);
+    const auto e = estimate(d, o);
+    EXPECT_EQ(e.source, "configured");
+    EXPECT_DOUBLE_EQ(e.offset_s, -0.040);
+    ASSERT_GT(e.sigma_s, 0.0);
+    EXPECT_NEAR(e.applied_sigma_s, std::hypot(e.fitted_s + 0.040, 2 * e.sigma_s), 1e-12);
+    EXPECT_LT(e.applied_sigma_s, 0.005);
+}
+
 TEST(TimeOffset, ConstantSpeedWarnsAndKeepsTheConfiguredOffset) {
     const Drive d = makeDrive(false, 0.040, true);
     SurveyOptions o;

@@ -176,16 +176,12 @@ bool trackPoints(const cv::Mat& a, const cv::Mat& b, const refine::Pinhole& pin,
     return pa.size() >= kMinPoints;
 }
 
-mrpt::poses::CPose3D poseFrom(const cv::Matx33d& R, const cv::Vec3d& t) {
-    mrpt::math::CMatrixDouble33 Rm;
-    for (int r = 0; r < 3; ++r)
-        for (int c = 0; c < 3; ++c) Rm(r, c) = R(r, c);
-    return mrpt::poses::CPose3D(Rm, mrpt::math::CVectorFixedDouble<3>({t[0], t[1], t[2]}));
-}
-
-// The vehicle motion a -> b from the images: the ceiling homography between them decomposed
-// into the camera motion and the plane's normal (so a pitched or rolled vehicle is told from
-// travel), the translation scaled by the camera-to-ceiling distance, the mount taken off.
+// The vehicle motion a -> b from the images: the tracked points of each image back-projected
+// onto the ceiling plane in its own vehicle frame, and the planar motion that maps b's onto a's
+// fitted robustly. A homography decomposed into camera motion and plane normal would tell
+// pitching from travel on a flat ceiling, but on an arched, rough one it trades the two
+// against each other several times worse than they are: the pitch and roll changes between
+// the two images (distance x angle on the ceiling) remain as the measurement's noise.
 std::optional<Motion> imageMotion(const mrpt::obs::CObservationImage& ia,
                                   const mrpt::obs::CObservationImage& ib, double h,
                                   const mrpt::poses::CPose3D& guess) {
@@ -200,35 +196,23 @@ std::optional<Motion> imageMotion(const mrpt::obs::CObservationImage& ia,
     if (!trackPoints(a, b, pin, mount, h, guess, pa, pb)) return std::nullopt;
     pa = rectified(pa, ia.cameraParams, pin);
     pb = rectified(pb, ia.cameraParams, pin);
+    std::vector<cv::Point2f> on_a, on_b;
+    for (std::size_t k = 0; k < pa.size(); ++k) {
+        const auto qa = refine::backProjectToCeiling(pin, mount, cv::Point2d(pa[k]), h);
+        const auto qb = refine::backProjectToCeiling(pin, mount, cv::Point2d(pb[k]), h);
+        if (!qa || !qb) continue;
+        on_a.emplace_back(float(qa->x), float(qa->y));
+        on_b.emplace_back(float(qb->x), float(qb->y));
+    }
+    if (on_a.size() < kMinPoints) return std::nullopt;
+    // Rotation, translation and a scale (the height change); inliers within the size of a
+    // pixel at the ceiling straight above the camera.
+    const double pixel_m = distance_m / pin.fx;
     std::vector<uchar> inlier;
-    const cv::Mat H = cv::findHomography(pa, pb, cv::RANSAC, 1.0, inlier);
-    if (H.empty() || std::size_t(cv::countNonZero(inlier)) < kMinPoints) return std::nullopt;
-    std::vector<cv::Mat> Rs, ts, ns;
-    const int n = cv::decomposeHomographyMat(H, cv::Mat(pin.K()), Rs, ts, ns);
-    // The map's up direction in camera a (the plane's expected normal), and b's expected pose.
-    const auto Rmount = mount.getRotationMatrix();
-    const cv::Vec3d up(Rmount(2, 0), Rmount(2, 1), Rmount(2, 2));
-    mrpt::poses::CPose3D expected = guess + mount;
-    expected = expected - mount;  // camera b in camera a's frame
-    int best = -1;
-    double best_score = -1e9;
-    for (int k = 0; k < n; ++k) {
-        const cv::Vec3d nk(ns[k]);
-        const double score = nk.dot(up);
-        if (score > best_score) best_score = score, best = k;
-    }
-    if (best < 0 || best_score < 0.9) return std::nullopt;
-    // OpenCV: X_b = R X_a + t for the plane n.X_a = d; t is returned divided by d.
-    const cv::Matx33d R(Rs[best]);
-    const cv::Vec3d t = cv::Vec3d(ts[best]) * distance_m;
-    mrpt::poses::CPose3D b_in_a = poseFrom(R, t);
-    b_in_a.inverse();
-    if (std::abs(b_in_a.x() - expected.x()) + std::abs(b_in_a.y() - expected.y()) > 1.0) {
-        return std::nullopt;  // not the motion the track shows at all: a wrong decomposition
-    }
-    mrpt::poses::CPose3D mount_inv = mount;
-    mount_inv.inverse();
-    return motionOf(mount + b_in_a + mount_inv);
+    const cv::Mat M = cv::estimateAffinePartial2D(on_b, on_a, inlier, cv::RANSAC, pixel_m);
+    if (M.empty() || std::size_t(cv::countNonZero(inlier)) < kMinPoints) return std::nullopt;
+    return Motion(M.at<double>(0, 2), M.at<double>(1, 2),
+                  std::atan2(M.at<double>(1, 0), M.at<double>(0, 0)));
 }
 
 struct FitAt {
@@ -375,12 +359,15 @@ std::string notEstimated(const TimeOffsetEstimate& e, const std::string& why) {
 }
 
 // A fit not trusted as the offset still bounds the configured one: that is off the fit by
-// the distance between them, give or take the fit's own deviation.
+// the distance between them, give or take twice the fit's deviation. Once is too tight where
+// the traverses start and stop over the same floor: its bumps pitch every one of them alike
+// there, an error the per-traverse consistency check cannot see.
 double appliedSigma(const TimeOffsetEstimate& e, const SurveyOptions& o) {
+    constexpr double kBoundSigmas = 2.0;
     if (e.source == "estimated") return e.sigma_s;
     if (e.pairs_used == 0 || !std::isfinite(e.sigma_s)) return o.ceiling_time_offset_sigma_s;
     return std::min(o.ceiling_time_offset_sigma_s,
-                    std::hypot(e.fitted_s - e.configured_s, e.sigma_s));
+                    std::hypot(e.fitted_s - e.configured_s, kBoundSigmas * e.sigma_s));
 }
 
 // The image motion of a pair is that of the rows' mean exposure, the middle row's; with a

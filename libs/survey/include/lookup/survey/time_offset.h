@@ -3,14 +3,14 @@
 // late or early puts every reference (speed x offset) along the track from where its image was
 // taken. The offset shows where the motion changes (accelerating, braking, turning): for pairs
 // of ceiling images `time_offset_baseline_m` apart, the vehicle's motion between the two is
-// measured from the images alone (ceiling features tracked by pyramidal Lucas-Kanade, their
-// homography decomposed into the camera motion and the plane's normal so that pitching is told
-// from travel, scaled by the survey's measured ceiling distance) and compared with the pose
-// track's motion between the two
-// image times shifted by dt. The dt that fits best (least squares over the pairs, with a free
-// scale absorbing an error of the ceiling height) is the offset; its standard deviation comes
-// from the fit's curvature. At constant speed and heading the offset is not observable: the
-// fit is flat, its deviation large, and the configured offset is kept with a warning.
+// measured from the images alone (ceiling features tracked by pyramidal Lucas-Kanade,
+// back-projected onto the ceiling plane at the survey's measured height, the planar motion
+// between the two point sets fitted robustly) and compared with the pose track's motion
+// between the two image times shifted by dt. The dt that fits best (least squares over the
+// pairs, with a free scale absorbing an error of the ceiling height) is the offset; its
+// standard deviation comes from the fit's curvature. At constant speed and heading the offset
+// is not observable: the fit is flat, its deviation large, and the configured offset is kept
+// with a warning.
 
 #include <mrpt/obs/CObservationImage.h>
 
