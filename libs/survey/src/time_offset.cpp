@@ -179,9 +179,9 @@ bool trackPoints(const cv::Mat& a, const cv::Mat& b, const refine::Pinhole& pin,
 // The vehicle motion a -> b from the images: the tracked points of each image back-projected
 // onto the ceiling plane in its own vehicle frame, and the planar motion that maps b's onto a's
 // fitted robustly. A homography decomposed into camera motion and plane normal would tell
-// pitching from travel on a flat ceiling, but on an arched, rough one it trades the two
-// against each other several times worse than they are: the pitch and roll changes between
-// the two images (distance x angle on the ceiling) remain as the measurement's noise.
+// pitching from travel on a flat ceiling, but on an arched, rough one it confuses the two and
+// is several times noisier; here the pitch and roll changes between the two images (distance
+// x angle on the ceiling) remain as the measurement's noise.
 std::optional<Motion> imageMotion(const mrpt::obs::CObservationImage& ia,
                                   const mrpt::obs::CObservationImage& ib, double h,
                                   const mrpt::poses::CPose3D& guess) {
