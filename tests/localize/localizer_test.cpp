@@ -321,6 +321,48 @@ TEST(Localize, OnAChangedCeilingTheDeadReckoningFollowsTheCeilingsOwnMotion) {
     EXPECT_GT(error(odometry.frames[19], 19), 0.9);
 }
 
+// The vehicle turns at 0.3 rad/s until frame 7, then drives straight; over frames 8-21 the
+// odometry drops out (readings not finite) and the ceiling is another one (textured, nothing
+// of it in the references). Extrapolated, the odometry would keep turning, and past the
+// tracking gap (1 s) it has no pose at all; measured frame to frame on the ceiling, heading
+// included, and carried on at the velocity measured there, the dead reckoning keeps the line.
+TEST(Localize, ThroughAnOdometryDropoutTheCeilingsOwnMotionKeepsTheHeading) {
+    Scene changed;
+    changed.ceiling = refine::synthetic::SyntheticCeiling::make(kCeilingHeight, 40.0, 0.01, 8);
+    PlanarDrive drive;
+    drive.vehicle = [](int i) {
+        double x = -5, y = 0.4, yaw = -0.1;
+        for (int k = 0; k < i; ++k) {
+            x += 0.3 * std::cos(yaw);
+            y += 0.3 * std::sin(yaw);
+            if (k < 7) yaw += 0.03;
+        }
+        return mrpt::poses::CPose3D(x, y, 0, yaw, 0, 0);
+    };
+    const auto spoil = [&](int i, mrpt::obs::CObservationImage& img,
+                           mrpt::obs::CObservationOdometry& odo) {
+        if (i < 8 || i > 21) return;
+        odo.odometry.x(std::numeric_limits<double>::quiet_NaN());
+        img.image = changed.image(drive.vehicle(i), kT0 + 0.1 * i)->image;
+    };
+    const auto dir = lookup::test::freshDir("lookup_localize_dropout_heading");
+    auto req = planarRun(dir, spoil, 24, drive);
+    localize::runLocalization(req);
+    const auto run = eval::loadRun(req.out_dir);
+    ASSERT_EQ(run.frames.size(), 24u);
+    ASSERT_EQ(run.frames[7].status, "refined") << run.frames[7].reason;
+    for (int i = 9; i <= 21; ++i) {
+        const auto& f = run.frames[i];
+        const auto truth = drive.vehicle(i);
+        ASSERT_EQ(f.status, "fallback") << i << ": " << f.reason;
+        EXPECT_NE(f.reason.find("ceiling's own motion"), std::string::npos)
+            << i << ": " << f.reason;
+        EXPECT_LT(std::abs(mrpt::math::wrapToPi(f.yaw - truth.yaw())), mrpt::DEG2RAD(2.0)) << i;
+        EXPECT_LT(std::hypot(f.x - truth.x(), f.y - truth.y()), 0.15) << i;
+    }
+    EXPECT_GT(run.frames[21].cov_xx, run.frames[9].cov_xx);
+}
+
 // Forward to x = 1.9 m, then reversing back along the same line. Where the vehicle stands at
 // x in [-2.5, -0.5] the ceiling is another one (new shotcrete over the surveyed rock), and the
 // wheel reads 2 % long. On the way in those frames refine against nothing; the fix after them

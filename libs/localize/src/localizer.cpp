@@ -326,6 +326,7 @@ void Localizer::restart() {
     last_fix_.reset();
     previous_frame_.reset();
     ceiling_motion_.reset();
+    measured_places_.clear();
     drive_.clear();
     last_refined_.reset();
     drive_odometry_.reset();
@@ -387,11 +388,7 @@ std::optional<Localizer::Prediction> Localizer::deadReckon(double t) const {
     const double gap = std::max(options_.max_tracking_gap_s, options_.max_dead_reckoning_s);
     if (!last_fix_ || t - last_fix_->time_s > gap) return std::nullopt;
     const auto odo_now = odometryAt(t), odo_fix = odometryAt(last_fix_->time_s);
-    if (!odo_now || !odo_fix) {
-        // Without odometry the previous fix is the prediction, the vehicle's motion since then
-        // unknown.
-        return Prediction{last_fix_->pose, {0.0, t - last_fix_->time_s, false}};
-    }
+    if (!odo_now || !odo_fix) return withoutOdometry(t);
     const mrpt::poses::CPose2D delta = odo_now->pose - odo_fix->pose;
     // Where the ceiling measured the motion since the fix, the odometry continues from there;
     // the uncertainty stays that of the odometry's distance.
@@ -409,6 +406,48 @@ std::optional<Localizer::Prediction> Localizer::deadReckon(double t) const {
     };
     const double extrapolated_s = std::max(uncovered_s(*odo_now), uncovered_s(*odo_fix));
     return Prediction{pose, {delta.translation().norm(), extrapolated_s, true}};
+}
+
+Localizer::Prediction Localizer::withoutOdometry(double t) const {
+    double since = last_fix_->time_s;
+    mrpt::poses::CPose2D pose = last_fix_->pose;
+    if (ceiling_motion_ && ceiling_motion_->time_s > since) {
+        since = ceiling_motion_->time_s;
+        pose = last_fix_->pose + ceiling_motion_->from_fix;
+    }
+    const double dt = t - since;
+    std::optional<mrpt::math::CMatrixDouble33> anchor_cov;
+    if (since > last_fix_->time_s) anchor_cov = ceiling_motion_->cov;
+    const auto v = measuredVelocity();
+    // With no recent velocity either, the vehicle's motion since that place is unknown.
+    if (!v || t - measured_places_.back().first > kMeasuredPlacesSpanS) {
+        return Prediction{pose, {0.0, dt, false}, anchor_cov};
+    }
+    const mrpt::poses::CPose2D step(v->vx_mps * dt, v->vy_mps * dt, v->yaw_rate_radps * dt);
+    return Prediction{pose + step, {step.translation().norm(), dt, true}, anchor_cov};
+}
+
+std::optional<refine::VehicleMotion> Localizer::measuredVelocity() const {
+    // Over at least 0.2 s: one refined place's few centimetres would dominate a single step.
+    if (measured_places_.size() < 2) return std::nullopt;
+    const auto& [t0, p0] = measured_places_.front();
+    const auto& [t1, p1] = measured_places_.back();
+    if (t1 - t0 < 0.2) return std::nullopt;
+    const mrpt::poses::CPose2D d = p1 - p0;
+    return refine::VehicleMotion{d.x() / (t1 - t0), d.y() / (t1 - t0),
+                                 mrpt::math::wrapToPi(d.phi()) / (t1 - t0)};
+}
+
+void Localizer::keepMeasuredPlace(const FrameResult& out, bool followed) {
+    if (!out.has_pose || !last_fix_ ||
+        (out.status != FrameStatus::Refined && !(followed && out.pose_source == "prediction"))) {
+        if (!last_fix_) measured_places_.clear();
+        return;
+    }
+    measured_places_.emplace_back(out.time_s, out.pose.mean);
+    while (out.time_s - measured_places_.front().first > kMeasuredPlacesSpanS) {
+        measured_places_.pop_front();
+    }
 }
 
 void Localizer::processForward(const mrpt::obs::CObservationImage& image) {
@@ -906,6 +945,7 @@ FrameResult Localizer::processCeiling(const mrpt::obs::CObservationImage& query)
     if (followed && out.pose_source == "prediction")
         out.reason += "; dead-reckoned on the ceiling's own motion";
     finishFrame(out);
+    keepMeasuredPlace(out, followed);
     keepFrame(query, out);
     refreshOnline(query, out);
     out.times.total_ms = 1e3 * total.Tac() + out.times.coarse_ms;
@@ -1094,13 +1134,21 @@ bool Localizer::followCeiling(const mrpt::obs::CObservationImage& query, const A
     if (!r.accepted()) return false;
     // The camera's position from the ceiling, the heading from the odometry: chained frame to
     // frame, the ceiling's small rotations drift by degrees over tens of frames, the odometry's
-    // do not.
+    // do not. Where the odometry is missing, or extrapolated over a dropout (repeating the last
+    // turn rate, which drifts by degrees per frame), the ceiling's step, heading included,
+    // replaces it.
+    const bool extrapolated =
+        !odometryAt(out.time_s) || dead->motion.extrapolated_s > options_.odometry_timeout_s;
     const mrpt::poses::CPose2D mount(query.cameraPose.x(), query.cameraPose.y(), 0);
     const auto camera = r.pose.mean + mount;
-    const auto moved = mrpt::poses::CPose2D(camera.x(), camera.y(), dead->pose.phi()) +
+    const double heading = extrapolated ? r.pose.mean.phi() : dead->pose.phi();
+    const auto moved = mrpt::poses::CPose2D(camera.x(), camera.y(), heading) +
                        mrpt::poses::CPose2D(-mount.x(), -mount.y(), 0);
-    if (!slipped(prev, moved, out.time_s)) return false;
-    ceiling_motion_ = CeilingMotion{out.time_s, moved - last_fix_->pose};
+    if (!extrapolated && !slipped(prev, moved, out.time_s)) return false;
+    // The step measured on the ceiling is as uncertain as the odometry's over that distance.
+    const double step_m = (moved - prev.pose).translation().norm();
+    const auto step = refiner_.acceptance().deadReckoned(moved, {step_m, 0.0, true});
+    ceiling_motion_ = CeilingMotion{out.time_s, moved - last_fix_->pose, prev.cov + step.cov};
     return true;
 }
 
@@ -1146,8 +1194,8 @@ void Localizer::keepFrame(const mrpt::obs::CObservationImage& query, const Frame
     try {
         const cv::Mat& m = query.image.asCvMatRef();
         if (m.depth() != CV_8U || (m.channels() != 1 && m.channels() != 3)) return;
-        previous_frame_ =
-            PreviousFrame{out.time_s, m, query.cameraParams, query.cameraPose, dead->pose};
+        previous_frame_ = PreviousFrame{out.time_s,       m,          query.cameraParams,
+                                        query.cameraPose, dead->pose, out.pose.cov};
     } catch (const std::exception&) {
         // process() checked the image; one that cannot be read now is no reference
     }
@@ -1191,9 +1239,9 @@ void Localizer::emit(const Attempt& a, const std::optional<Prediction>& predicti
 }
 
 mrpt::poses::CPosePDFGaussian Localizer::predictedPose(const Prediction& prediction) const {
-    // Dead reckoning starts from the last fix, as uncertain as that was.
+    // Dead reckoning starts from the last fix (or place measured), as uncertain as that was.
     auto pose = refiner_.acceptance().deadReckoned(prediction.pose, prediction.motion);
-    pose.cov += last_fix_->cov;
+    pose.cov += prediction.anchor_cov ? *prediction.anchor_cov : last_fix_->cov;
     return pose;
 }
 
@@ -1211,8 +1259,7 @@ std::optional<mrpt::poses::CPosePDFGaussian> Localizer::deadReckonedFallback(
     if (!options_.use_tracking) return std::nullopt;
     const auto dead = deadReckon(out.time_s);
     if (!dead || !dead->motion.velocity_known) return std::nullopt;
-    auto pose = policy.deadReckoned(dead->pose, dead->motion);
-    pose.cov += last_fix_->cov;
+    auto pose = predictedPose(*dead);
     // A coarse pose is the forward camera's guess of a place; odometry from a fix is better
     // evidence until its uncertainty has grown past the guess's.
     if (out.coarse_pose) {

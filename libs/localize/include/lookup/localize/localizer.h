@@ -156,6 +156,9 @@ class Localizer {
     struct Prediction {
         mrpt::poses::CPose2D pose;
         refine::DeadReckoning motion;  ///< what the pose rests on since the fix
+        /// Where the pose rests on a place the ceiling measured instead of the fix: that
+        /// place's covariance, `motion` being what it rests on since that place.
+        std::optional<mrpt::math::CMatrixDouble33> anchor_cov;
     };
     /// The odometry's pose at a time, extrapolated past the last reading.
     struct OdometryPose {
@@ -213,6 +216,14 @@ class Localizer {
     std::optional<Prediction> predict(double time_s) const;
     /// The same without the tracking gap, within max_dead_reckoning_s: the fallback pose.
     std::optional<Prediction> deadReckon(double time_s) const;
+    /// deadReckon() where the odometry has no pose: the newest place measured since the fix,
+    /// moved on at the velocity the measured places show.
+    Prediction withoutOdometry(double time_s) const;
+    /// The vehicle's velocity from the places measured (refined or followed on the ceiling)
+    /// over the last kMeasuredPlacesSpanS; nullopt where they span too short a time.
+    std::optional<refine::VehicleMotion> measuredVelocity() const;
+    /// Keeps a frame's place when the ceiling measured it (refined or `followed`).
+    void keepMeasuredPlace(const FrameResult& out, bool followed);
     /// The fallback pose from odometry: the prediction, or past the tracking gap the dead
     /// reckoning while it is more certain than the coarse pose `out` has (if any).
     std::optional<mrpt::poses::CPosePDFGaussian> deadReckonedFallback(
@@ -329,13 +340,20 @@ class Localizer {
         mrpt::img::TCamera camera;
         mrpt::poses::CPose3D camera_on_vehicle;
         mrpt::poses::CPose2D pose;
+        mrpt::math::CMatrixDouble33 cov;  ///< of `pose`, as the frame reported it
     };
     struct CeilingMotion {
         double time_s = 0;
         mrpt::poses::CPose2D from_fix;
+        /// The measured place's covariance: the previous frame's and the step's.
+        mrpt::math::CMatrixDouble33 cov;
     };
     std::optional<PreviousFrame> previous_frame_;
     std::optional<CeilingMotion> ceiling_motion_;
+    /// Places the ceiling measured (refined or followed), time order, over the last
+    /// kMeasuredPlacesSpanS.
+    std::deque<std::pair<double, mrpt::poses::CPose2D>> measured_places_;
+    static constexpr double kMeasuredPlacesSpanS = 0.5;
     refine::Refiner ceiling_refiner_;  ///< grid points: the previous frame has no heat map
     /// A frame no reference refined: its motion from the previous frame measured on the
     /// ceiling, kept in ceiling_motion_ when the refiner accepts it. True when it did.
