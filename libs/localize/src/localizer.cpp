@@ -405,7 +405,7 @@ std::optional<Localizer::Prediction> Localizer::deadReckon(double t) const {
         return p.extrapolated_s + (p.gap_s > options_.odometry_timeout_s ? p.inside_gap_s : 0.0);
     };
     const double extrapolated_s = std::max(uncovered_s(*odo_now), uncovered_s(*odo_fix));
-    return Prediction{pose, {delta.translation().norm(), extrapolated_s, true}};
+    return Prediction{pose, {delta.translation().norm(), extrapolated_s, true}, std::nullopt};
 }
 
 Localizer::Prediction Localizer::withoutOdometry(double t) const {
