@@ -411,28 +411,26 @@ std::optional<Localizer::Prediction> Localizer::deadReckon(double t) const {
 Localizer::Prediction Localizer::withoutOdometry(double t) const {
     double since = last_fix_->time_s;
     mrpt::poses::CPose2D pose = last_fix_->pose;
+    std::optional<mrpt::math::CMatrixDouble33> anchor_cov;
     if (ceiling_motion_ && ceiling_motion_->time_s > since) {
         since = ceiling_motion_->time_s;
         pose = last_fix_->pose + ceiling_motion_->from_fix;
+        anchor_cov = ceiling_motion_->cov;
     }
     const double dt = t - since;
-    std::optional<mrpt::math::CMatrixDouble33> anchor_cov;
-    if (since > last_fix_->time_s) anchor_cov = ceiling_motion_->cov;
-    const auto v = measuredVelocity();
-    // With no recent velocity either, the vehicle's motion since that place is unknown.
-    if (!v || t - measured_places_.back().first > kMeasuredPlacesSpanS) {
-        return Prediction{pose, {0.0, dt, false}, anchor_cov};
-    }
+    const auto v = measuredVelocity(t);
+    // With no velocity either, the vehicle's motion since that place is unknown.
+    if (!v) return Prediction{pose, {0.0, dt, false}, anchor_cov};
     const mrpt::poses::CPose2D step(v->vx_mps * dt, v->vy_mps * dt, v->yaw_rate_radps * dt);
     return Prediction{pose + step, {step.translation().norm(), dt, true}, anchor_cov};
 }
 
-std::optional<refine::VehicleMotion> Localizer::measuredVelocity() const {
+std::optional<refine::VehicleMotion> Localizer::measuredVelocity(double t) const {
     // Over at least 0.2 s: one refined place's few centimetres would dominate a single step.
     if (measured_places_.size() < 2) return std::nullopt;
     const auto& [t0, p0] = measured_places_.front();
     const auto& [t1, p1] = measured_places_.back();
-    if (t1 - t0 < 0.2) return std::nullopt;
+    if (t1 - t0 < 0.2 || t - t1 > kMeasuredPlacesSpanS) return std::nullopt;
     const mrpt::poses::CPose2D d = p1 - p0;
     return refine::VehicleMotion{d.x() / (t1 - t0), d.y() / (t1 - t0),
                                  mrpt::math::wrapToPi(d.phi()) / (t1 - t0)};

@@ -220,8 +220,9 @@ class Localizer {
     /// moved on at the velocity the measured places show.
     Prediction withoutOdometry(double time_s) const;
     /// The vehicle's velocity from the places measured (refined or followed on the ceiling)
-    /// over the last kMeasuredPlacesSpanS; nullopt where they span too short a time.
-    std::optional<refine::VehicleMotion> measuredVelocity() const;
+    /// over the last kMeasuredPlacesSpanS; nullopt where they span too short a time or the
+    /// newest is more than that before `time_s`.
+    std::optional<refine::VehicleMotion> measuredVelocity(double time_s) const;
     /// Keeps a frame's place when the ceiling measured it (refined or `followed`).
     void keepMeasuredPlace(const FrameResult& out, bool followed);
     /// The fallback pose from odometry: the prediction, or past the tracking gap the dead
