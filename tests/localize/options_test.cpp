@@ -32,6 +32,7 @@ TEST(LocalizeIni, PerMineFilesLoadStrictly) {
         EXPECT_EQ(ro.matcher.search_range_px, search) << file;
         EXPECT_EQ(ro.matcher.patch_px, patch) << file;
         EXPECT_DOUBLE_EQ(ro.acceptance.min_inlier_share, 0.45) << file;
+        EXPECT_DOUBLE_EQ(ro.acceptance.min_inlier_share_tracked, 0.3) << file;
         EXPECT_LT(ro.estimator.tilt_sigma_deg, 1.0) << file;
     }
 }

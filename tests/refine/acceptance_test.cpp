@@ -35,6 +35,22 @@ TEST(AcceptancePolicy, InlierShareThenOffsetDecide) {
     EXPECT_NE(policy.judge(0.9, 1.01, true)->reason.find("coarse pose"), std::string::npos);
 }
 
+TEST(AcceptancePolicy, ATrackedFrameHasItsOwnInlierShare) {
+    AcceptanceOptions o = options();
+    o.min_inlier_share_tracked = 0.3;
+    const AcceptancePolicy policy(o);
+    EXPECT_FALSE(policy.judge(0.35, 0.1, true, /*tracked=*/true));
+    const auto matched = policy.judge(0.35, 0.1, true, /*tracked=*/false);
+    ASSERT_TRUE(matched);
+    EXPECT_EQ(matched->status, RefineStatus::LowInlierShare);
+    const auto tracked = policy.judge(0.29, 0.1, true, /*tracked=*/true);
+    ASSERT_TRUE(tracked);
+    EXPECT_NE(tracked->reason.find("N_th 0.3"), std::string::npos) << tracked->reason;
+    EXPECT_NE(tracked->reason.find("tracked"), std::string::npos) << tracked->reason;
+    // d_th holds for a tracked frame too.
+    EXPECT_EQ(policy.judge(0.9, 1.01, true, true)->status, RefineStatus::OffsetTooLarge);
+}
+
 TEST(AcceptancePolicy, DeadReckoningGrowsWithTheDistance) {
     AcceptanceOptions o = options();
     o.dead_reckoning_sigma_xy_m = 0.1;

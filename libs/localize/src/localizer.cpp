@@ -327,6 +327,7 @@ void Localizer::restart() {
     previous_frame_.reset();
     ceiling_motion_.reset();
     measured_places_.clear();
+    fix_headings_.clear();
     drive_.clear();
     last_refined_.reset();
     drive_odometry_.reset();
@@ -390,12 +391,12 @@ std::optional<Localizer::Prediction> Localizer::deadReckon(double t) const {
     const auto odo_now = odometryAt(t), odo_fix = odometryAt(last_fix_->time_s);
     if (!odo_now || !odo_fix) return withoutOdometry(t);
     const mrpt::poses::CPose2D delta = odo_now->pose - odo_fix->pose;
-    // Where the ceiling measured the motion since the fix, the odometry continues from there;
+    auto pose = deadReckoningAnchor(*odo_fix) + delta;
+    // Where the ceiling measured a place since the fix, the odometry continues from there;
     // the uncertainty stays that of the odometry's distance.
-    auto pose = last_fix_->pose + delta;
     if (ceiling_motion_ && ceiling_motion_->time_s > last_fix_->time_s) {
         if (const auto odo_then = odometryAt(ceiling_motion_->time_s)) {
-            pose = last_fix_->pose + ceiling_motion_->from_fix + (odo_now->pose - odo_then->pose);
+            pose = ceiling_motion_->place + (odo_now->pose - odo_then->pose);
         }
     }
     // Both ends extrapolated lie in the same gap in the readings: the later one's error bounds
@@ -408,13 +409,42 @@ std::optional<Localizer::Prediction> Localizer::deadReckon(double t) const {
     return Prediction{pose, {delta.translation().norm(), extrapolated_s, true}, std::nullopt};
 }
 
+void Localizer::keepFixHeading(double t, double yaw) {
+    fix_headings_.emplace_back(t, yaw);
+    while (t - fix_headings_.front().first > kFixHeadingsSpanS) fix_headings_.pop_front();
+}
+
+mrpt::poses::CPose2D Localizer::deadReckoningAnchor(
+    const common::OdometryTrack::Pose& at_fix) const {
+    // Each fix against the odometry as it reads now (as the dead reckoning's own motion is),
+    // where the readings cover the fix's time.
+    std::vector<double> offsets;
+    bool with_last_fix = false;
+    for (const auto& [t, yaw] : fix_headings_) {
+        const auto odo = odometryAt(t);
+        if (odo && odo->extrapolated_s <= options_.odometry_timeout_s &&
+            odo->gap_s <= options_.odometry_timeout_s) {
+            offsets.push_back(mrpt::math::wrapToPi(yaw - odo->pose.phi()));
+            with_last_fix = t == last_fix_->time_s;
+        }
+    }
+    // Three at least, the last fix's among them: a median of two is their mean.
+    if (offsets.size() < 3 || !with_last_fix) return last_fix_->pose;
+    const double newest = offsets.back();
+    for (double& o : offsets) o = mrpt::math::wrapToPi(o - newest);  // none wraps around
+    std::nth_element(offsets.begin(), offsets.begin() + offsets.size() / 2, offsets.end());
+    const double offset = newest + offsets[offsets.size() / 2];
+    return {last_fix_->pose.x(), last_fix_->pose.y(),
+            mrpt::math::wrapToPi(at_fix.pose.phi() + offset)};
+}
+
 Localizer::Prediction Localizer::withoutOdometry(double t) const {
     double since = last_fix_->time_s;
     mrpt::poses::CPose2D pose = last_fix_->pose;
     std::optional<mrpt::math::CMatrixDouble33> anchor_cov;
     if (ceiling_motion_ && ceiling_motion_->time_s > since) {
         since = ceiling_motion_->time_s;
-        pose = last_fix_->pose + ceiling_motion_->from_fix;
+        pose = ceiling_motion_->place;
         anchor_cov = ceiling_motion_->cov;
     }
     const double dt = t - since;
@@ -651,7 +681,7 @@ const refine::ReferenceImage& Localizer::referenceView(std::size_t index) {
 
 std::shared_ptr<const refine::RefineResult> Localizer::refineAgainst(
     const mrpt::obs::CObservationImage& query, const std::vector<std::size_t>& refs,
-    const mrpt::poses::CPose2D& hint, FrameResult& out, bool probe) {
+    const mrpt::poses::CPose2D& hint, FrameResult& out, Hint kind) {
     mrpt::system::CTicTac timer;
     std::vector<refine::ReferenceImage> views;
     for (std::size_t i : refs) views.push_back(referenceView(i));
@@ -664,7 +694,8 @@ std::shared_ptr<const refine::RefineResult> Localizer::refineAgainst(
     if (refiner_.options().rolling_shutter.readout_ms > 0) {
         coarse_hint.vehicle_motion = velocityAt(mrpt::Clock::toDouble(query.timestamp));
     }
-    if (probe) {
+    coarse_hint.tracked = kind == Hint::Track;
+    if (kind == Hint::Candidate) {
         coarse_hint.probe_points = options_.acquisition_probe_points;
         coarse_hint.probe_min_matched = options_.acquisition_probe_min_matched;
     }
@@ -741,7 +772,7 @@ std::shared_ptr<const refine::RefineResult> Localizer::acquire(
     std::vector<Scored> accepted;
     for (const auto& candidate : candidates) {
         auto single =
-            refineAgainst(query, {candidate.reference}, candidate.hint, out, /*probe=*/true);
+            refineAgainst(query, {candidate.reference}, candidate.hint, out, Hint::Candidate);
         if (single->accepted()) {
             accepted.push_back({single, single->pose.mean, candidate.reference});
         }
@@ -781,7 +812,8 @@ Localizer::GlobalOutcome Localizer::acquireGlobally(const mrpt::obs::CObservatio
     out.times.place_ms += found.ms;
     std::vector<VerifiedPlace> verified;
     for (const auto& place : found.places) {
-        auto single = refineAgainst(query, {place.reference}, place.vehicle_pose, out, true);
+        auto single =
+            refineAgainst(query, {place.reference}, place.vehicle_pose, out, Hint::Candidate);
         if (!single->accepted()) continue;
         const mrpt::poses::CPose2D fix = single->pose.mean;
         auto confirmed = refineAgainst(query, referencesNear(fix, query.cameraPose), fix, out);
@@ -871,7 +903,8 @@ std::optional<std::string> Localizer::trackContradicted(const mrpt::obs::CObserv
         const auto& t = tracked.pose.mean;
         const double d = std::hypot(place.vehicle_pose.x() - t.x(), place.vehicle_pose.y() - t.y());
         if (d <= options_.acquisition_ambiguity_distance_m) continue;
-        auto other = refineAgainst(query, {place.reference}, place.vehicle_pose, out, true);
+        auto other =
+            refineAgainst(query, {place.reference}, place.vehicle_pose, out, Hint::Candidate);
         if (other->accepted() &&
             other->inlier_share > tracked.inlier_share - options_.acquisition_ambiguity_margin) {
             why = "a place " + number(d) +
@@ -981,7 +1014,7 @@ Localizer::Attempt Localizer::locate(const mrpt::obs::CObservationImage& query,
     const auto refined = [&a] { return a.result && a.result->accepted(); };
     if (prediction) {
         a.result = refineAgainst(query, referencesNear(prediction->pose, query.cameraPose),
-                                 prediction->pose, out);
+                                 prediction->pose, out, Hint::Track);
         if (!refined()) {
             if (auto along = candidatesAlongTrack(*prediction, query.cameraPose); !along.empty()) {
                 a.result = acquire(query, along, a.result, out);
@@ -1146,7 +1179,7 @@ bool Localizer::followCeiling(const mrpt::obs::CObservationImage& query, const A
     // The step measured on the ceiling is as uncertain as the odometry's over that distance.
     const double step_m = (moved - prev.pose).translation().norm();
     const auto step = refiner_.acceptance().deadReckoned(moved, {step_m, 0.0, true});
-    ceiling_motion_ = CeilingMotion{out.time_s, moved - last_fix_->pose, prev.cov + step.cov};
+    ceiling_motion_ = CeilingMotion{out.time_s, moved, prev.cov + step.cov};
     return true;
 }
 
@@ -1314,9 +1347,14 @@ void Localizer::finishFrame(FrameResult& out) {
         out.pose_source.clear();
     }
     // An ambiguous frame or a dropped track leaves no place as the track's.
-    if (out.status == FrameStatus::Ambiguous || !out.has_pose) last_fix_.reset();
-    if (out.status == FrameStatus::Refined)
+    if (out.status == FrameStatus::Ambiguous || !out.has_pose) {
+        last_fix_.reset();
+        fix_headings_.clear();
+    }
+    if (out.status == FrameStatus::Refined) {
         last_fix_ = Fix{out.time_s, out.pose.mean, out.pose.cov};
+        keepFixHeading(out.time_s, out.pose.mean.phi());
+    }
     fine_tracking_ = out.status == FrameStatus::Refined;
     if (fine_tracking_) open_places_.clear();
 }

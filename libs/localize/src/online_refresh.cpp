@@ -66,7 +66,7 @@ void Localizer::refreshOnline(const mrpt::obs::CObservationImage& query, const F
                  query.cameraParams,
                  query.cameraPose,
                  out.status == FrameStatus::Refined,
-                 {odometry->pose, drive_travelled_m_}};
+                 {odometry->pose, drive_travelled_m_, {}, mrpt::math::CMatrixDouble33::Zero()}};
     if (f.refined) f.posed.pose = out.pose.mean, f.posed.cov = out.pose.cov;
     try {
         f.image = query.image.asCvMatRef();

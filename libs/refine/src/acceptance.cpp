@@ -23,11 +23,14 @@ AcceptancePolicy::AcceptancePolicy(AcceptanceOptions options) : options_(std::mo
 
 std::optional<AcceptancePolicy::Rejection> AcceptancePolicy::judge(double inlier_share,
                                                                    double offset_m,
-                                                                   bool from_coarse) const {
-    if (inlier_share < options_.min_inlier_share) {
-        return Rejection{RefineStatus::LowInlierShare,
-                         " (share " + std::to_string(inlier_share) + " < N_th " +
-                             std::to_string(options_.min_inlier_share) + ")"};
+                                                                   bool from_coarse,
+                                                                   bool tracked) const {
+    const double min_share =
+        tracked ? options_.min_inlier_share_tracked : options_.min_inlier_share;
+    if (inlier_share < min_share) {
+        return Rejection{RefineStatus::LowInlierShare, " (share " + std::to_string(inlier_share) +
+                                                           " < N_th " + std::to_string(min_share) +
+                                                           (tracked ? ", tracked)" : ")")};
     }
     if (offset_m > options_.max_offset_m) {
         return Rejection{RefineStatus::OffsetTooLarge,

@@ -69,6 +69,7 @@ void EstimatorOptions::declareKeys(OptionsTable& t) {
 
 void AcceptanceOptions::declareKeys(OptionsTable& t) {
     t.add("min_inlier_share", min_inlier_share, 0.0, 1.0);
+    t.add("min_inlier_share_tracked", min_inlier_share_tracked, 0.0, 1.0);
     t.add("max_offset_m", max_offset_m, common::kPositive);
     t.add("fallback_sigma_xy_m", fallback_sigma_xy_m, common::kPositive);
     t.add("fallback_sigma_yaw_deg", fallback_sigma_yaw_deg, common::kPositive);

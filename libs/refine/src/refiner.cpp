@@ -418,8 +418,8 @@ RefineResult estimateAndAccept(RefineResult res, const EstimatorInput& input,
         return fallBack(std::move(res), status, std::move(reason), hint, refs, acceptance, t_start);
     }
     res.offset_m = offsetFromHint(res.estimate.vehicle_in_map, hint, refs);
-    if (auto rejection =
-            acceptance.judge(res.inlier_share, res.offset_m, hint.vehicle_pose.has_value())) {
+    if (auto rejection = acceptance.judge(res.inlier_share, res.offset_m,
+                                          hint.vehicle_pose.has_value(), hint.tracked)) {
         std::string reason = rejection->status == RefineStatus::LowInlierShare
                                  ? counts + rejection->reason
                                  : rejection->reason;

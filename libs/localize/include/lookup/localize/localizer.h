@@ -212,6 +212,12 @@ class Localizer {
     /// reported poses.
     std::vector<CoarseFix> startupSeeds() const;
     std::optional<CoarseFix> fixFromMatch(const coarse::CoarseResult& match) const;
+    /// Keeps a fix's heading (fix_headings_).
+    void keepFixHeading(double time_s, double yaw_rad);
+    /// The last fix where the dead reckoning starts from (odometry `at_fix` there): its place,
+    /// and the odometry's heading turned by the median of the recent fixes' offsets. One fix
+    /// on a changed ceiling can be a degree or two off in heading while right in place.
+    mrpt::poses::CPose2D deadReckoningAnchor(const common::OdometryTrack::Pose& at_fix) const;
     /// The last fix moved by the odometry since, within max_tracking_gap_s of it (tracking).
     std::optional<Prediction> predict(double time_s) const;
     /// The same without the tracking gap, within max_dead_reckoning_s: the fallback pose.
@@ -261,9 +267,12 @@ class Localizer {
     std::shared_ptr<const refine::RefineResult> acquire(
         const mrpt::obs::CObservationImage& query, const std::vector<Candidate>& candidates,
         std::shared_ptr<const refine::RefineResult> failed, FrameResult& out);
+    /// Where a refinement's hint comes from: a coarse match, fix or place to confirm; one of
+    /// many acquisition candidates (probed first); the track's prediction (its own N_th).
+    enum class Hint { Match, Candidate, Track };
     std::shared_ptr<const refine::RefineResult> refineAgainst(
         const mrpt::obs::CObservationImage& query, const std::vector<std::size_t>& refs,
-        const mrpt::poses::CPose2D& hint, FrameResult& out, bool probe = false);
+        const mrpt::poses::CPose2D& hint, FrameResult& out, Hint kind = Hint::Match);
     /// The current frame's query pyramid, built at its first refinement (startFrame forgets the
     /// last frame's): a lost frame refines against dozens of candidates.
     const std::shared_ptr<const refine::ImagePyramid>& framePyramid(
@@ -331,10 +340,14 @@ class Localizer {
         mrpt::math::CMatrixDouble33 cov = mrpt::math::CMatrixDouble33::Zero();  ///< as emitted
     };
     std::optional<Fix> last_fix_;
+    /// The fixes' times and headings over the last kFixHeadingsSpanS, time order: against the
+    /// odometry's, the rotation the dead reckoning turns the odometry by.
+    std::deque<std::pair<double, double>> fix_headings_;
+    static constexpr double kFixHeadingsSpanS = 0.5;
 
     /// Ceiling odometry (LocalizerOptions::ceiling_odometry): the previous ceiling frame with
-    /// the pose the dead reckoning gave it, and the motion since the last fix that the ceiling
-    /// measured up to `time_s` (the odometry continues from there).
+    /// the pose the dead reckoning gave it, and the newest place the ceiling measured since the
+    /// last fix (the odometry continues from there).
     struct PreviousFrame {
         double time_s = 0;
         cv::Mat image;  ///< rectified, grey or BGR (made grey only when used)
@@ -345,7 +358,7 @@ class Localizer {
     };
     struct CeilingMotion {
         double time_s = 0;
-        mrpt::poses::CPose2D from_fix;
+        mrpt::poses::CPose2D place;  ///< where the ceiling put the vehicle at `time_s`
         /// The measured place's covariance: the previous frame's and the step's.
         mrpt::math::CMatrixDouble33 cov;
     };

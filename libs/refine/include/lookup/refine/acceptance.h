@@ -33,8 +33,10 @@ class AcceptancePolicy {
     explicit AcceptancePolicy(AcceptanceOptions options = {});
 
     /// nullopt when a refined pose with this inlier share and this offset from the coarse pose
-    /// (`from_coarse`) or from the nearest reference is accepted.
-    std::optional<Rejection> judge(double inlier_share, double offset_m, bool from_coarse) const;
+    /// (`from_coarse`) or from the nearest reference is accepted; `tracked`: the coarse pose is
+    /// the track's prediction.
+    std::optional<Rejection> judge(double inlier_share, double offset_m, bool from_coarse,
+                                   bool tracked = false) const;
 
     /// A coarse or reference pose reported in place of a fix.
     mrpt::poses::CPosePDFGaussian fallback(const mrpt::poses::CPose2D& pose) const;
