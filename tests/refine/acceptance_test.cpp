@@ -49,6 +49,9 @@ TEST(AcceptancePolicy, ATrackedFrameHasItsOwnInlierShare) {
     EXPECT_NE(tracked->reason.find("tracked"), std::string::npos) << tracked->reason;
     // d_th holds for a tracked frame too.
     EXPECT_EQ(policy.judge(0.9, 1.01, true, true)->status, RefineStatus::OffsetTooLarge);
+    // A tracked frame never needs more than any other.
+    o.min_inlier_share_tracked = 0.9;
+    EXPECT_FALSE(AcceptancePolicy(o).judge(0.5, 0.1, true, /*tracked=*/true));
 }
 
 TEST(AcceptancePolicy, DeadReckoningGrowsWithTheDistance) {

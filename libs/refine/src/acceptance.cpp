@@ -2,6 +2,8 @@
 
 #include <mrpt/core/bits_math.h>
 
+#include <algorithm>
+
 namespace lookup::refine {
 namespace {
 
@@ -26,7 +28,8 @@ std::optional<AcceptancePolicy::Rejection> AcceptancePolicy::judge(double inlier
                                                                    bool from_coarse,
                                                                    bool tracked) const {
     const double min_share =
-        tracked ? options_.min_inlier_share_tracked : options_.min_inlier_share;
+        tracked ? std::min(options_.min_inlier_share_tracked, options_.min_inlier_share)
+                : options_.min_inlier_share;
     if (inlier_share < min_share) {
         return Rejection{RefineStatus::LowInlierShare, " (share " + std::to_string(inlier_share) +
                                                            " < N_th " + std::to_string(min_share) +

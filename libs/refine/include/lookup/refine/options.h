@@ -148,10 +148,10 @@ struct AcceptanceOptions : public common::TableOptions<AcceptanceOptions> {
     double min_inlier_share = 0.6;  ///< N_th: inliers / testable sample points (window in
                                     ///< the query image), over all references
     /// N_th for a frame refined around the track's prediction (a fix moments ago and the
-    /// odometry since): the wrong place N_th guards against comes from coarse matches and
-    /// acquisition, which keep min_inlier_share; a tracked frame over a changed ceiling has
-    /// fewer testable points that still match.
-    double min_inlier_share_tracked = 0.6;
+    /// odometry since), never above min_inlier_share (1: the same): the wrong place N_th guards
+    /// against comes from coarse matches and acquisition, which keep min_inlier_share; a
+    /// tracked frame over a changed ceiling has fewer testable points that still match.
+    double min_inlier_share_tracked = 1.0;
     double max_offset_m = 2.0;         ///< d_th: max |refined - coarse (or reference)| in x, y [m]
     double fallback_sigma_xy_m = 2.0;  ///< sigma reported with a fallback pose [m]
     double fallback_sigma_yaw_deg = 10.0;  ///< sigma reported with a fallback pose [deg]

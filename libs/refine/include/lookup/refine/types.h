@@ -109,9 +109,6 @@ struct CoarseHint {
     /// prior come from its references, which stood on the same floor).
     std::optional<mrpt::poses::CPose3D> vehicle_pose;
     std::optional<double> ceiling_height_m;  ///< overrides EstimatorOptions::ceiling_height_m
-    /// The pose is the track's prediction, not a coarse match: AcceptanceOptions'
-    /// min_inlier_share_tracked applies.
-    bool tracked = false;
     /// A quick look before the full match (acquisition tries dozens of places, nearly all
     /// wrong): with the SAD matcher, `probe_points` sample points spread over each reference
     /// are matched first; when fewer than `probe_min_matched` of them match, the refinement
@@ -121,6 +118,9 @@ struct CoarseHint {
     /// The query vehicle's velocity at the frame (odometry): with
     /// RefinerOptions::rolling_shutter, each query point's row time moves it.
     std::optional<VehicleMotion> vehicle_motion;
+    /// The pose is the track's prediction, not a coarse match: AcceptanceOptions'
+    /// min_inlier_share_tracked applies.
+    bool tracked = false;
 };
 
 /// Why the matcher kept or dropped a point.
