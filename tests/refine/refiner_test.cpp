@@ -14,6 +14,13 @@ using mrpt::poses::CPose3D;
 
 namespace {
 
+CoarseHint hintAt(const CPose3D& vehicle, std::vector<std::int64_t> reference_ids = {}) {
+    CoarseHint hint;
+    hint.reference_ids = std::move(reference_ids);
+    hint.vehicle_pose = vehicle;
+    return hint;
+}
+
 struct Scene {
     synthetic::SyntheticCeiling ceiling = synthetic::SyntheticCeiling::make(5.3, 10.0, 0.01, 3);
     mrpt::img::TCamera camera = synthetic::makeCamera(320, 240, 250);
@@ -48,7 +55,7 @@ TEST(Refiner, OneReferenceWithTheRightPriorGivesMillimetres) {
     const Scene& s = scene();
     const CPose3D truth(0.18, -0.12, 0, 0.04, 0, 0);
     const Refiner refiner(optionsWithHeight(5.3));
-    const auto r = refiner.refine(s.query(truth), s.camera, s.on_vehicle, {{7}, CPose3D(), {}},
+    const auto r = refiner.refine(s.query(truth), s.camera, s.on_vehicle, hintAt(CPose3D(), {7}),
                                   {s.reference(7, CPose3D())});
     ASSERT_TRUE(r.accepted()) << r.reason;
     EXPECT_EQ(r.source, PoseSource::Refined);
@@ -140,7 +147,7 @@ TEST(Refiner, OccludingObjectPointsAreOutliers) {
     other.copyTo(query(cv::Rect(0, 0, 100, 240)));
     const Refiner refiner(optionsWithHeight(5.3));
     auto o = refiner.options();
-    const auto r = refiner.refine(query, s.camera, s.on_vehicle, {{}, CPose3D(), {}},
+    const auto r = refiner.refine(query, s.camera, s.on_vehicle, hintAt(CPose3D()),
                                   {s.reference(1, CPose3D())});
     ASSERT_EQ(r.references.size(), 1u);
     int occluded = 0, occluded_inliers = 0;
@@ -160,8 +167,8 @@ TEST(Refiner, MismatchedImageFallsBackToTheCoarsePose) {
     const cv::Mat unrelated = synthetic::makeNoiseTexture(cv::Size(320, 240), 77);
     const CPose3D coarse(1.0, 2.0, 0, 0.1, 0, 0);
     const Refiner refiner;
-    const auto r = refiner.refine(unrelated, s.camera, s.on_vehicle, {{}, coarse, {}},
-                                  {s.reference(1, coarse)});
+    const auto r =
+        refiner.refine(unrelated, s.camera, s.on_vehicle, hintAt(coarse), {s.reference(1, coarse)});
     EXPECT_FALSE(r.accepted());
     EXPECT_FALSE(r.reason.empty());
     EXPECT_EQ(r.source, PoseSource::Coarse);
@@ -179,7 +186,7 @@ TEST(Refiner, BadInputIsARejectionWithAReason) {
 
     // Blank query.
     const cv::Mat blank(240, 320, CV_8UC1, cv::Scalar(90));
-    auto r = refiner.refine(blank, s.camera, s.on_vehicle, {{}, coarse, {}}, refs);
+    auto r = refiner.refine(blank, s.camera, s.on_vehicle, hintAt(coarse), refs);
     EXPECT_EQ(r.status, RefineStatus::TooFewMatches) << r.reason;
     EXPECT_NE(r.reason.find("inliers 0 of 24"), std::string::npos) << r.reason;
     // The reason says why the points failed: on a flat query the SAD surface is flat and its
@@ -191,19 +198,19 @@ TEST(Refiner, BadInputIsARejectionWithAReason) {
     // NaN in the query intrinsics.
     auto nan_camera = s.camera;
     nan_camera.fx(std::numeric_limits<double>::quiet_NaN());
-    r = refiner.refine(good, nan_camera, s.on_vehicle, {{}, coarse, {}}, refs);
+    r = refiner.refine(good, nan_camera, s.on_vehicle, hintAt(coarse), refs);
     EXPECT_EQ(r.status, RefineStatus::InvalidQuery);
     EXPECT_NE(r.reason.find("fx=nan"), std::string::npos) << r.reason;
 
     // NaN in a reference's intrinsics: that reference is skipped, naming it.
     auto bad_ref = refs;
     bad_ref[0].camera.cy(std::numeric_limits<double>::quiet_NaN());
-    r = refiner.refine(good, s.camera, s.on_vehicle, {{}, coarse, {}}, bad_ref);
+    r = refiner.refine(good, s.camera, s.on_vehicle, hintAt(coarse), bad_ref);
     EXPECT_EQ(r.status, RefineStatus::NoReferences);
     EXPECT_NE(r.reason.find("reference 1"), std::string::npos) << r.reason;
 
     // Empty reference set, with and without a coarse pose.
-    r = refiner.refine(good, s.camera, s.on_vehicle, {{}, coarse, {}}, {});
+    r = refiner.refine(good, s.camera, s.on_vehicle, hintAt(coarse), {});
     EXPECT_EQ(r.status, RefineStatus::NoReferences);
     EXPECT_EQ(r.source, PoseSource::Coarse);
     r = refiner.refine(good, s.camera, s.on_vehicle, {}, {});
@@ -215,22 +222,22 @@ TEST(Refiner, BadInputIsARejectionWithAReason) {
     auto nan_heat = refs;
     nan_heat[0].heat_map = cv::Mat(good.size(), CV_32F, cv::Scalar(1.0f));
     nan_heat[0].heat_map.at<float>(5, 5) = std::numeric_limits<float>::quiet_NaN();
-    r = refiner.refine(good, s.camera, s.on_vehicle, {{}, coarse, {}}, nan_heat);
+    r = refiner.refine(good, s.camera, s.on_vehicle, hintAt(coarse), nan_heat);
     EXPECT_EQ(r.status, RefineStatus::NoReferences);
     EXPECT_NE(r.reason.find("heat map"), std::string::npos) << r.reason;
 
     // Hint naming an id that is not in the set.
-    r = refiner.refine(good, s.camera, s.on_vehicle, {{42}, coarse, {}}, refs);
+    r = refiner.refine(good, s.camera, s.on_vehicle, hintAt(coarse, {42}), refs);
     EXPECT_EQ(r.status, RefineStatus::NoReferences);
 
     // Reference too small for any sample point away from the border.
     auto tiny = refs;
     tiny[0].image = refs[0].image(cv::Rect(0, 0, 40, 40)).clone();
-    r = refiner.refine(good, s.camera, s.on_vehicle, {{}, coarse, {}}, tiny);
+    r = refiner.refine(good, s.camera, s.on_vehicle, hintAt(coarse), tiny);
     EXPECT_EQ(r.status, RefineStatus::TooFewMatches) << r.reason;
 
     // Empty query image.
-    r = refiner.refine(cv::Mat(), s.camera, s.on_vehicle, {{}, coarse, {}}, refs);
+    r = refiner.refine(cv::Mat(), s.camera, s.on_vehicle, hintAt(coarse), refs);
     EXPECT_EQ(r.status, RefineStatus::InvalidQuery);
 }
 
@@ -257,7 +264,7 @@ TEST(Refiner, ObservationEntryPointMatchesTheMatEntryPoint) {
     obs.cameraPose = s.on_vehicle;
     const Refiner refiner(optionsWithHeight(5.3));
     const std::vector<ReferenceImage> refs = {s.reference(1, CPose3D())};
-    const CoarseHint hint{{}, CPose3D(), {}};
+    const CoarseHint hint = hintAt(CPose3D());
     const auto a = refiner.refine(obs, hint, refs);
     const auto b = refiner.refine(s.query(truth), s.camera, s.on_vehicle, hint, refs);
     ASSERT_TRUE(a.accepted()) << a.reason;
@@ -281,7 +288,7 @@ TEST(Refiner, HeatMapSamplingUsesTheBestRegionsAndIsDeterministic) {
     cv::GaussianBlur(ref.heat_map, ref.heat_map, cv::Size(0, 0), 3);
     ref.prepare(MatcherOptions{});
     const Refiner refiner(optionsWithHeight(5.3));
-    const CoarseHint hint{{}, CPose3D(), {}};
+    const CoarseHint hint = hintAt(CPose3D());
     const auto a = refiner.refine(s.query(truth), s.camera, s.on_vehicle, hint, {ref});
     ASSERT_TRUE(a.accepted()) << a.reason;
     ASSERT_EQ(a.references[0].matches.size(), 12u);  // heat_map_points
@@ -351,7 +358,7 @@ TEST(Refiner, GlobalBrightnessChangeIsNormalisedAway) {
     cv::Mat darker;
     s.query(truth).convertTo(darker, CV_8U, 0.55, 20.0);  // exposure / lighting change
     const std::vector<ReferenceImage> refs = {s.reference(1, CPose3D())};
-    const CoarseHint hint{{}, CPose3D(), {}};
+    const CoarseHint hint = hintAt(CPose3D());
     RefinerOptions o = optionsWithHeight(5.3);
     const auto r = Refiner(o).refine(darker, s.camera, s.on_vehicle, hint, refs);
     ASSERT_TRUE(r.accepted()) << r.reason;

@@ -138,7 +138,7 @@ Comparison compare(const AuditedTraverse& a, std::size_t j, const AuditedTravers
     const double view_m = o.pose_audit_view_distance_m;
     const auto& laser = a.frames[j].pose;
     if (nearestCameras(b, a.cameras[j], view_m).empty()) return {};
-    Comparison c{Verdict::Inconclusive, 0};
+    Comparison c{Verdict::Inconclusive, 0, {}};
     const auto query = images.query(a, j);
     std::vector<Fix> fixes;
     if (auto f = refineAt(a, j, b, laser, ceiling_height_m, view_m, query, refiner, images)) {
