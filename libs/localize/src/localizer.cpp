@@ -391,14 +391,13 @@ std::optional<Localizer::Prediction> Localizer::deadReckon(double t) const {
     const auto odo_now = odometryAt(t), odo_fix = odometryAt(last_fix_->time_s);
     if (!odo_now || !odo_fix) return withoutOdometry(t);
     const mrpt::poses::CPose2D delta = odo_now->pose - odo_fix->pose;
-    auto pose = deadReckoningAnchor(*odo_fix) + delta;
     // Where the ceiling measured a place since the fix, the odometry continues from there;
     // the uncertainty stays that of the odometry's distance.
-    if (ceiling_motion_ && ceiling_motion_->time_s > last_fix_->time_s) {
-        if (const auto odo_then = odometryAt(ceiling_motion_->time_s)) {
-            pose = ceiling_motion_->place + (odo_now->pose - odo_then->pose);
-        }
-    }
+    const auto odo_then = ceiling_motion_ && ceiling_motion_->time_s > last_fix_->time_s
+                              ? odometryAt(ceiling_motion_->time_s)
+                              : std::nullopt;
+    const auto pose = odo_then ? ceiling_motion_->place + (odo_now->pose - odo_then->pose)
+                               : deadReckoningAnchor(*odo_fix) + delta;
     // Both ends extrapolated lie in the same gap in the readings: the later one's error bounds
     // the motion's. An end interpolated inside a dropout is as uncertain as one extrapolated
     // from the nearer reading.
