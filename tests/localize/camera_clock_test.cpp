@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <optional>
 #include <random>
 
 #include "lookup/localize/camera_clock.h"
@@ -20,16 +21,25 @@ constexpr double kOdometryHz = 50, kCameraHz = 14, kDuration_s = 25;
 /// A vehicle weaving at `weave_rad` heading amplitude with a 5 s period (a 40 m zigzag at
 /// 28 km/h), its odometry heading drifting slowly; fixes of the camera stamped `late_s` after
 /// their exposure, their heading off by a constant and by noise.
-CameraClock drive(double weave_rad, double late_s, unsigned seed = 7, bool apply = true) {
+lookup::localize::CameraClockOptions applying() {
+    lookup::localize::CameraClockOptions options;
+    options.apply = true;
+    return options;
+}
+
+/// `carried`: the estimate earlier runs left (CameraClock::carry), if any.
+CameraClock drive(double weave_rad, double late_s, unsigned seed = 7, bool apply = true,
+                  std::optional<CameraClock::Estimate> carried = std::nullopt) {
     const auto yaw = [weave_rad](double t) {
         return weave_rad * std::sin(2 * M_PI * (t - kT0) / 5.0);
     };
     std::mt19937 rng(seed);
     std::normal_distribution<double> fix_noise(0, 0.0015), odo_noise(0, 0.0003);
     OdometryTrack odometry;
-    lookup::localize::CameraClockOptions options;
+    auto options = applying();
     options.apply = apply;
     CameraClock clock(options);
+    if (carried) clock.carry(*carried);
     double odo_walk = 0, next_frame = kT0 + 0.5;
     for (double t = kT0; t < kT0 + kDuration_s; t += 1 / kOdometryHz) {
         odo_walk += odo_noise(rng);
@@ -77,4 +87,47 @@ TEST(CameraClock, AStraightDriveShowsNothing) {
     const CameraClock clock = drive(0.0, 0.040);
     EXPECT_FALSE(clock.isApplied());
     EXPECT_EQ(clock.applied(), 0.0);
+}
+
+TEST(CameraClock, AnEstimateCarriedFromEarlierRunsServesAStraightDrive) {
+    // What a weave measured on an earlier run applies from the first frame of a straight drive,
+    // which shows nothing of its own.
+    const CameraClock::Estimate earlier{-0.020, 0.002, 300};
+    CameraClock start(applying());
+    start.carry(earlier);
+    EXPECT_TRUE(start.isApplied());
+    EXPECT_DOUBLE_EQ(start.applied(), -0.020);
+    // The drive's own fit (its odometry's noise alone) weighs next to nothing.
+    const CameraClock clock = drive(0.0, 0.020, 7, true, earlier);
+    ASSERT_TRUE(clock.estimate());
+    EXPECT_NEAR(clock.applied(), -0.020, 0.0005);
+    EXPECT_GT(clock.estimate()->pairs, 300u);
+    EXPECT_FALSE(clock.carriedDropped());
+    // Not precise enough to apply on its own, a carried estimate is only where the fit starts.
+    CameraClock vague(applying());
+    vague.carry({-0.020, 0.009, 40});
+    EXPECT_FALSE(vague.isApplied());
+}
+
+TEST(CameraClock, AWeaveRefinesTheCarriedEstimate) {
+    const CameraClock alone = drive(0.19, 0.020);
+    const CameraClock::Estimate earlier{-0.021, 0.004, 120};
+    const CameraClock both = drive(0.19, 0.020, 7, true, earlier);
+    ASSERT_TRUE(alone.estimate() && both.estimate());
+    EXPECT_FALSE(both.carriedDropped());
+    EXPECT_LT(both.estimate()->sigma_s, alone.estimate()->sigma_s);
+    EXPECT_EQ(both.estimate()->pairs, alone.estimate()->pairs + 120);
+    EXPECT_NEAR(both.estimate()->offset_s, -0.020, 3 * both.estimate()->sigma_s);
+    EXPECT_NEAR(both.applied(), -0.020, 0.006);
+}
+
+TEST(CameraClock, ACarriedEstimateThisDriveContradictsIsDropped) {
+    // The camera was replaced by one on time: the drive's own precise fit disagrees by far more
+    // than both deviations, so the carried 40 ms go and the applied offset follows the drive.
+    const CameraClock clock = drive(0.19, 0.0, 7, true, CameraClock::Estimate{-0.040, 0.002, 300});
+    EXPECT_TRUE(clock.carriedDropped());
+    EXPECT_FALSE(clock.carried());
+    ASSERT_TRUE(clock.estimate());
+    EXPECT_NEAR(clock.estimate()->offset_s, 0.0, 0.006);
+    EXPECT_NEAR(clock.applied(), 0.0, 0.006);
 }

@@ -8,9 +8,11 @@
 #include <mrpt/obs/CObservationOdometry.h>
 
 #include <fstream>
+#include <nlohmann/json.hpp>
 
 #include "localize_fixture.h"
 #include "lookup/common/config.h"
+#include "lookup/localize/fix_store.h"
 #include "lookup/localize/sensor_clock.h"
 
 namespace fs = std::filesystem;
@@ -130,4 +132,65 @@ TEST(SensorClock, AConfiguredCameraOffsetIsCheckedNotReplacedByTheEstimate) {
     EXPECT_EQ(applyMode("[localizer]\nreferences_per_query = 3\n", "estimated"), "auto");
     EXPECT_EQ(applyMode("[time_offsets]\nCEILING_CAM = -0.010\n", "configured"), "never");
     EXPECT_EQ(applyMode("[time_offsets]\nODOMETRY = -0.020\n", "odometry_only"), "auto");
+}
+
+TEST(SensorClock, TheCameraClockIsCarriedFromRunToRunAgainstAKnownSurveyClock) {
+    // A straight drive estimates nothing of its own: the offset an earlier weave measured,
+    // carried in the vehicle's file, is applied from its first frame, and the file is kept for
+    // the next run. Against a database whose survey clock is unknown the file is left alone.
+    const auto dir = lookup::test::freshDir("lookup_localize_clock_carried");
+    PlanarDrive drive;
+    drive.survey_camera.time_offset_sigma_s = 0.004;
+    auto req = planarRun(
+        dir, [](int, mrpt::obs::CObservationImage&, auto&) {}, 20, drive);
+    const std::string file = (dir / "clock.json").string();
+    localize::writeCameraClockFile(file, {"CEILING_CAM", {-0.030, 0.002, 300}, 0.0});
+    req.camera_clock = file;
+    req.out_dir = (dir / "carried").string();
+    localize::runLocalization(req);
+    const auto times = frameTimes(req.out_dir);
+    ASSERT_EQ(times.size(), 20u);
+    for (std::size_t i = 0; i < times.size(); ++i) {
+        EXPECT_NEAR(times[i], kT0 + 0.1 * i - 0.030, 1e-5) << "frame " << i;
+    }
+    std::ifstream timing(dir / "carried" / "timing.json");
+    const auto offset = nlohmann::json::parse(timing).at("camera_time_offset");
+    EXPECT_DOUBLE_EQ(offset.at("applied_s").get<double>(), -0.030);
+    EXPECT_DOUBLE_EQ(offset.at("carried_s").get<double>(), -0.030);
+    EXPECT_EQ(offset.at("written").get<double>(), 1.0);
+    std::string why_not;
+    const auto kept = localize::readCameraClockFile(file, "CEILING_CAM", why_not);
+    ASSERT_TRUE(kept) << why_not;
+    EXPECT_DOUBLE_EQ(kept->estimate.offset_s, -0.030);
+    EXPECT_EQ(kept->estimate.pairs, 300u);
+    EXPECT_GT(kept->saved_unix_s, 0.0);
+
+    // Another camera's file, a corrupt one: said naming the file, the run starts afresh.
+    const auto startsAfresh = [&](const std::string& bad, const std::string& why) {
+        req.camera_clock = bad;
+        req.out_dir = (dir / "afresh").string();
+        testing::internal::CaptureStderr();
+        localize::runLocalization(req);
+        const std::string log = testing::internal::GetCapturedStderr();
+        EXPECT_NE(log.find(bad + ": " + why), std::string::npos) << log;
+        EXPECT_NEAR(frameTimes(req.out_dir).front(), kT0, 1e-5) << bad;
+    };
+    const std::string other = (dir / "other.json").string();
+    localize::writeCameraClockFile(other, {"FRONT_CEILING", {-0.030, 0.002, 300}, 0.0});
+    startsAfresh(other, "the offset of camera 'FRONT_CEILING'");
+    const std::string corrupt = (dir / "corrupt.json").string();
+    std::ofstream(corrupt) << "{\"format\": \"lookup-camera-clock\", \"offset_s\": ";
+    startsAfresh(corrupt, "corrupt");
+
+    const auto unknown = lookup::test::freshDir("lookup_localize_clock_not_carried");
+    auto plain = planarRun(unknown, [](int, mrpt::obs::CObservationImage&, auto&) {});
+    plain.camera_clock = file;
+    testing::internal::CaptureStderr();
+    localize::runLocalization(plain);
+    const std::string log = testing::internal::GetCapturedStderr();
+    EXPECT_NE(log.find(file + ": not carried"), std::string::npos) << log;
+    EXPECT_NEAR(frameTimes(plain.out_dir).front(), kT0, 1e-5);
+    const auto untouched = localize::readCameraClockFile(file, "CEILING_CAM", why_not);
+    ASSERT_TRUE(untouched) << why_not;
+    EXPECT_DOUBLE_EQ(untouched->saved_unix_s, kept->saved_unix_s);
 }

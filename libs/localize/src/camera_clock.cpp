@@ -98,8 +98,34 @@ void CameraClock::fit() {
         mad = 1.4826 * sorted[sorted.size() / 2] + 1e-9;
         for (std::size_t k = 0; k < pairs_.size(); ++k) w[k] = res[k] < kInlierMads * mad ? 1 : 0;
     }
-    estimate_ = Estimate{-tau, mad * std::sqrt(s11 / det), pairs_.size()};
-    const Estimate& e = *estimate_;
+    estimate_ = withCarried({-tau, mad * std::sqrt(s11 / det), pairs_.size()});
+    consider(*estimate_);
+}
+
+void CameraClock::carry(const Estimate& earlier) {
+    if (!options_.enabled || !(earlier.sigma_s > 0) || !std::isfinite(earlier.offset_s)) return;
+    carried_ = earlier;
+    carried_dropped_ = false;
+    estimate_ = earlier;
+    consider(earlier);
+}
+
+CameraClock::Estimate CameraClock::withCarried(const Estimate& fitted) {
+    if (!carried_) return fitted;
+    const Estimate& c = *carried_;
+    const double apart = std::abs(fitted.offset_s - c.offset_s);
+    if (fitted.sigma_s <= options_.max_sigma_s &&
+        apart > options_.significance * std::hypot(fitted.sigma_s, c.sigma_s)) {
+        carried_.reset();
+        carried_dropped_ = true;
+        return fitted;
+    }
+    const double wf = 1 / (fitted.sigma_s * fitted.sigma_s), wc = 1 / (c.sigma_s * c.sigma_s);
+    return {(wf * fitted.offset_s + wc * c.offset_s) / (wf + wc), 1 / std::sqrt(wf + wc),
+            fitted.pairs + c.pairs};
+}
+
+void CameraClock::consider(const Estimate& e) {
     const bool precise =
         e.sigma_s <= options_.max_sigma_s && std::abs(e.offset_s) <= options_.max_offset_s;
     if (options_.apply && precise &&

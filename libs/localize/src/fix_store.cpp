@@ -14,6 +14,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "lookup/common/rawlog_io.h"
 #include "lookup/database/reference.h"
 #include "lookup/database/reference_database.h"
 #include "lookup/localize/pose_stream.h"
@@ -131,6 +132,55 @@ std::optional<SavedFix> readFixFile(const std::string& path, const std::string& 
             return std::nullopt;
         }
         return fix;
+    } catch (const std::exception& e) {
+        why_not = path + ": corrupt: " + std::string(e.what()).substr(0, 200);
+        return std::nullopt;
+    }
+}
+
+void writeCameraClockFile(const std::string& path, const SavedCameraClock& clock) {
+    nlohmann::json j;
+    j["format"] = "lookup-camera-clock";
+    j["version"] = 1;
+    j["camera"] = clock.camera;
+    j["offset_s"] = clock.estimate.offset_s;
+    j["sigma_s"] = clock.estimate.sigma_s;
+    j["pairs"] = clock.estimate.pairs;
+    j["t_saved"] = clock.saved_unix_s;
+    common::writeFileAtomically(path, j.dump(2) + "\n");
+}
+
+std::optional<SavedCameraClock> readCameraClockFile(const std::string& path,
+                                                    const std::string& camera,
+                                                    std::string& why_not) {
+    if (!std::filesystem::exists(path)) {
+        why_not = path + ": no carried estimate yet";
+        return std::nullopt;
+    }
+    try {
+        const auto j = nlohmann::json::parse(fileContent(path));
+        if (j.value("format", "") != "lookup-camera-clock") {
+            why_not = path +
+                      ": not a LookUP camera clock file (no \"format\": \"lookup-camera-clock\")";
+            return std::nullopt;
+        }
+        SavedCameraClock clock;
+        clock.camera = j.at("camera").get<std::string>();
+        clock.estimate.offset_s = j.at("offset_s").get<double>();
+        clock.estimate.sigma_s = j.at("sigma_s").get<double>();
+        clock.estimate.pairs = j.at("pairs").get<std::size_t>();
+        clock.saved_unix_s = j.value("t_saved", 0.0);
+        if (!std::isfinite(clock.estimate.offset_s) || !std::isfinite(clock.estimate.sigma_s) ||
+            !(clock.estimate.sigma_s > 0)) {
+            why_not = path + ": offset not finite or sigma not positive";
+            return std::nullopt;
+        }
+        if (clock.camera != camera) {
+            why_not = path + ": the offset of camera '" + clock.camera + "', not of '" + camera +
+                      "'";
+            return std::nullopt;
+        }
+        return clock;
     } catch (const std::exception& e) {
         why_not = path + ": corrupt: " + std::string(e.what()).substr(0, 200);
         return std::nullopt;

@@ -27,6 +27,8 @@
 #include "lookup/common/heap.h"
 #include "lookup/common/options_table.h"
 #include "lookup/common/rawlog_io.h"
+#include "lookup/localize/fix_store.h"
+#include "lookup/localize/pose_stream.h"
 #include "lookup/localize/sensor_clock.h"
 #include "lookup/localize/vehicle_link.h"
 #include "lookup/place/place_index.h"
@@ -282,6 +284,7 @@ class Session {
         localizer_ = std::make_unique<Localizer>(*db_, options_, refiner_options_,
                                                  std::move(coarse), !coarse_from_files);
         localizer_->setPlaceIndex(places_.get());
+        startCameraClock(req.camera_clock.empty() ? options_.camera_clock_file : req.camera_clock);
         link_->start(*localizer_, *db_, req.publish_wait_s);
 
         mrpt::config::CConfigFileMemory used;
@@ -464,22 +467,69 @@ class Session {
     }
 
   private:
+    /// The camera clock carried from the vehicle's earlier runs (camera_clock_file).
+    void startCameraClock(const std::string& file) {
+        if (file.empty() || !options_.camera_clock.enabled) return;
+        if (!surveyClockKnown(options_, db_->info())) {
+            std::cerr << "lookup-localize: " << file
+                      << ": not carried (neither read nor written): the database's survey "
+                         "camera clock is not known (db.ini ceiling_time_offset_sigma_s)\n";
+            return;
+        }
+        camera_clock_file_ = file;
+        std::string why_not;
+        const auto saved = readCameraClockFile(file, options_.ceiling_camera_label, why_not);
+        if (!saved) {
+            std::cerr << "lookup-localize: " << why_not << "; the estimate starts afresh\n";
+            return;
+        }
+        localizer_->carryCameraClock(saved->estimate);
+        std::cerr << "lookup-localize: ceiling camera's time offset carried from " << file << ": "
+                  << offsetText(saved->estimate) << "\n";
+    }
+
+    static std::string offsetText(const CameraClock::Estimate& e) {
+        char text[96];
+        std::snprintf(text, sizeof text, "%+.1f +- %.1f ms from %zu pairs of fixes",
+                      1e3 * e.offset_s, 1e3 * e.sigma_s, e.pairs);
+        return text;
+    }
+
     void reportCameraClock() {
         const auto& clock = localizer_->cameraClock();
+        if (const auto& c = clock.carried()) {
+            timing_.camera_time_offset["carried_s"] = c->offset_s;
+            timing_.camera_time_offset["carried_sigma_s"] = c->sigma_s;
+        }
+        if (clock.carriedDropped()) timing_.camera_time_offset["carried_dropped"] = 1;
         if (!clock.estimate()) return;
         const auto& e = *clock.estimate();
-        timing_.camera_time_offset = {{"estimate_s", e.offset_s},
-                                      {"sigma_s", e.sigma_s},
-                                      {"pairs", double(e.pairs)},
-                                      {"applied_s", clock.applied()}};
-        char line[160];
-        std::snprintf(line, sizeof line, "%+.1f +- %.1f ms from %zu pairs of fixes; ",
-                      1e3 * e.offset_s, 1e3 * e.sigma_s, e.pairs);
-        std::cerr << "lookup-localize: ceiling camera's time offset against the odometry: " << line
+        timing_.camera_time_offset["estimate_s"] = e.offset_s;
+        timing_.camera_time_offset["sigma_s"] = e.sigma_s;
+        timing_.camera_time_offset["pairs"] = double(e.pairs);
+        timing_.camera_time_offset["applied_s"] = clock.applied();
+        std::cerr << "lookup-localize: ceiling camera's time offset against the odometry: "
+                  << offsetText(e) << (clock.carried() ? " (carried ones included); " : "; ")
+                  << (clock.carriedDropped() ? "the carried estimate dropped (this drive's "
+                                               "disagrees); "
+                                             : "")
                   << (!clock.applies()    ? "reported only (apply_camera_time_offset)"
                       : clock.isApplied() ? "applied"
                                           : "not applied (not precise and significant)")
                   << "\n";
+        if (!camera_clock_file_.empty()) carryCameraClock(e);
+    }
+
+    /// Writes the estimate for the vehicle's next run; a failure is said, not fatal.
+    void carryCameraClock(const CameraClock::Estimate& e) {
+        try {
+            writeCameraClockFile(camera_clock_file_,
+                                 {options_.ceiling_camera_label, e, PoseStream::unixTime()});
+            timing_.camera_time_offset["written"] = 1;
+        } catch (const std::exception& ex) {
+            std::cerr << "lookup-localize: warning: camera clock not carried: " << ex.what()
+                      << "\n";
+        }
     }
 
     void reportOnlineRefresh() {
@@ -522,6 +572,7 @@ class Session {
     bool finished_ = false;
     QuerySpan span_;
     SensorClock clock_;
+    std::string camera_clock_file_;  ///< carried between runs; "" = not (startCameraClock)
     std::unique_ptr<VehicleLink> link_;
     RunTiming timing_;
     mrpt::system::CTicTac wall_;

@@ -85,6 +85,11 @@ bool LocalizeApp::initialize(int argc, const char* const* argv) {
         "", "persist-fix",
         "keep the last refined fix in FILE and start from it (the ceiling must confirm it)", false,
         "", "FILE", cmd);
+    ValueArg<std::string> camera_clock(
+        "", "camera-clock",
+        "carry the ceiling camera's estimated time offset in FILE from run to run (read at the "
+        "start, written at the end; against databases whose survey camera clock is known)",
+        false, "", "FILE", cmd);
     SwitchArg verbose("", "verbose", "on errors, print MRPT's full exception dump", cmd);
     if (!parseCommandLine(cmd, argc, argv)) return false;
 
@@ -103,6 +108,7 @@ bool LocalizeApp::initialize(int argc, const char* const* argv) {
     req.kidnap_every = std::max(0, kidnap_every.getValue());
     req.publish = publish.getValue();
     req.persist_fix = persist_fix.getValue();
+    req.camera_clock = camera_clock.getValue();
     sensors_ini_ = live.getValue();
     duration_s_ = duration.getValue();
     try {

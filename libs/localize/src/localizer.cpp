@@ -151,14 +151,17 @@ refine::RefinerOptions gridSampling(refine::RefinerOptions o) {
 // options force it either way).
 CameraClockOptions cameraClockOptions(const LocalizerOptions& o, const database::DatabaseInfo& db) {
     CameraClockOptions c = o.camera_clock;
-    const auto& survey_sigma = db.ceiling_time_offset_sigma_s;
     c.apply = o.apply_camera_time_offset == CameraClockApply::Always ||
-              (o.apply_camera_time_offset == CameraClockApply::Auto && survey_sigma &&
-               *survey_sigma <= o.survey_clock_max_sigma_s);
+              (o.apply_camera_time_offset == CameraClockApply::Auto && surveyClockKnown(o, db));
     return c;
 }
 
 }  // namespace
+
+bool surveyClockKnown(const LocalizerOptions& options, const database::DatabaseInfo& db) {
+    const auto& sigma = db.ceiling_time_offset_sigma_s;
+    return sigma && *sigma <= options.survey_clock_max_sigma_s;
+}
 
 std::unique_ptr<coarse::CoarseSource> makeSequenceCoarseSource(
     const database::ReferenceDatabase& db, const coarse::CoarseOptions& coarse_options,

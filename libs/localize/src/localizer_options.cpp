@@ -66,6 +66,7 @@ void LocalizerOptions::declareKeys(common::OptionsTable& t) {
     t.add("camera_timeout_s", camera_timeout_s, 0.0);
     t.add("persist_fix_file", persist_fix_file);
     t.add("persist_interval_s", persist_interval_s, common::kPositive);
+    t.add("camera_clock_file", camera_clock_file);
 }
 
 void LocalizerOptions::check() const {

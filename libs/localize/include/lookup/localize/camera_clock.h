@@ -11,7 +11,9 @@
 //
 // Only the offset against the odometry is observable; a latency common to every sensor of the
 // vehicle is not (docs/vehicle.md, "Time offset"). Estimated on every run and reported;
-// applied to the stamps where LocalizerOptions::apply_camera_time_offset says.
+// applied to the stamps where LocalizerOptions::apply_camera_time_offset says. An estimate
+// carried from the vehicle's earlier runs (carry()) is where a run starts: a straight drive,
+// which shows nothing of its own, keeps it, and a weave refines it.
 
 #include <deque>
 #include <optional>
@@ -43,6 +45,14 @@ class CameraClock {
 
     explicit CameraClock(const CameraClockOptions& options = {}) : options_(options) {}
 
+    /// The offset as earlier runs of the same camera left it: the estimate from the start (and
+    /// applied as a fit would be); this run's pairs are then weighed with it by their
+    /// variances. Dropped (carriedDropped()) when this run's own precise fit lies more than
+    /// `significance` sigmas of the two away from it: the camera's clock has changed.
+    void carry(const Estimate& earlier);
+    const std::optional<Estimate>& carried() const { return carried_; }
+    bool carriedDropped() const { return carried_dropped_; }
+
     /// A refined frame: its stamp as the camera gave it (before applied()) and its heading.
     void addFix(double stamp_s, double yaw);
     /// Pairs the fixes the odometry now covers (it must reach a little past them for the yaw
@@ -72,13 +82,18 @@ class CameraClock {
                                    const common::OdometryTrack& odometry) const;
     void addPair(const Sample& s);
     void fit();
+    /// This run's fit weighed with the carried estimate (or alone once that is dropped).
+    Estimate withCarried(const Estimate& fitted);
+    /// The latest estimate; applied when precise and significant, or followed once applied.
+    void consider(const Estimate& e);
 
     CameraClockOptions options_;
     /// Fixes awaiting odometry (stamp, yaw), the last max_pair_s of them.
     std::deque<std::pair<double, double>> pending_;
     std::deque<Sample> samples_;  ///< the last max_pair_s of fixes
     std::deque<Pair> pairs_;
-    std::optional<Estimate> estimate_, applied_;
+    std::optional<Estimate> estimate_, applied_, carried_;
+    bool carried_dropped_ = false;
 };
 
 }  // namespace lookup::localize

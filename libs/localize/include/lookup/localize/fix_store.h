@@ -1,8 +1,9 @@
 #pragma once
-// Restarts: the last trusted fix, persisted so that a localiser restarted where the vehicle
-// stopped (power cycle, crash) starts from it (docs/run-format.md, "Persisted fix").
-// The file is replaced atomically (a temporary beside it, fsync, rename): a power cut leaves
-// the previous fix or the new one, never half a file.
+// What the localiser keeps between runs (docs/run-format.md, "Persisted fix", "The camera
+// clock carried between runs"): the last trusted fix, so that a localiser restarted where the
+// vehicle stopped (power cycle, crash) starts from it; the ceiling camera's time offset as the
+// vehicle's drives estimated it. Files are replaced atomically (a temporary beside it, fsync,
+// rename): a power cut leaves the previous content or the new one, never half a file.
 
 #include <mrpt/poses/CPosePDFGaussian.h>
 
@@ -39,6 +40,23 @@ void writeFixFile(const std::string& path, const SavedFix& fix);
 /// `db_identity`.
 std::optional<SavedFix> readFixFile(const std::string& path, const std::string& db_identity,
                                     std::string& why_not);
+
+/// The ceiling camera's offset against the odometry as the vehicle's runs left it.
+struct SavedCameraClock {
+    std::string camera;  ///< the ceiling camera's sensor label
+    CameraClock::Estimate estimate;
+    double saved_unix_s = 0;
+};
+
+/// Writes `clock` to `path` atomically. Throws common::WriteError naming the path and reason.
+void writeCameraClockFile(const std::string& path, const SavedCameraClock& clock);
+
+/// Reads a file written by writeCameraClockFile. Returns nullopt, with `why_not` set to a
+/// one-line reason naming the file, when it is missing, corrupt, not finite, or of another
+/// camera than `camera`.
+std::optional<SavedCameraClock> readCameraClockFile(const std::string& path,
+                                                    const std::string& camera,
+                                                    std::string& why_not);
 
 /// Keeps the last refined fix of a run and writes it every `interval_s` while it changes, on
 /// a thread of its own (an fsync must not delay a frame), and at flush(). A failing write is

@@ -41,6 +41,8 @@ struct LocalizeRequest {
     // On the vehicle (docs/run-format.md): pose stream, restarts.
     std::string publish;      ///< "udp://HOST:PORT" or "tcp://HOST:PORT" (--publish); "" = none
     std::string persist_fix;  ///< fix file (--persist-fix); "" = [localizer] persist_fix_file
+    /// camera clock file (--camera-clock); "" = [localizer] camera_clock_file
+    std::string camera_clock;
     /// tcp: wait up to this long for a first client before the first frame (tests) [s].
     double publish_wait_s = 0;
 };

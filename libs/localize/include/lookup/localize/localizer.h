@@ -72,6 +72,11 @@ struct FrameResult {
     mrpt::poses::CPose3D camera_on_vehicle;  ///< query ceiling camera mount
 };
 
+/// Whether the database's survey camera clock is known well enough for the vehicle's own
+/// camera offset to be applied against it (db.ini ceiling_time_offset_sigma_s within
+/// LocalizerOptions::survey_clock_max_sigma_s).
+bool surveyClockKnown(const LocalizerOptions& options, const database::DatabaseInfo& db);
+
 /// Builds the built-in coarse stage: SeqSLAM over the forward images of the database, one
 /// sequence per survey traverse (or only `traverse`, LocalizerOptions::coarse_traverse); the
 /// most confident usable match wins per frame. Throws std::runtime_error when the database has
@@ -137,6 +142,8 @@ class Localizer {
     const LocalizerOptions& options() const { return options_; }
     /// The ceiling camera's time offset against the odometry, as estimated and applied so far.
     const CameraClock& cameraClock() const { return camera_clock_; }
+    /// Starts the camera clock from the vehicle's earlier runs (CameraClock::carry).
+    void carryCameraClock(const CameraClock::Estimate& earlier) { camera_clock_.carry(earlier); }
 
     /// What the online refresh did so far (LocalizerOptions::online_refresh).
     struct OnlineRefreshCounts {

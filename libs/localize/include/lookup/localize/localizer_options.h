@@ -168,6 +168,11 @@ struct LocalizerOptions : public common::TableOptions<LocalizerOptions> {
     /// start-up hypothesis when the run starts; "" = none.
     std::string persist_fix_file;
     double persist_interval_s = 1.0;  ///< how often the fix file is rewritten while it changes
+    /// The ceiling camera's time offset carried between runs (--camera-clock overrides): read
+    /// at the start (CameraClock::carry), written at the end; both only against a database
+    /// whose survey camera clock is known (surveyClockKnown), since against any other the
+    /// fixes' heading carries the survey camera's lateness too. "" = none.
+    std::string camera_clock_file;
 
     /// Adds every key of its .ini section to `t` (load, save and the unknown-key check).
     void declareKeys(common::OptionsTable& t);
