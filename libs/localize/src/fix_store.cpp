@@ -160,8 +160,8 @@ std::optional<SavedCameraClock> readCameraClockFile(const std::string& path,
     try {
         const auto j = nlohmann::json::parse(fileContent(path));
         if (j.value("format", "") != "lookup-camera-clock") {
-            why_not = path +
-                      ": not a LookUP camera clock file (no \"format\": \"lookup-camera-clock\")";
+            why_not =
+                path + ": not a LookUP camera clock file (no \"format\": \"lookup-camera-clock\")";
             return std::nullopt;
         }
         SavedCameraClock clock;
@@ -176,8 +176,8 @@ std::optional<SavedCameraClock> readCameraClockFile(const std::string& path,
             return std::nullopt;
         }
         if (clock.camera != camera) {
-            why_not = path + ": the offset of camera '" + clock.camera + "', not of '" + camera +
-                      "'";
+            why_not =
+                path + ": the offset of camera '" + clock.camera + "', not of '" + camera + "'";
             return std::nullopt;
         }
         return clock;

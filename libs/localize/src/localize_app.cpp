@@ -459,6 +459,7 @@ class Session {
         }
         reportOnlineRefresh();
         reportCameraClock();
+        saveCameraClock();
         timing_.wall_s = wall_.Tac();
         writer_->finish(timing_);
         link_->finish(writer_->directory(), wall_.Tac());
@@ -517,14 +518,16 @@ class Session {
                       : clock.isApplied() ? "applied"
                                           : "not applied (not precise and significant)")
                   << "\n";
-        if (!camera_clock_file_.empty()) carryCameraClock(e);
     }
 
-    /// Writes the estimate for the vehicle's next run; a failure is said, not fatal.
-    void carryCameraClock(const CameraClock::Estimate& e) {
+    /// Writes the estimate for the vehicle's next run (camera_clock_file); a failure is said,
+    /// not fatal.
+    void saveCameraClock() {
+        const auto& e = localizer_->cameraClock().estimate();
+        if (camera_clock_file_.empty() || !e) return;
         try {
             writeCameraClockFile(camera_clock_file_,
-                                 {options_.ceiling_camera_label, e, PoseStream::unixTime()});
+                                 {options_.ceiling_camera_label, *e, PoseStream::unixTime()});
             timing_.camera_time_offset["written"] = 1;
         } catch (const std::exception& ex) {
             std::cerr << "lookup-localize: warning: camera clock not carried: " << ex.what()
