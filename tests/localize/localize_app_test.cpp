@@ -40,7 +40,8 @@ TEST(LocalizeApp, FlagsFillTheRequest) {
                                  "2",          "--kidnap-every",
                                  "-3",         "--coarse-poses",
                                  "C.tum",      "--persist-fix",
-                                 "F.json"},
+                                 "F.json",     "--camera-clock",
+                                 "K.json"},
                            &err))
         << err;
     const auto& r = app.request();
@@ -56,6 +57,7 @@ TEST(LocalizeApp, FlagsFillTheRequest) {
     EXPECT_EQ(r.kidnap_every, 0);  // negative: never
     EXPECT_EQ(r.coarse_poses, "C.tum");
     EXPECT_EQ(r.persist_fix, "F.json");
+    EXPECT_EQ(r.camera_clock, "K.json");
     EXPECT_FALSE(app.live());
     EXPECT_EQ(app.exitCode(), 0);
 }
