@@ -2,6 +2,7 @@
 
 #include <mrpt/config/CConfigFile.h>
 #include <mrpt/obs/CObservationImage.h>
+#include <algorithm>
 #include <cmath>
 
 #include <filesystem>
@@ -58,6 +59,13 @@ TEST(SurveyRun, PoseFileGivesCameraPosesEqualToTruthComposedWithMount) {
     EXPECT_GE(db.size(), 20u);
     EXPECT_LE(db.size(), 41u);
     EXPECT_GT(result.traverses.at(0).rejected_blur, 0u);
+    // Said, not only counted: a survey that skips frames tells which setting skipped them.
+    const std::string skipped =
+        "skipped " + std::to_string(result.traverses.at(0).rejected_blur) + " ceiling keyframes (" +
+        std::to_string(result.traverses.at(0).rejected_blur) + " blurred";
+    EXPECT_TRUE(std::any_of(result.warnings.begin(), result.warnings.end(),
+                            [&](const std::string& w) { return w.find(skipped) != w.npos; }))
+        << skipped;
     EXPECT_DOUBLE_EQ(db.info().ceiling_camera.fx(), 40.0);
     EXPECT_TRUE(fs::exists(dir / "db" / "refs.tum"));
     EXPECT_TRUE(fs::exists(dir / "db" / "survey_report.json"));

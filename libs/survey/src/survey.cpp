@@ -147,6 +147,15 @@ void addWarnings(const TraverseReport& r, const std::string& rawlog,
                       std::to_string(k.ceiling_intrinsics + k.forward_intrinsics) +
                       " images with unusable intrinsics (first: " + k.first + ")");
     }
+    if (r.rejected_blur + r.rejected_exposure > 0) {
+        out.push_back(rawlog + ": skipped " +
+                      std::to_string(r.rejected_blur + r.rejected_exposure) +
+                      " ceiling keyframes (" + std::to_string(r.rejected_blur) + " blurred, " +
+                      std::to_string(r.rejected_exposure) +
+                      " badly exposed: [survey] min_sharpness, min_mean_intensity, "
+                      "max_mean_intensity, max_clipped_fraction), kept " +
+                      std::to_string(r.references) + " references");
+    }
     if (r.rejected_image + r.rejected_forward > 0) {
         out.push_back(rawlog + ": refused " + std::to_string(r.rejected_image) + " ceiling and " +
                       std::to_string(r.rejected_forward) +
