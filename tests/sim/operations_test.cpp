@@ -201,6 +201,23 @@ TEST(Operations, ReverseDirectionDrivesTheRouteBackwards) {
     EXPECT_GT(forwardSpeed(gt, gt.size() / 2), 3.0) << "driving, not backing up";
 }
 
+TEST(Operations, ASpeedTheRouteIsTooShortForIsSaid) {
+    // From rest to a stop at 1.5 m/s2, 30 m give 24 km/h at most: a 60 km/h condition there
+    // would measure 24 km/h under its name.
+    ScenarioOptions sc = quickScenario();
+    sc.traverses[0].speed_kmh = 60;
+    const Simulator short_route(sc);
+    ASSERT_EQ(short_route.warnings().size(), 1u);
+    EXPECT_NE(short_route.warnings()[0].find("[traverse_0] speed_kmh 60 is never reached"),
+              std::string::npos)
+        << short_route.warnings()[0];
+    sc.world.length_m = 250;
+    EXPECT_TRUE(Simulator(sc).warnings().empty());
+    sc.world.length_m = 30;
+    sc.traverses[0].speed_kmh = 20;
+    EXPECT_TRUE(Simulator(sc).warnings().empty());
+}
+
 TEST(Operations, BadPlansAreRefusedNamingTheLeg) {
     ScenarioOptions sc = quickScenario();
     sc.traverses[0].plan = "drive 10, stop 2, drive 200";

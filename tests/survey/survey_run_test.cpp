@@ -60,9 +60,9 @@ TEST(SurveyRun, PoseFileGivesCameraPosesEqualToTruthComposedWithMount) {
     EXPECT_LE(db.size(), 41u);
     EXPECT_GT(result.traverses.at(0).rejected_blur, 0u);
     // Said, not only counted: a survey that skips frames tells which setting skipped them.
-    const std::string skipped =
-        "skipped " + std::to_string(result.traverses.at(0).rejected_blur) + " ceiling keyframes (" +
-        std::to_string(result.traverses.at(0).rejected_blur) + " blurred";
+    const std::string skipped = "skipped " + std::to_string(result.traverses.at(0).rejected_blur) +
+                                " ceiling keyframes (" +
+                                std::to_string(result.traverses.at(0).rejected_blur) + " blurred";
     EXPECT_TRUE(std::any_of(result.warnings.begin(), result.warnings.end(),
                             [&](const std::string& w) { return w.find(skipped) != w.npos; }))
         << skipped;

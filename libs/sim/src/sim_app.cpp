@@ -72,6 +72,7 @@ int SimApp::run() {
     std::cout << "lookup-sim: " << options_.name << " from " << scenario_file_ << ", seed "
               << options_.seed << ", route " << sim.world().routeLength() << " m, "
               << options_.traverses.size() << " traverses\n";
+    for (const auto& w : sim.warnings()) std::cerr << "lookup-sim: warning: " << w << "\n";
     result_ = sim.run(out_dir_, progress_bar_ ? Simulator::Progress(drawProgress) : nullptr);
     if (result_.status != SimulationResult::Status::Ok) {
         // The simulator's failures are the outputs it could not write.

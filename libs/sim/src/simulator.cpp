@@ -587,6 +587,36 @@ Simulator::Simulator(ScenarioOptions scenario) : scenario_(std::move(scenario)) 
                 ? std::make_unique<TunnelWorld>(*scenario_.traverses[i].world, scenario_.seed)
                 : nullptr);
     }
+    noteSpeedsNotReached();
+}
+
+void Simulator::noteSpeedsNotReached() {
+    constexpr std::size_t kSpan = 50;  // speeds over 0.5 s of ground truth
+    for (std::size_t i = 0; i < tracks_.size(); ++i) {
+        const TraverseOptions& tr = scenario_.traverses[i];
+        const common::PoseTrack& track = tracks_[i];
+        if (!tr.plan.empty() || track.size() <= kSpan) continue;
+        double peak = 0, length = 0;
+        for (std::size_t k = 1; k < track.size(); ++k) {
+            length += std::hypot(track[k].pose.x() - track[k - 1].pose.x(),
+                                 track[k].pose.y() - track[k - 1].pose.y());
+        }
+        for (std::size_t k = kSpan; k < track.size(); ++k) {
+            const auto& a = track[k - kSpan];
+            const auto& b = track[k];
+            peak = std::max(peak, std::hypot(b.pose.x() - a.pose.x(), b.pose.y() - a.pose.y()) /
+                                      (b.time_s - a.time_s));
+        }
+        if (3.6 * peak >= 0.9 * tr.speed_kmh) continue;
+        char line[320];
+        std::snprintf(line, sizeof line,
+                      "%s [%s] speed_kmh %.0f is never reached: from rest to a stop at "
+                      "accel_mps2 %.2f over its %.0f m the vehicle reaches %.0f km/h at most "
+                      "(a longer world.length_m or a larger accel_mps2)",
+                      scenario_.source_name.c_str(), ("traverse_" + std::to_string(i)).c_str(),
+                      tr.speed_kmh, tr.accel_mps2, length, 3.6 * peak);
+        warnings_.push_back(line);
+    }
 }
 
 void Simulator::checkLenses() const {

@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <filesystem>
+#include <iostream>
 #include <stdexcept>
 
 #include "lookup/eval/evaluator.h"
@@ -24,6 +25,7 @@ struct QueryTraverse {
 void generate(const SuiteOptions& suite, const Condition& c, std::uint64_t seed,
               const std::string& data_dir) {
     sim::Simulator simulator(scenarioFor(c, seed, suite.source, suite.threads_per_job));
+    for (const auto& w : simulator.warnings()) std::cerr << "lookup-sim: warning: " << w << "\n";
     const auto result = simulator.run(data_dir);
     if (result.status != sim::SimulationResult::Status::Ok) throw std::runtime_error(result.reason);
 }

@@ -93,6 +93,11 @@ class Simulator {
     /// start_time_s + k * traverse_gap_s, or 10 s after the previous one ends if that is later.
     const common::PoseTrack& groundTruth(std::size_t i) const { return tracks_.at(i); }
 
+    /// What the scenario asks for and does not get, one line each: a traverse without a plan
+    /// that never comes within 10 % of its speed_kmh (accelerating from rest and braking to a
+    /// stop at accel_mps2 over a route too short for it).
+    const std::vector<std::string>& warnings() const { return warnings_; }
+
     /// Writes the dataset into `out_dir` (created if needed; files of the same names are
     /// replaced). Failures (unwritable folder, full disk) come back as Status::Failed with the
     /// file and cause, not as exceptions.
@@ -107,12 +112,14 @@ class Simulator {
     void checkPlansOnRoute() const;
     /// A lens distortion that leaves some pixel without a ray: ConfigError naming the section.
     void checkLenses() const;
+    void noteSpeedsNotReached();
 
     ScenarioOptions scenario_;
     std::unique_ptr<TunnelWorld> world_;
     /// Per traverse: its own-appearance world ([traverse_i.world]), null = world_.
     std::vector<std::unique_ptr<TunnelWorld>> traverse_worlds_;
     std::vector<common::PoseTrack> tracks_;
+    std::vector<std::string> warnings_;
 };
 
 }  // namespace lookup::sim
