@@ -40,6 +40,30 @@ void writeAll(int fd, const std::string& text, const std::string& path) {
     }
 }
 
+/// A state file of `format` ("a LookUP `what` file"): a missing file, another format or one
+/// that does not parse is said in `why_not`, naming the file; `read` takes the fields (throwing
+/// on a missing or mistyped one, said as corrupt) and checks them.
+template <typename Read>
+auto readStateFile(const std::string& path, const std::string& format, const std::string& what,
+                   const std::string& missing, std::string& why_not, Read read)
+    -> decltype(read(nlohmann::json{})) {
+    if (!std::filesystem::exists(path)) {
+        why_not = path + ": " + missing;
+        return std::nullopt;
+    }
+    try {
+        const auto j = nlohmann::json::parse(fileContent(path));
+        if (j.value("format", "") != format) {
+            why_not = path + ": not a LookUP " + what + " file (no \"format\": \"" + format + "\")";
+            return std::nullopt;
+        }
+        return read(j);
+    } catch (const std::exception& e) {
+        why_not = path + ": corrupt: " + std::string(e.what()).substr(0, 200);
+        return std::nullopt;
+    }
+}
+
 }  // namespace
 
 std::string databaseIdentity(const database::ReferenceDatabase& db) {
@@ -94,48 +118,38 @@ void writeFixFile(const std::string& path, const SavedFix& fix) {
 
 std::optional<SavedFix> readFixFile(const std::string& path, const std::string& db_identity,
                                     std::string& why_not) {
-    if (!std::filesystem::exists(path)) {
-        why_not = path + ": no persisted fix yet";
-        return std::nullopt;
-    }
-    try {
-        const auto j = nlohmann::json::parse(fileContent(path));
-        if (j.value("format", "") != "lookup-fix") {
-            why_not = path + ": not a LookUP fix file (no \"format\": \"lookup-fix\")";
-            return std::nullopt;
-        }
-        SavedFix fix;
-        fix.time_s = j.at("t_fix").get<double>();
-        fix.saved_unix_s = j.at("t_saved").get<double>();
-        const auto& cov = j.at("cov");
-        if (!cov.is_array() || cov.size() != 9) {
-            why_not = path + ": \"cov\" is not 9 numbers";
-            return std::nullopt;
-        }
-        fix.pose.mean = mrpt::poses::CPose2D(j.at("x").get<double>(), j.at("y").get<double>(),
-                                             j.at("yaw").get<double>());
-        bool finite = std::isfinite(fix.pose.mean.x()) && std::isfinite(fix.pose.mean.y()) &&
-                      std::isfinite(fix.pose.mean.phi());
-        for (int k = 0; k < 9; ++k) {
-            fix.pose.cov(k / 3, k % 3) = cov.at(k).get<double>();
-            finite = finite && std::isfinite(fix.pose.cov(k / 3, k % 3));
-        }
-        if (!finite) {
-            why_not = path + ": pose or covariance not finite";
-            return std::nullopt;
-        }
-        fix.db_dir = j.at("db").at("path").get<std::string>();
-        fix.db_identity = j.at("db").at("identity").get<std::string>();
-        if (fix.db_identity != db_identity) {
-            why_not = path + ": made on another database (" + fix.db_dir + ", identity " +
-                      fix.db_identity + "; this one: " + db_identity + ")";
-            return std::nullopt;
-        }
-        return fix;
-    } catch (const std::exception& e) {
-        why_not = path + ": corrupt: " + std::string(e.what()).substr(0, 200);
-        return std::nullopt;
-    }
+    return readStateFile(
+        path, "lookup-fix", "fix", "no persisted fix yet", why_not,
+        [&](const nlohmann::json& j) -> std::optional<SavedFix> {
+            SavedFix fix;
+            fix.time_s = j.at("t_fix").get<double>();
+            fix.saved_unix_s = j.at("t_saved").get<double>();
+            const auto& cov = j.at("cov");
+            if (!cov.is_array() || cov.size() != 9) {
+                why_not = path + ": \"cov\" is not 9 numbers";
+                return std::nullopt;
+            }
+            fix.pose.mean = mrpt::poses::CPose2D(j.at("x").get<double>(), j.at("y").get<double>(),
+                                                 j.at("yaw").get<double>());
+            bool finite = std::isfinite(fix.pose.mean.x()) && std::isfinite(fix.pose.mean.y()) &&
+                          std::isfinite(fix.pose.mean.phi());
+            for (int k = 0; k < 9; ++k) {
+                fix.pose.cov(k / 3, k % 3) = cov.at(k).get<double>();
+                finite = finite && std::isfinite(fix.pose.cov(k / 3, k % 3));
+            }
+            if (!finite) {
+                why_not = path + ": pose or covariance not finite";
+                return std::nullopt;
+            }
+            fix.db_dir = j.at("db").at("path").get<std::string>();
+            fix.db_identity = j.at("db").at("identity").get<std::string>();
+            if (fix.db_identity != db_identity) {
+                why_not = path + ": made on another database (" + fix.db_dir + ", identity " +
+                          fix.db_identity + "; this one: " + db_identity + ")";
+                return std::nullopt;
+            }
+            return fix;
+        });
 }
 
 void writeCameraClockFile(const std::string& path, const SavedCameraClock& clock) {
@@ -153,38 +167,27 @@ void writeCameraClockFile(const std::string& path, const SavedCameraClock& clock
 std::optional<SavedCameraClock> readCameraClockFile(const std::string& path,
                                                     const std::string& camera,
                                                     std::string& why_not) {
-    if (!std::filesystem::exists(path)) {
-        why_not = path + ": no carried estimate yet";
-        return std::nullopt;
-    }
-    try {
-        const auto j = nlohmann::json::parse(fileContent(path));
-        if (j.value("format", "") != "lookup-camera-clock") {
-            why_not =
-                path + ": not a LookUP camera clock file (no \"format\": \"lookup-camera-clock\")";
-            return std::nullopt;
-        }
-        SavedCameraClock clock;
-        clock.camera = j.at("camera").get<std::string>();
-        clock.estimate.offset_s = j.at("offset_s").get<double>();
-        clock.estimate.sigma_s = j.at("sigma_s").get<double>();
-        clock.estimate.pairs = j.at("pairs").get<std::size_t>();
-        clock.saved_unix_s = j.value("t_saved", 0.0);
-        if (!std::isfinite(clock.estimate.offset_s) || !std::isfinite(clock.estimate.sigma_s) ||
-            !(clock.estimate.sigma_s > 0)) {
-            why_not = path + ": offset not finite or sigma not positive";
-            return std::nullopt;
-        }
-        if (clock.camera != camera) {
-            why_not =
-                path + ": the offset of camera '" + clock.camera + "', not of '" + camera + "'";
-            return std::nullopt;
-        }
-        return clock;
-    } catch (const std::exception& e) {
-        why_not = path + ": corrupt: " + std::string(e.what()).substr(0, 200);
-        return std::nullopt;
-    }
+    return readStateFile(path, "lookup-camera-clock", "camera clock", "no carried estimate yet",
+                         why_not, [&](const nlohmann::json& j) -> std::optional<SavedCameraClock> {
+                             SavedCameraClock clock;
+                             clock.camera = j.at("camera").get<std::string>();
+                             clock.estimate.offset_s = j.at("offset_s").get<double>();
+                             clock.estimate.sigma_s = j.at("sigma_s").get<double>();
+                             clock.estimate.pairs = j.at("pairs").get<std::size_t>();
+                             clock.saved_unix_s = j.value("t_saved", 0.0);
+                             if (!std::isfinite(clock.estimate.offset_s) ||
+                                 !std::isfinite(clock.estimate.sigma_s) ||
+                                 !(clock.estimate.sigma_s > 0)) {
+                                 why_not = path + ": offset not finite or sigma not positive";
+                                 return std::nullopt;
+                             }
+                             if (clock.camera != camera) {
+                                 why_not = path + ": the offset of camera '" + clock.camera +
+                                           "', not of '" + camera + "'";
+                                 return std::nullopt;
+                             }
+                             return clock;
+                         });
 }
 
 FixPersister::FixPersister(std::string path, double interval_s, std::string db_dir,

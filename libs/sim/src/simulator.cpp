@@ -280,6 +280,15 @@ std::vector<Event> scheduleEvents(const CameraOptions& ceiling, const CameraOpti
     return events;
 }
 
+double trackLength(const common::PoseTrack& track) {
+    double length = 0;
+    for (std::size_t i = 1; i < track.size(); ++i) {
+        length += std::hypot(track[i].pose.x() - track[i - 1].pose.x(),
+                             track[i].pose.y() - track[i - 1].pose.y());
+    }
+    return length;
+}
+
 TraverseSummary startSummary(const TraverseOptions& tr, const common::PoseTrack& track) {
     TraverseSummary sum;
     sum.name = tr.name;
@@ -287,10 +296,7 @@ TraverseSummary startSummary(const TraverseOptions& tr, const common::PoseTrack&
     sum.duration_s = track.back().time_s - track.front().time_s;
     sum.start_time_s = track.front().time_s;
     sum.ground_truth_rows = track.size();
-    for (std::size_t i = 1; i < track.size(); ++i) {
-        sum.length_m += std::hypot(track[i].pose.x() - track[i - 1].pose.x(),
-                                   track[i].pose.y() - track[i - 1].pose.y());
-    }
+    sum.length_m = trackLength(track);
     return sum;
 }
 
@@ -596,11 +602,7 @@ void Simulator::noteSpeedsNotReached() {
         const TraverseOptions& tr = scenario_.traverses[i];
         const common::PoseTrack& track = tracks_[i];
         if (!tr.plan.empty() || track.size() <= kSpan) continue;
-        double peak = 0, length = 0;
-        for (std::size_t k = 1; k < track.size(); ++k) {
-            length += std::hypot(track[k].pose.x() - track[k - 1].pose.x(),
-                                 track[k].pose.y() - track[k - 1].pose.y());
-        }
+        double peak = 0;
         for (std::size_t k = kSpan; k < track.size(); ++k) {
             const auto& a = track[k - kSpan];
             const auto& b = track[k];
@@ -614,7 +616,7 @@ void Simulator::noteSpeedsNotReached() {
                       "accel_mps2 %.2f over its %.0f m the vehicle reaches %.0f km/h at most "
                       "(a longer world.length_m or a larger accel_mps2)",
                       scenario_.source_name.c_str(), ("traverse_" + std::to_string(i)).c_str(),
-                      tr.speed_kmh, tr.accel_mps2, length, 3.6 * peak);
+                      tr.speed_kmh, tr.accel_mps2, trackLength(track), 3.6 * peak);
         warnings_.push_back(line);
     }
 }
