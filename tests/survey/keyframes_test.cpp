@@ -22,6 +22,24 @@ TEST(ImageQuality, BlurLowersSharpnessAndExposureIsMeasured) {
     EXPECT_DOUBLE_EQ(dark.clipped_fraction, 1.0);
 }
 
+TEST(ImageQuality, AnImageIsJudgedAtTheWidthTheDatabaseStoresItAt) {
+    // The same ceiling from a camera with 4x the pixels: smooth at its own resolution, as sharp
+    // as the stored image once averaged down to it.
+    cv::Mat stored;
+    cv::GaussianBlur(lookup::test::ceilingTexture(mrpt::poses::CPose3D(1, 2, 0, 0, 0, 0), 320, 240),
+                     stored, cv::Size(0, 0), 1.0);
+    cv::Mat recorded;
+    cv::resize(stored, recorded, cv::Size(1280, 960), 0, 0, cv::INTER_CUBIC);
+    const double min_sharpness = SurveyOptions().min_sharpness;
+    ASSERT_GT(measureImageQuality(stored).sharpness, min_sharpness);
+    EXPECT_LT(measureImageQuality(recorded).sharpness, min_sharpness);
+    const auto judged = measureImageQuality(recorded, 320);
+    EXPECT_GT(judged.sharpness, min_sharpness);
+    EXPECT_NEAR(judged.mean_intensity, measureImageQuality(stored).mean_intensity, 1.0);
+    EXPECT_DOUBLE_EQ(measureImageQuality(stored, 320).sharpness,
+                     measureImageQuality(stored).sharpness);
+}
+
 TEST(Keyframes, SpacingRespectedAndBadFramesSkipped) {
     // 0.1 m per frame along x; frames 5 and 6 are blurred, frame 13 is dark.
     std::vector<KeyframeCandidate> c;
@@ -34,7 +52,7 @@ TEST(Keyframes, SpacingRespectedAndBadFramesSkipped) {
         asked.push_back(i);
         ImageQuality q{1000, 128, 0};
         if (i == 5 || i == 6) q.sharpness = 1;
-        if (i == 13) q.mean_intensity = 5;
+        if (i == 13) q.mean_intensity = 1;
         return q;
     });
     ASSERT_FALSE(sel.kept.empty());
@@ -52,4 +70,25 @@ TEST(Keyframes, SpacingRespectedAndBadFramesSkipped) {
     EXPECT_EQ(sel.rejected_exposure, 1u);
     // Quality is only computed for frames that are due.
     EXPECT_LT(asked.size(), c.size() / 2);
+}
+
+TEST(Keyframes, TheDefaultsKeepADimOrHalfSaturatedCameraAndSkipFramesWithNothingLeft) {
+    // A camera that is always this dim or this bright still localises: a gate that skipped all
+    // its frames would leave the survey without references.
+    const SurveyOptions o;
+    std::vector<KeyframeCandidate> c;
+    for (int i = 0; i < 6; ++i)
+        c.push_back({i * 0.1, mrpt::poses::CPose3D(i * 0.3, 0, 0, 0, 0, 0)});
+    const std::vector<ImageQuality> frames = {
+        {29, 5, 0.28},     // dim: read noise's Laplacian, a third of the pixels black
+        {900, 190, 0.45},  // lamp too bright: half the pixels saturated
+        {500, 60, 0.0},    // nominal
+        {12, 1, 0.99},     // no light
+        {700, 252, 0.97},  // washed out
+        {2, 128, 0.0},     // featureless: smoother than any sensor's noise
+    };
+    const auto sel = selectKeyframes(c, o, [&](std::size_t i) { return frames[i]; });
+    EXPECT_EQ(sel.kept, (std::vector<std::size_t>{0, 1, 2}));
+    EXPECT_EQ(sel.rejected_exposure, 2u);
+    EXPECT_EQ(sel.rejected_blur, 1u);
 }

@@ -2,14 +2,23 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "lookup/common/camera_params.h"
 #include "lookup/common/grey.h"
 
 namespace lookup::survey {
 
-ImageQuality measureImageQuality(const cv::Mat& image) {
+ImageQuality measureImageQuality(const cv::Mat& image, int max_width_px) {
     ImageQuality q;
     if (image.empty()) return q;
-    const cv::Mat grey = common::greyOf(image);
+    cv::Mat grey = common::greyOf(image);
+    // Judged as the database stores it and the matcher sees it: the variance of the Laplacian
+    // of one scene falls as the resolution grows, so a camera's pixel count must not decide.
+    const auto size = common::cappedSize(grey.cols, grey.rows, max_width_px);
+    if (size.x != grey.cols) {
+        cv::Mat shrunk;
+        cv::resize(grey, shrunk, cv::Size(size.x, size.y), 0, 0, cv::INTER_AREA);
+        grey = shrunk;
+    }
     cv::Mat lap;
     cv::Laplacian(grey, lap, CV_64F);
     cv::Scalar mean, stddev;

@@ -195,7 +195,7 @@ std::vector<Posed> keyframesOf(const std::vector<Posed>& posed, const TraverseDa
     }
     const KeyframeSelection kept = selectKeyframes(candidates, o, [&](std::size_t c) {
         std::string problem;
-        return ceilingQuality(*d.ceiling[posed[c].frame], nullptr, problem);
+        return ceilingQuality(*d.ceiling[posed[c].frame], nullptr, o.ceiling_max_width_px, problem);
     });
     std::vector<Posed> out;
     for (std::size_t k = 0; k < kept.kept.size(); ++k) {

@@ -95,7 +95,8 @@ std::string pixelProblem(const mrpt::obs::CObservationImage& obs, const cv::Mat&
 }  // namespace
 
 ImageQuality ceilingQuality(const mrpt::obs::CObservationImage& obs,
-                            const mrpt::img::TCamera* expected, std::string& problem) {
+                            const mrpt::img::TCamera* expected, int max_width_px,
+                            std::string& problem) {
     cv::Mat m;
     try {
         m = loadPixels(obs, cv::IMREAD_UNCHANGED);
@@ -109,7 +110,7 @@ ImageQuality ceilingQuality(const mrpt::obs::CObservationImage& obs,
         return q;
     }
     if (m.channels() != 1 && m.channels() != 3) m = loadPixels(obs, cv::IMREAD_GRAYSCALE);
-    return measureImageQuality(m);
+    return measureImageQuality(m, max_width_px);
 }
 
 namespace {
@@ -629,8 +630,8 @@ KeyframeSelection selectReferences(const TraverseData& d, const PosedFrames& fra
     return selectKeyframes(frames.candidates, o, [&](std::size_t c) {
         const auto& image = *d.ceiling[frames.frame_of[c]];
         std::string problem;
-        const auto q =
-            ceilingQuality(image, cameras.ceiling ? &*cameras.ceiling : nullptr, problem);
+        const auto q = ceilingQuality(image, cameras.ceiling ? &*cameras.ceiling : nullptr,
+                                      o.ceiling_max_width_px, problem);
         if (!problem.empty() && rep.first_image_problem.empty()) rep.first_image_problem = problem;
         if (q.usable && !cameras.ceiling) cameras.ceiling = image.cameraParams;
         return q;

@@ -17,13 +17,16 @@ struct ImageQuality {
     bool usable = true;           ///< false: unreadable, empty or of the wrong size
 };
 
-/// Measures a grey or colour 8-bit image (colour is converted to grey first).
-ImageQuality measureImageQuality(const cv::Mat& image);
+/// Measures a grey or colour 8-bit image (colour is converted to grey first), averaged down to
+/// `max_width_px` first when wider (0: as it is), as the database stores ceiling images.
+ImageQuality measureImageQuality(const cv::Mat& image, int max_width_px = 0);
 
 /// Quality of a candidate ceiling image (its pixels loaded from the rawlog or its external
 /// file); not usable, with `problem` naming the image and the reason, when it is unreadable,
-/// not 8-bit, or not the size its intrinsics (and `expected`, when given) say.
+/// not 8-bit, or not the size its intrinsics (and `expected`, when given) say. Measured at
+/// `max_width_px` as measureImageQuality.
 ImageQuality ceilingQuality(const mrpt::obs::CObservationImage& obs,
-                            const mrpt::img::TCamera* expected, std::string& problem);
+                            const mrpt::img::TCamera* expected, int max_width_px,
+                            std::string& problem);
 
 }  // namespace lookup::survey

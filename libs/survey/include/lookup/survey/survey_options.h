@@ -38,10 +38,10 @@ struct SurveyOptions : public common::TableOptions<SurveyOptions> {
 
     // --- keyframes (paper Sec. III-A: references sampled along the survey) ---------------
     double keyframe_spacing_m = 0.25;    ///< travel between kept references [m]
-    double min_sharpness = 30.0;         ///< min variance of Laplacian [grey^2]; below = blurred
-    double min_mean_intensity = 25.0;    ///< darker mean grey level = under-exposed [0..255]
-    double max_mean_intensity = 230.0;   ///< brighter mean grey level = over-exposed [0..255]
-    double max_clipped_fraction = 0.25;  ///< max share of pixels at <=2 or >=253 [0..1]
+    double min_sharpness = 10.0;         ///< min variance of Laplacian [grey^2]; below = blurred
+    double min_mean_intensity = 3.0;     ///< darker mean grey level = no light [0..255]
+    double max_mean_intensity = 250.0;   ///< brighter mean grey level = washed out [0..255]
+    double max_clipped_fraction = 0.95;  ///< max share of pixels at <=2 or >=253 [0..1]
     /// Ceiling images are stored (and so matched) averaged down to at most this width, their
     /// intrinsics scaled with them: the matcher's pixel settings hold for any camera, and a
     /// finer image costs time without a finer fix (docs/benchmarks.md, "Camera resolution")
