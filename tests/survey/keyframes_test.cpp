@@ -4,6 +4,7 @@
 
 #include "lookup/survey/image_quality.h"
 #include "lookup/survey/keyframes.h"
+#include "lookup/survey/survey.h"
 #include "survey_fixture.h"
 
 using namespace lookup::survey;
@@ -91,4 +92,25 @@ TEST(Keyframes, TheDefaultsKeepADimOrHalfSaturatedCameraAndSkipFramesWithNothing
     EXPECT_EQ(sel.kept, (std::vector<std::size_t>{0, 1, 2}));
     EXPECT_EQ(sel.rejected_exposure, 2u);
     EXPECT_EQ(sel.rejected_blur, 1u);
+}
+
+TEST(ImageQuality, ATraverseOfDimOrSaturatedReferencesIsSaidOnce) {
+    const SurveyOptions o;
+    auto warningsFor = [&](std::vector<ImageQuality> refs) {
+        TraverseReport r;
+        r.references = refs.size();
+        r.ceiling_images = medianQuality(refs);
+        return traverseWarnings(r, "left.rawlog", o);
+    };
+    // Medians, not means: one lamp-lit frame does not hide a dim traverse.
+    const auto dim = warningsFor({{40, 6, 0.2}, {45, 8, 0.1}, {300, 120, 0.0}});
+    ASSERT_EQ(dim.size(), 1u);
+    EXPECT_NE(dim[0].find("left.rawlog: the ceiling images are dim"), std::string::npos) << dim[0];
+    EXPECT_NE(dim[0].find("mean grey 8.0"), std::string::npos) << dim[0];
+    const auto saturated = warningsFor({{900, 200, 0.6}, {900, 190, 0.55}, {500, 60, 0.0}});
+    ASSERT_EQ(saturated.size(), 1u);
+    EXPECT_NE(saturated[0].find("saturated"), std::string::npos) << saturated[0];
+    EXPECT_NE(saturated[0].find("55 % of pixels clipped"), std::string::npos) << saturated[0];
+    EXPECT_TRUE(warningsFor({{500, 60, 0.0}, {400, 70, 0.02}}).empty());
+    EXPECT_TRUE(warningsFor({}).empty());  // no references: said elsewhere
 }

@@ -1,5 +1,6 @@
 #include "lookup/survey/image_quality.h"
 
+#include <algorithm>
 #include <opencv2/imgproc.hpp>
 
 #include "lookup/common/camera_params.h"
@@ -28,6 +29,21 @@ ImageQuality measureImageQuality(const cv::Mat& image, int max_width_px) {
     const double clipped = cv::countNonZero(grey <= 2) + cv::countNonZero(grey >= 253);
     q.clipped_fraction = clipped / static_cast<double>(grey.total());
     return q;
+}
+
+ImageQuality medianQuality(const std::vector<ImageQuality>& images) {
+    ImageQuality m;
+    if (images.empty()) return m;
+    auto median = [&](double ImageQuality::*field) {
+        std::vector<double> v;
+        for (const auto& q : images) v.push_back(q.*field);
+        std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+        return v[v.size() / 2];
+    };
+    m.sharpness = median(&ImageQuality::sharpness);
+    m.mean_intensity = median(&ImageQuality::mean_intensity);
+    m.clipped_fraction = median(&ImageQuality::clipped_fraction);
+    return m;
 }
 
 }  // namespace lookup::survey

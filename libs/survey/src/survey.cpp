@@ -1,5 +1,6 @@
 #include "lookup/survey/survey.h"
 
+#include <mrpt/core/format.h>
 #include <mrpt/obs/CObservationImage.h>
 #include <mrpt/system/CTicTac.h>
 #include <mrpt/system/progress.h>
@@ -137,9 +138,11 @@ class ProgressBar {
     std::string stage_;
 };
 
-// One warning line per kind of refused input of a traverse.
-void addWarnings(const TraverseReport& r, const std::string& rawlog,
-                 std::vector<std::string>& out) {
+}  // namespace
+
+std::vector<std::string> traverseWarnings(const TraverseReport& r, const std::string& rawlog,
+                                          const SurveyOptions& o) {
+    std::vector<std::string> out;
     const auto& k = r.skipped;
     if (k.lidar_ranges + k.records() > 0) {
         out.push_back(rawlog + ": refused " + std::to_string(k.lidar_ranges) +
@@ -162,7 +165,24 @@ void addWarnings(const TraverseReport& r, const std::string& rawlog,
                       std::to_string(r.rejected_forward) +
                       " forward images (first: " + r.first_image_problem + ")");
     }
+    const ImageQuality& q = r.ceiling_images;
+    if (r.references > 0 && (q.mean_intensity < o.warn_dim_mean_intensity ||
+                             q.clipped_fraction > o.warn_clipped_fraction)) {
+        out.push_back(
+            rawlog +
+            mrpt::format(": the ceiling images are %s (median over the "
+                         "references: mean grey %.1f, %.0f %% of pixels "
+                         "clipped; [survey] warn_dim_mean_intensity, "
+                         "warn_clipped_fraction): ",
+                         q.mean_intensity < o.warn_dim_mean_intensity ? "dim" : "saturated",
+                         q.mean_intensity, 100 * q.clipped_fraction) +
+            "they localise, but the first fix may wait and fewer frames refine; "
+            "set the lamps and exposure as docs/vehicle.md says");
+    }
+    return out;
 }
+
+namespace {
 
 struct TraverseStart {
     std::string source;         ///< "map origin", "ground truth" or "scan match"
@@ -232,6 +252,9 @@ nlohmann::ordered_json traverseJson(const TraverseReport& t) {
                       {"rejected_audit", t.rejected_audit},
                       {"without_forward", t.without_forward},
                       {"scans_deskewed", t.scans_deskewed}};
+    j["ceiling_images"] = {{"median_mean_grey", t.ceiling_images.mean_intensity},
+                           {"median_clipped_share", t.ceiling_images.clipped_fraction},
+                           {"median_sharpness", t.ceiling_images.sharpness}};
     j["skipped"] = {{"lidar_ranges", t.skipped.lidar_ranges},
                     {"scans", t.skipped.scans},
                     {"odometry", t.skipped.odometry},
@@ -802,6 +825,7 @@ TraverseReport addTraverse(const TraverseSpec& spec, const TraverseData& d, cons
     rep.levelling = d.levelling;
     rep.rejected_blur = selection.rejected_blur;
     rep.rejected_exposure = selection.rejected_exposure;
+    rep.ceiling_images = medianQuality(selection.kept_quality);
     const ReferenceErrors errors =
         writeReferences(spec, d, poses, frames, selection, gt, o, cameras, writer, rep);
     rep.references = selection.kept.size();
@@ -1082,7 +1106,8 @@ SurveyResult Survey::run(const SurveyInputs& in) const {
                 in.traverses[i], survey.data[i], poses.tracks[i], survey.gt[i], poses.starts[i],
                 poses.localisation_time_s[i], result.time_offsets.front().applied_sigma_s,
                 result.pose_audit, options_, track_name, cameras, writer);
-            addWarnings(rep, survey.data[i].rawlog, result.warnings);
+            for (auto& w : traverseWarnings(rep, survey.data[i].rawlog, options_))
+                result.warnings.push_back(std::move(w));
             result.traverses.push_back(std::move(rep));
         }
         if (cameras.ceiling) info.ceiling_camera = *cameras.ceiling;

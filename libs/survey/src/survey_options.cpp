@@ -31,6 +31,8 @@ void SurveyOptions::declareKeys(common::OptionsTable& t) {
     t.add("min_mean_intensity", min_mean_intensity);
     t.add("max_mean_intensity", max_mean_intensity);
     t.add("max_clipped_fraction", max_clipped_fraction, 0.0, 1.0);
+    t.add("warn_dim_mean_intensity", warn_dim_mean_intensity, 0.0, 255.0);
+    t.add("warn_clipped_fraction", warn_clipped_fraction, 0.0, 1.0);
     t.add("ceiling_max_width_px", ceiling_max_width_px, 0, 100000);
     t.add("forward_max_dt_s", forward_max_dt_s, common::kPositive);
     t.add("max_pose_gap_s", max_pose_gap_s, common::kPositive);

@@ -7,6 +7,7 @@
 
 #include <opencv2/core/mat.hpp>
 #include <string>
+#include <vector>
 
 namespace lookup::survey {
 
@@ -20,6 +21,9 @@ struct ImageQuality {
 /// Measures a grey or colour 8-bit image (colour is converted to grey first), averaged down to
 /// `max_width_px` first when wider (0: as it is), as the database stores ceiling images.
 ImageQuality measureImageQuality(const cv::Mat& image, int max_width_px = 0);
+
+/// Median of each measure over `images` (all zero when empty).
+ImageQuality medianQuality(const std::vector<ImageQuality>& images);
 
 /// Quality of a candidate ceiling image (its pixels loaded from the rawlog or its external
 /// file); not usable, with `problem` naming the image and the reason, when it is unreadable,

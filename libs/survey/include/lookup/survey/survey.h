@@ -11,6 +11,7 @@
 
 #include "lookup/common/config.h"
 #include "lookup/survey/ceiling_distance.h"
+#include "lookup/survey/image_quality.h"
 #include "lookup/survey/laser_poses.h"
 #include "lookup/survey/lidar_sweep.h"
 #include "lookup/survey/pose_audit.h"
@@ -78,6 +79,7 @@ struct TraverseReport {
     std::size_t scans_deskewed = 0;    ///< lidar scans redrawn for the motion over their sweep
     LevellingReport levelling;         ///< odometry and scans projected onto the horizontal
     std::string first_image_problem;   ///< the first refused image: file and reason
+    ImageQuality ceiling_images;       ///< medians over the references' ceiling images
     double localisation_time_s = 0;    ///< MCL (or ICP-SLAM) wall time for this traverse
     std::string start_source;          ///< "map origin", "ground truth" or "scan match"
     mrpt::poses::CPose2D start;        ///< first scan's pose in the map frame
@@ -86,6 +88,11 @@ struct TraverseReport {
     PoseErrorStats error;                ///< over the references (when ground truth)
     std::vector<SegmentError> segments;  ///< error per 10 m of travel (when ground truth)
 };
+
+/// One warning line per kind of refused input of a traverse, and one where its references'
+/// ceiling images are dim or saturated enough to cost fixes (`o.warn_*`).
+std::vector<std::string> traverseWarnings(const TraverseReport& r, const std::string& rawlog,
+                                          const SurveyOptions& o);
 
 enum class SurveyStatus { Ok, Failed };
 

@@ -42,6 +42,11 @@ struct SurveyOptions : public common::TableOptions<SurveyOptions> {
     double min_mean_intensity = 3.0;     ///< darker mean grey level = no light [0..255]
     double max_mean_intensity = 250.0;   ///< brighter mean grey level = washed out [0..255]
     double max_clipped_fraction = 0.95;  ///< max share of pixels at <=2 or >=253 [0..1]
+    /// A traverse whose references' median mean grey level is below this, or whose median
+    /// clipped share is above that, is said as a warning: the camera localises, but dim images
+    /// delay the first fix and saturated ones lose refined frames (docs/vehicle.md).
+    double warn_dim_mean_intensity = 10.0;
+    double warn_clipped_fraction = 0.5;
     /// Ceiling images are stored (and so matched) averaged down to at most this width, their
     /// intrinsics scaled with them: the matcher's pixel settings hold for any camera, and a
     /// finer image costs time without a finer fix (docs/benchmarks.md, "Camera resolution")
