@@ -166,18 +166,16 @@ std::vector<std::string> traverseWarnings(const TraverseReport& r, const std::st
                       " forward images (first: " + r.first_image_problem + ")");
     }
     const ImageQuality& q = r.ceiling_images;
-    if (r.references > 0 && (q.mean_intensity < o.warn_dim_mean_intensity ||
-                             q.clipped_fraction > o.warn_clipped_fraction)) {
-        out.push_back(
-            rawlog +
-            mrpt::format(": the ceiling images are %s (median over the "
-                         "references: mean grey %.1f, %.0f %% of pixels "
-                         "clipped; [survey] warn_dim_mean_intensity, "
-                         "warn_clipped_fraction): ",
-                         q.mean_intensity < o.warn_dim_mean_intensity ? "dim" : "saturated",
-                         q.mean_intensity, 100 * q.clipped_fraction) +
-            "they localise, but the first fix may wait and fewer frames refine; "
-            "set the lamps and exposure as docs/vehicle.md says");
+    const bool dim = q.mean_intensity < o.warn_dim_mean_intensity;
+    if (r.references > 0 && (dim || q.clipped_fraction > o.warn_clipped_fraction)) {
+        out.push_back(rawlog + mrpt::format(": the ceiling images are %s (median over the "
+                                            "references: mean grey %.1f, %.0f %% of pixels "
+                                            "clipped; [survey] warn_dim_mean_intensity, "
+                                            "warn_clipped_fraction): they localise, but the "
+                                            "first fix may wait and fewer frames refine; set "
+                                            "the lamps and exposure as docs/vehicle.md says",
+                                            dim ? "dim" : "saturated", q.mean_intensity,
+                                            100 * q.clipped_fraction));
     }
     return out;
 }
