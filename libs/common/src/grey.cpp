@@ -5,6 +5,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "lookup/common/camera_params.h"
+
 namespace lookup::common {
 
 cv::Mat greyOf(const cv::Mat& image) {
@@ -24,6 +26,14 @@ cv::Mat greyOf(const cv::Mat& image) {
                                         " channels is neither grey, BGR nor BGRA");
     }
     return grey;
+}
+
+cv::Mat averagedDownTo(const cv::Mat& image, int max_width) {
+    const auto size = cappedSize(image.cols, image.rows, max_width);
+    if (size.x == image.cols) return image;
+    cv::Mat shrunk;
+    cv::resize(image, shrunk, cv::Size(size.x, size.y), 0, 0, cv::INTER_AREA);
+    return shrunk;
 }
 
 }  // namespace lookup::common

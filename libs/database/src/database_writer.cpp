@@ -76,15 +76,11 @@ mrpt::obs::CObservationImage::Ptr storedCopy(const mrpt::obs::CObservationImage&
     out->timestamp = src.timestamp;
     out->cameraPose = src.cameraPose;
     out->cameraParams = src.cameraParams;
-    const auto size = common::cappedSize(grey.cols, grey.rows, max_width);
-    if (size.x != grey.cols) {
-        cv::Mat shrunk;
-        cv::resize(grey, shrunk, cv::Size(size.x, size.y), 0, 0, cv::INTER_AREA);
-        grey = shrunk;
-        if (src.cameraParams.ncols > 0) {
-            out->cameraParams = common::resizedCamera(src.cameraParams, size.x, size.y);
-        }
+    const cv::Mat stored = common::averagedDownTo(grey, max_width);
+    if (stored.cols != grey.cols && src.cameraParams.ncols > 0) {
+        out->cameraParams = common::resizedCamera(src.cameraParams, stored.cols, stored.rows);
     }
+    grey = stored;
     std::vector<uchar> pgm;
     if (!cv::imencode(".pgm", grey, pgm)) throw common::WriteError(target, "cannot encode image");
     std::ofstream file(target, std::ios::binary);

@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <opencv2/imgproc.hpp>
 
-#include "lookup/common/camera_params.h"
 #include "lookup/common/grey.h"
 
 namespace lookup::survey {
@@ -11,15 +10,9 @@ namespace lookup::survey {
 ImageQuality measureImageQuality(const cv::Mat& image, int max_width_px) {
     ImageQuality q;
     if (image.empty()) return q;
-    cv::Mat grey = common::greyOf(image);
     // Judged as the database stores it and the matcher sees it: the variance of the Laplacian
     // of one scene falls as the resolution grows, so a camera's pixel count must not decide.
-    const auto size = common::cappedSize(grey.cols, grey.rows, max_width_px);
-    if (size.x != grey.cols) {
-        cv::Mat shrunk;
-        cv::resize(grey, shrunk, cv::Size(size.x, size.y), 0, 0, cv::INTER_AREA);
-        grey = shrunk;
-    }
+    const cv::Mat grey = common::averagedDownTo(common::greyOf(image), max_width_px);
     cv::Mat lap;
     cv::Laplacian(grey, lap, CV_64F);
     cv::Scalar mean, stddev;

@@ -11,4 +11,8 @@ namespace lookup::common {
 /// Throws std::invalid_argument for another number of channels.
 cv::Mat greyOf(const cv::Mat& image);
 
+/// `image` averaged down (cv::INTER_AREA) to `max_width` columns, its aspect kept (cappedSize),
+/// as the database stores ceiling images; `image` itself when no wider or `max_width` <= 0.
+cv::Mat averagedDownTo(const cv::Mat& image, int max_width);
+
 }  // namespace lookup::common
