@@ -1,3 +1,6 @@
+#include <zlib.h>
+
+#include <cstring>
 #include <fstream>
 #include <functional>
 
@@ -99,6 +102,41 @@ TEST(PlaceIndex, FindsThePlaceUnderOtherLightOnTheIlluminationFreeImage) {
     EXPECT_GT(right, right_raw) << "raw image: " << right_raw << " of " << tried;
 }
 
+// The query from a camera under a lamp 16 times dimmer: a sixteenth of the light, the same
+// read noise.
+cv::Mat underADimLamp(const cv::Mat& image) {
+    cv::Mat light, noise(image.size(), CV_32F), out;
+    image.convertTo(light, CV_32F, 1.0 / 16);
+    cv::RNG(7).fill(noise, cv::RNG::NORMAL, 0, 1.2);
+    cv::Mat(light + noise).convertTo(out, CV_8U);
+    return out;
+}
+
+TEST(PlaceIndex, FindsThePlaceInADimNoisyImageSmoothedBeforeDetection) {
+    const auto dir = lookup::test::freshDir("lookup_localize_place_dim");
+    const auto scene = sceneWithDatabase(dir);
+    const auto db = database::ReferenceDatabase::load((dir / "db").string());
+    place::PlaceIndexOptions unsmoothed;
+    unsmoothed.noisy_texture_to_noise = 0;
+    const auto smoothed = place::PlaceIndex::build(db, place::PlaceIndexOptions());
+    const auto as_before = place::PlaceIndex::build(db, unsmoothed);
+    const auto countRight = [&](const place::PlaceIndex& index) {
+        int right = 0;
+        for (double x = -7; x <= 7; x += 1.0) {
+            for (double yaw_deg : {0.0, 90.0, 180.0}) {
+                const CPose3D vehicle(x, 0.2, 0, mrpt::DEG2RAD(yaw_deg), 0, 0);
+                const auto r = locate(index, db, scene, vehicle, underADimLamp);
+                if (r.found && r.error_m < 0.15) ++right;
+            }
+        }
+        return right;
+    };
+    const int tried = 15 * 3;
+    const int right = countRight(smoothed), right_before = countRight(as_before);
+    EXPECT_GE(right, tried * 9 / 10) << right << " of " << tried;
+    EXPECT_GT(right, right_before) << "unsmoothed: " << right_before << " of " << tried;
+}
+
 TEST(PlaceIndex, NoCandidateOnAnImageWithoutTexture) {
     const auto dir = lookup::test::freshDir("lookup_localize_place_flat");
     sceneWithDatabase(dir);
@@ -151,6 +189,40 @@ TEST(PlaceIndex, DamagedForeignOrMissingIndexFilesAreRefusedNamingTheFile) {
     const auto other = database::ReferenceDatabase::load((dir / "other").string());
     const std::string e = errorOf(good, other);
     EXPECT_NE(e.find("another database"), std::string::npos) << e;
+}
+
+// `bytes` of an index file with its format version replaced and its CRC-32 made right again.
+std::string withFormatVersion(std::string bytes, std::uint32_t version) {
+    std::memcpy(&bytes[8], &version, sizeof version);  // after the 8-byte magic
+    const std::size_t payload = bytes.size() - 4;
+    const auto crc = static_cast<std::uint32_t>(
+        crc32(0L, reinterpret_cast<const Bytef*>(bytes.data()), static_cast<uInt>(payload)));
+    std::memcpy(&bytes[payload], &crc, sizeof crc);
+    return bytes;
+}
+
+TEST(PlaceIndex, AnIndexOfAnEarlierFormatIsQueriedAsItWasBuilt) {
+    const auto dir = lookup::test::freshDir("lookup_localize_place_format");
+    sceneWithDatabase(dir);
+    const auto db = database::ReferenceDatabase::load((dir / "db").string());
+    const std::string file = (dir / "db" / place::kPlaceIndexFile).string();
+    std::ifstream in(file, std::ios::binary);
+    const std::string bytes((std::istreambuf_iterator<char>(in)), {});
+    const auto load = [&](std::uint32_t version) {
+        const std::string copy = (dir / ("v" + std::to_string(version) + ".bin")).string();
+        std::ofstream(copy, std::ios::binary) << withFormatVersion(bytes, version);
+        return place::PlaceIndex::load(copy, db, place::PlaceIndexOptions());
+    };
+    // Format 2 detected every image without smoothing a noisy one: its queries must too.
+    EXPECT_EQ(load(2).options().noisy_texture_to_noise, 0.0);
+    EXPECT_GT(load(3).options().noisy_texture_to_noise, 0.0);
+    EXPECT_EQ(load(1).options().illumination_sigma_px, 0.0);
+    try {
+        load(4);
+        ADD_FAILURE() << "a newer format was read";
+    } catch (const place::PlaceIndexError& e) {
+        EXPECT_NE(std::string(e.what()).find("format version 4"), std::string::npos) << e.what();
+    }
 }
 
 TEST(PlaceIndex, BuildingTheIndexLeavesTheReferencesUntouched) {

@@ -2,6 +2,7 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include <cmath>
 #include <stdexcept>
 #include <string>
 
@@ -34,6 +35,15 @@ cv::Mat averagedDownTo(const cv::Mat& image, int max_width) {
     cv::Mat shrunk;
     cv::resize(image, shrunk, cv::Size(size.x, size.y), 0, 0, cv::INTER_AREA);
     return shrunk;
+}
+
+double noiseSigma(const cv::Mat& image) {
+    if (image.rows < 3 || image.cols < 3) return 0.0;
+    const cv::Matx33f mask(1, -2, 1, -2, 4, -2, 1, -2, 1);
+    cv::Mat response;
+    cv::filter2D(image, response, CV_32F, mask);
+    const cv::Mat inner = response(cv::Rect(1, 1, image.cols - 2, image.rows - 2));
+    return std::sqrt(CV_PI / 2.0) / 6.0 * cv::mean(cv::abs(inner))[0];
 }
 
 }  // namespace lookup::common

@@ -8,7 +8,9 @@
 #include <opencv2/calib3d.hpp>
 #include <opencv2/features2d.hpp>
 #include <opencv2/flann.hpp>
+#include <opencv2/imgproc.hpp>
 
+#include "lookup/common/grey.h"
 #include "lookup/database/reference_database.h"
 #include "lookup/refine/rectifier.h"
 #include "lookup/refine/types.h"
@@ -43,18 +45,35 @@ cv::Ptr<cv::Feature2D> makeDetector(FeatureType type, int n) {
     return {};
 }
 
-void detect(const cv::Mat& grey, FeatureType type, int n, double illumination_sigma_px,
+cv::Mat detectionImage(const cv::Mat& grey, const PlaceIndexOptions& o) {
+    // The ceiling's texture without the light on it, at one contrast: lamps switched off, the
+    // vehicle's own light cone and another camera's exposure move the corners and their
+    // strengths, not the rock (docs/benchmarks.md, "Place index on the ceiling's texture").
+    if (o.illumination_sigma_px <= 0) return grey;
+    const cv::Mat texture = refine::removeIllumination(grey, o.illumination_sigma_px);
+    cv::Scalar mean, stddev;
+    cv::meanStdDev(texture, mean, stddev);
+    if (stddev[0] >= o.noisy_texture_to_noise * common::noiseSigma(grey)) {
+        return refine::stretchContrast(texture);
+    }
+    // A dim camera: at the matcher's gain its texture stays below the detector's threshold, at
+    // a higher gain the noise would make the corners; smoothed first, the rock's corners stand
+    // out (docs/benchmarks.md, "The place index in the dark"). In floating point: stretched
+    // that far, the grey levels of an 8-bit illumination would draw their steps as edges.
+    cv::Mat smooth;
+    grey.convertTo(smooth, CV_32F);
+    cv::GaussianBlur(smooth, smooth, cv::Size(), o.noisy_blur_sigma_px);
+    return refine::stretchContrast(refine::removeIllumination(smooth, o.illumination_sigma_px),
+                                   o.noisy_max_gain);
+}
+
+void detect(const cv::Mat& grey, const PlaceIndexOptions& o, int n,
             std::vector<cv::KeyPoint>& keypoints, cv::Mat& descriptors) {
     keypoints.clear();
     descriptors.release();
     if (grey.empty()) return;
-    // The ceiling's texture without the light on it, at one contrast: lamps switched off, the
-    // vehicle's own light cone and another camera's exposure move the corners and their
-    // strengths, not the rock (docs/benchmarks.md, "Place index on the ceiling's texture").
-    const cv::Mat image =
-        illumination_sigma_px > 0
-            ? refine::ImagePyramid::build(grey, 0, true, illumination_sigma_px).levels.front()
-            : grey;
+    const FeatureType type = o.features;
+    const cv::Mat image = detectionImage(grey, o);
     auto detector = makeDetector(type, n);
     detector->detect(image, keypoints);
     // AKAZE has no feature budget: keep the strongest n, as ORB and SIFT do.
@@ -132,8 +151,7 @@ PlaceIndex PlaceIndex::build(const database::ReferenceDatabase& db, const PlaceI
         cv::Mat descriptors;
         const cv::Mat image =
             rectifier.rectify(db.ceilingImage(chosen[k]), db.reference(chosen[k]).ceiling_camera);
-        detail::detect(image, o.features, o.features_per_reference, o.illumination_sigma_px,
-                       keypoints, descriptors);
+        detail::detect(image, o, o.features_per_reference, keypoints, descriptors);
         for (const auto& kp : keypoints) {
             impl.features.push_back({static_cast<std::uint32_t>(chosen[k]), kp.pt.x, kp.pt.y});
         }
@@ -154,8 +172,7 @@ std::vector<PlaceCandidate> PlaceIndex::query(const cv::Mat& grey, PlaceQueryTim
     mrpt::system::CTicTac timer;
     std::vector<cv::KeyPoint> keypoints;
     cv::Mat descriptors;
-    detail::detect(grey, o.features, o.query_features, o.illumination_sigma_px, keypoints,
-                   descriptors);
+    detail::detect(grey, o, o.query_features, keypoints, descriptors);
     t.query_features = static_cast<int>(keypoints.size());
     t.features_ms = 1e3 * timer.Tac();
     if (keypoints.empty() || !detail::hasSearch(impl)) return {};

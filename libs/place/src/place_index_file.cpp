@@ -17,9 +17,9 @@ namespace lookup::place {
 namespace {
 
 constexpr char kMagic[8] = {'L', 'K', 'U', 'P', 'P', 'L', 'C', 'E'};
-// 2: features detected on the illumination-free image (illumination_sigma_px); format 1
-// files are still read, as built on the raw image.
-constexpr std::uint32_t kFormatVersion = 2;
+// 2: features detected on the illumination-free image (illumination_sigma_px); 3: a noisy
+// image smoothed first (noisy_*). Older files are still read, as they were built.
+constexpr std::uint32_t kFormatVersion = 3;
 
 class Writer {
   public:
@@ -136,7 +136,7 @@ PlaceIndex PlaceIndex::load(const std::string& path, const database::ReferenceDa
     char magic[sizeof kMagic];
     r.getBytes(magic, sizeof magic);
     const auto version = r.get<std::uint32_t>();
-    if (version != kFormatVersion && version != 1) {
+    if (version < 1 || version > kFormatVersion) {
         r.fail("format version " + std::to_string(version) + ", this program reads 1 to " +
                std::to_string(kFormatVersion));
     }
@@ -159,6 +159,9 @@ PlaceIndex PlaceIndex::load(const std::string& path, const database::ReferenceDa
     impl.options.features_per_reference = built.features_per_reference;
     impl.options.reference_spacing_m = built.reference_spacing_m;
     impl.options.illumination_sigma_px = version == 1 ? 0.0 : built.illumination_sigma_px;
+    impl.options.noisy_texture_to_noise = version < 3 ? 0.0 : built.noisy_texture_to_noise;
+    impl.options.noisy_blur_sigma_px = built.noisy_blur_sigma_px;
+    impl.options.noisy_max_gain = built.noisy_max_gain;
     const auto n = r.get<std::uint64_t>();
     const auto cols = r.get<std::int32_t>();
     const auto type = r.get<std::int32_t>();

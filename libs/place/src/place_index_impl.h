@@ -35,9 +35,11 @@ struct Votes {
     std::map<std::uint32_t, std::vector<std::pair<cv::Point2f, cv::Point2f>>> by_reference;
 };
 
-/// The strongest `n` features of `grey`, after the illumination is removed at
-/// `illumination_sigma_px` (0: the image as it is), as index and query both detect them.
-void detect(const cv::Mat& grey, FeatureType type, int n, double illumination_sigma_px,
+/// What features are detected on: `grey` without its illumination at `illumination_sigma_px`
+/// (0: the image as it is), contrast stretched; a noisy one smoothed first (`noisy_*`).
+cv::Mat detectionImage(const cv::Mat& grey, const PlaceIndexOptions& o);
+/// The strongest `n` features of detectionImage(grey, o), as index and query both detect them.
+void detect(const cv::Mat& grey, const PlaceIndexOptions& o, int n,
             std::vector<cv::KeyPoint>& keypoints, cv::Mat& descriptors);
 bool isBinary(FeatureType type);
 void buildSearch(Impl& impl);

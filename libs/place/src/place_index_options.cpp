@@ -11,6 +11,9 @@ void PlaceIndexOptions::declareKeys(common::OptionsTable& t) {
     t.add("features_per_reference", features_per_reference, 10, 100000);
     t.add("reference_spacing_m", reference_spacing_m, 0, 1000);
     t.add("illumination_sigma_px", illumination_sigma_px, 0, 1000);
+    t.add("noisy_texture_to_noise", noisy_texture_to_noise, 0, 1000);
+    t.add("noisy_blur_sigma_px", noisy_blur_sigma_px, 0, 100);
+    t.add("noisy_max_gain", noisy_max_gain, 1, 10000);
     t.add("query_features", query_features, 10, 100000);
     t.add("neighbours", neighbours, 1, 16);
     t.add("max_descriptor_distance", max_descriptor_distance, 1, 4096);

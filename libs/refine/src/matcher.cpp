@@ -22,12 +22,11 @@ const char* toString(MatchStatus s) {
     }
 }
 
-namespace {
-
-/// `grey` - Gaussian(grey, sigma), as CV_16S. The blur runs on a pyrDown'ed copy (the
-/// illumination is smooth) and is upsampled bilinearly: 0.2 ms instead of 0.7 ms for a full
-/// resolution float blur of a 320 x 240 image at sigma 8.
-cv::Mat subtractIllumination(const cv::Mat& grey, double sigma) {
+cv::Mat removeIllumination(const cv::Mat& grey, double sigma) {
+    if (sigma <= 0.0) return grey;
+    // The blur runs on a pyrDown'ed copy (the illumination is smooth) and is upsampled
+    // bilinearly: 0.2 ms instead of 0.7 ms for a full resolution float blur of a 320 x 240
+    // image at sigma 8.
     cv::Mat small = grey;
     double small_sigma = sigma;
     while (small_sigma >= 4.0 && small.cols >= 16 && small.rows >= 16) {
@@ -39,11 +38,18 @@ cv::Mat subtractIllumination(const cv::Mat& grey, double sigma) {
     cv::Mat blurred, illumination, out;
     cv::GaussianBlur(small, blurred, cv::Size(0, 0), small_sigma);
     cv::resize(blurred, illumination, grey.size(), 0, 0, cv::INTER_LINEAR);
-    cv::subtract(grey, illumination, out, cv::noArray(), CV_16S);
+    cv::subtract(grey, illumination, out, cv::noArray(), grey.depth() == CV_32F ? CV_32F : CV_16S);
     return out;
 }
 
-}  // namespace
+cv::Mat stretchContrast(const cv::Mat& texture, double max_gain) {
+    cv::Scalar mean, stddev;
+    cv::meanStdDev(texture, mean, stddev);
+    const double gain = stddev[0] > 0.0 ? std::min(48.0 / stddev[0], max_gain) : 1.0;
+    cv::Mat stretched;
+    texture.convertTo(stretched, CV_8U, gain, 128.0 - gain * mean[0]);
+    return stretched;
+}
 
 ImagePyramid ImagePyramid::build(const cv::Mat& image, int extra_levels,
                                  const MatcherOptions& matcher) {
@@ -62,19 +68,11 @@ ImagePyramid ImagePyramid::build(const cv::Mat& image, int extra_levels, bool no
     } else {
         CV_Error(cv::Error::StsUnsupportedFormat, "ImagePyramid: image must be CV_8UC1 or CV_8UC3");
     }
-    cv::Mat source = grey;  // CV_8U, or CV_16S with the illumination removed
-    if (illumination_sigma_px > 0.0) {
-        source = subtractIllumination(grey, illumination_sigma_px);
-        p.illumination_sigma_px = illumination_sigma_px;
-    }
+    // CV_8U, or CV_16S with the illumination removed
+    const cv::Mat source = removeIllumination(grey, illumination_sigma_px);
+    p.illumination_sigma_px = std::max(0.0, illumination_sigma_px);
     if (normalize) {
-        cv::Scalar mean, stddev;
-        cv::meanStdDev(source, mean, stddev);
-        // Capped gain: a flat, noisy image must not be stretched into fake texture.
-        const double gain = stddev[0] > 0.0 ? std::min(48.0 / stddev[0], 4.0) : 1.0;
-        cv::Mat stretched;
-        source.convertTo(stretched, CV_8U, gain, 128.0 - gain * mean[0]);
-        grey = stretched;
+        grey = stretchContrast(source);
         p.normalized = true;
     } else if (source.type() != CV_8U) {
         source.convertTo(grey, CV_8U, 1.0, 128.0);  // the texture around mid-grey

@@ -15,4 +15,9 @@ cv::Mat greyOf(const cv::Mat& image);
 /// as the database stores ceiling images; `image` itself when no wider or `max_width` <= 0.
 cv::Mat averagedDownTo(const cv::Mat& image, int max_width);
 
+/// The standard deviation of `image`'s pixel noise (one channel, any depth), estimated from
+/// the response to a Laplacian-difference mask that texture smoother than a pixel barely excites
+/// (Immerkaer, "Fast noise variance estimation", 1996): sharp texture adds to it.
+double noiseSigma(const cv::Mat& image);
+
 }  // namespace lookup::common

@@ -55,6 +55,13 @@ struct PlaceIndexOptions : public common::TableOptions<PlaceIndexOptions> {
     /// scale [px of the database's camera] and its contrast normalised, as the SAD matcher
     /// sees it (0: on the raw image, as indexes of format 1 were built).
     double illumination_sigma_px = 20;
+    /// A ceiling image whose texture (standard deviation without the illumination) is below
+    /// this many times its pixel noise is smoothed by a Gaussian of `noisy_blur_sigma_px` and
+    /// stretched with a gain of up to `noisy_max_gain` (instead of the matcher's 4) before
+    /// detection, so that a dim camera's corners are the rock's, not the noise's (0: never).
+    double noisy_texture_to_noise = 3;
+    double noisy_blur_sigma_px = 1.5;
+    double noisy_max_gain = 32;
     // --- query -------------------------------------------------------------------------
     int query_features = 500;          ///< features detected in the query image
     int neighbours = 2;                ///< database features per query feature (votes)

@@ -48,6 +48,14 @@ struct ImagePyramid {
     bool empty() const { return levels.empty() || levels[0].empty(); }
 };
 
+/// `grey` (CV_8UC1, or CV_32FC1) less a Gaussian blur of sigma `sigma` (its illumination), as
+/// CV_16S (CV_32F for a float image); `grey` itself when `sigma` <= 0.
+cv::Mat removeIllumination(const cv::Mat& grey, double sigma);
+
+/// `texture` stretched linearly to mean 128 and standard deviation 48, as CV_8U. The gain is
+/// capped: a flat, noisy image must not be stretched into fake texture.
+cv::Mat stretchContrast(const cv::Mat& texture, double max_gain = 4.0);
+
 /// One surveyed reference image as the refiner sees it: image, camera and poses (paper
 /// Sec. III: "database of images with known camera poses"). The localiser makes it from a
 /// database record, lookup::database::Reference.
