@@ -53,7 +53,8 @@ cv::Mat detectionImage(const cv::Mat& grey, const PlaceIndexOptions& o) {
     const cv::Mat texture = refine::removeIllumination(grey, o.illumination_sigma_px);
     cv::Scalar mean, stddev;
     cv::meanStdDev(texture, mean, stddev);
-    if (stddev[0] >= o.noisy_texture_to_noise * common::noiseSigma(grey)) {
+    if (o.noisy_texture_to_noise <= 0 ||
+        stddev[0] >= o.noisy_texture_to_noise * common::noiseSigma(grey)) {
         return refine::stretchContrast(texture);
     }
     // A dim camera: at the matcher's gain its texture stays below the detector's threshold, at
