@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 #include "synthetic_route.h"
@@ -356,6 +357,52 @@ TEST(CoarseLocalizer, RejectedMatchStartsAFreshConfirmedAcquisition) {
         }
     }
     EXPECT_EQ(confirmed_after, o.sequence_length);
+}
+
+TEST(CoarseLocalizer, AStoppedAndReversingVehicleKeepsItsTrackByTheOdometrysSign) {
+    // Forward from place 30 to 100, 15 frames stopped there, back to 40, forward again; the
+    // forward camera meanwhile sees the survey's views at the places it passes.
+    SyntheticRoute route(400, 3, 29);
+    const auto o = testOptions();
+    auto refs = makeReferences(route, 400, o, /*with_poses=*/true);
+    std::vector<double> path{30.0};
+    for (int k = 0; k < 70; ++k) path.push_back(path.back() + 1.0);
+    for (int k = 0; k < 15; ++k) path.push_back(path.back());
+    for (int k = 0; k < 60; ++k) path.push_back(path.back() - 1.0);
+    for (int k = 0; k < 40; ++k) path.push_back(path.back() + 1.0);
+    struct Phase {
+        int frames = 0, right = 0, wrong = 0;
+    };
+    // `sign`: the odometry's travel as given to the stage (signed, or its size alone).
+    auto drive = [&](bool sign) {
+        CoarseLocalizer loc(refs, o);
+        Phase stopped, reversing, after;
+        for (std::size_t t = 0; t < path.size(); ++t) {
+            std::optional<double> step;
+            if (t > 0) step = sign ? path[t] - path[t - 1] : std::abs(path[t] - path[t - 1]);
+            const auto r = loc.process(route.image(path[t], 8.0, 0.7, 25.0), 1000.0 + t, step);
+            Phase* phase = t > 70 && t <= 85    ? &stopped
+                           : t > 85 && t <= 145 ? &reversing
+                           : t > 145            ? &after
+                                                : nullptr;
+            if (phase == nullptr) continue;
+            ++phase->frames;
+            const bool right =
+                std::abs(static_cast<long>(r.reference_index) - std::lround(path[t])) <= 1;
+            phase->right += r.usable() && right;
+            phase->wrong += r.usable() && !right;
+        }
+        return std::array<Phase, 3>{stopped, reversing, after};
+    };
+    const auto with = drive(true);
+    for (const Phase& p : with) {
+        EXPECT_GE(p.right, 0.9 * p.frames);
+        EXPECT_EQ(p.wrong, 0);
+    }
+    // With the distance's size alone the track runs on while the vehicle backs up: the
+    // reversing frames are lost, or placed where the vehicle is not.
+    const auto unsigned_travel = drive(false);
+    EXPECT_LT(unsigned_travel[1].right, 0.5 * unsigned_travel[1].frames);
 }
 
 TEST(CoarseLocalizer, BadInputGivesReasonsNotCrashes) {

@@ -2,6 +2,8 @@
 
 #include <mrpt/obs/CObservationOdometry.h>
 
+#include "lookup/coarse/coarse_source.h"
+
 namespace lookup::coarse {
 
 CameraFrameStream::CameraFrameStream(const std::string& rawlog_path, std::string camera_label,
@@ -57,7 +59,7 @@ bool CameraFrameStream::next(CameraFrame& frame) {
         frame.travelled_m.reset();
         if (odometry_now_) {
             if (odometry_at_last_frame_) {
-                frame.travelled_m = odometry_now_->distanceTo(*odometry_at_last_frame_);
+                frame.travelled_m = signedTravel(*odometry_at_last_frame_, *odometry_now_);
             }
             odometry_at_last_frame_ = odometry_now_;
         }

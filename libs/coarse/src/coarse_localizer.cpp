@@ -6,6 +6,7 @@
 #include <limits>
 #include <sstream>
 #include <stdexcept>
+#include <tuple>
 
 namespace lookup::coarse {
 namespace {
@@ -47,7 +48,8 @@ long nearestArc(const ReferenceDescriptors& refs, double arc) {
 /// Reference index at one query frame of the paths ending at candidates lo..hi (one speed
 /// hypothesis), -1 where a path leaves the reference: lround(j - offset), or with odometry the
 /// reference nearest in arc length to arc(j) + arc_shift (as nearestArc, found by a walk: the
-/// targets grow with j).
+/// targets grow with j). A path driven forwards leaves before the start, a reversing one (the
+/// shift positive) past the end.
 void pathIndices(const ReferenceDescriptors& refs, long lo, long hi, double arc_shift,
                  double offset, bool odometry, std::vector<long>& out) {
     if (!odometry) {
@@ -70,6 +72,8 @@ void pathIndices(const ReferenceDescriptors& refs, long lo, long hi, double arc_
             i = -1;
         } else if (arc <= arc_of[0]) {
             i = 0;
+        } else if (arc > arc_of[n - 1] + 1e-9) {
+            i = -1;
         } else if (arc >= arc_of[n - 1]) {
             i = n - 1;
         } else {
@@ -113,7 +117,7 @@ struct CoarseLocalizer::Column {
     static constexpr long kBlockRefs = 8;
     static constexpr long kPageRefs = 256;
     Descriptor descriptor;
-    std::optional<double> travelled_m;  ///< odometry since the previous query frame
+    std::optional<double> travelled_m;  ///< odometry since the previous query frame (signed)
     std::vector<std::unique_ptr<float[]>> pages;
     std::vector<bool> computed;                   ///< per block
     std::optional<std::vector<long>> neighbours;  ///< nearest references (DescriptorIndex)
@@ -268,7 +272,7 @@ std::vector<std::pair<long, long>> CoarseLocalizer::globalWindows(bool odometry,
             long lo, hi;
             if (odometry) {
                 const double arc = references_->arcLength(r) + back_m[k];
-                const double tol = options_.odometry_scale_tolerance * back_m[k];
+                const double tol = options_.odometry_scale_tolerance * std::abs(back_m[k]);
                 if (arc - tol > references_->arcLength(n_refs - 1)) continue;  // beyond the end
                 lo = lastAtOrBelow(*references_, arc - tol);
                 hi = std::min(n_refs - 1, lastAtOrBelow(*references_, arc + tol) + 1);
@@ -341,10 +345,17 @@ void CoarseLocalizer::scoreWindow(long cand_lo, long cand_hi, bool odometry, int
     // With odometry, the reference at query frame k on the path ending at j with scale
     // hypothesis h; -1 when the path leaves the reference. (Without odometry the span below is
     // a closed form, and the path scores use pathIndices.)
-    auto odometryPathIndex = [&](long j, int h, int k) -> long {
-        const double arc = references_->arcLength(j) - hyp[h] * back_m[k];
-        if (arc < references_->arcLength(0) - 1e-9) return -1;
-        return nearestArc(*references_, arc);
+    // The span of references the odometry paths reach at query frame k (a reversing vehicle's
+    // paths lie ahead of their candidates); lo > hi when all leave the reference.
+    auto odometrySpan = [&](int k) -> std::pair<long, long> {
+        const double a = references_->arcLength(cand_lo), b = references_->arcLength(cand_hi);
+        const double d0 = hyp[0] * back_m[k], d1 = hyp[H - 1] * back_m[k];
+        const double low = a - std::max(d0, d1), high = b - std::min(d0, d1);
+        if (high < references_->arcLength(0) - 1e-9 ||
+            low > references_->arcLength(n_refs - 1) + 1e-9) {
+            return {0, -1};
+        }
+        return {nearestArc(*references_, low), nearestArc(*references_, high)};
     };
 
     // Locally contrast-enhanced confusion entries, per column, over the span paths can reach.
@@ -355,8 +366,7 @@ void CoarseLocalizer::scoreWindow(long cand_lo, long cand_hi, bool odometry, int
     for (int k = 0; k < n_cols; k += stride) {
         long a, b;
         if (odometry) {
-            a = std::max(0L, odometryPathIndex(cand_lo, H - 1, k));
-            b = odometryPathIndex(cand_hi, 0, k);
+            std::tie(a, b) = odometrySpan(k);
         } else {
             a = std::max(0L, cand_lo - static_cast<long>(std::ceil(hyp[H - 1] * k)) - 1);
             b = cand_hi - static_cast<long>(std::floor(hyp[0] * k)) + 1;
@@ -498,7 +508,7 @@ int CoarseLocalizer::odometryFrames(double max_back_m) const {
     int frames = 1;
     double back_m = 0;
     while (frames < static_cast<int>(columns_.size()) && columns_[frames - 1]->travelled_m) {
-        back_m += *columns_[frames - 1]->travelled_m;
+        back_m += std::abs(*columns_[frames - 1]->travelled_m);
         if (back_m > max_back_m) break;
         ++frames;
     }
@@ -527,7 +537,7 @@ double CoarseLocalizer::minConfidence(int frames) const {
 bool CoarseLocalizer::confirmGlobal(std::size_t best, std::size_t query_index, std::string& why) {
     const double arc = references_->arcLength(best);
     for (const auto& p : pending_) {
-        const double tolerance = odometryTolerance(p.travelled_m);
+        const double tolerance = odometryTolerance(p.driven_m);
         if (std::abs(p.arc_m + p.travelled_m - arc) > tolerance) continue;
         if (query_index >= p.query_index + options_.sequence_length) return true;
         // Agrees, but their sequences overlap: the older match waits for a later frame.
@@ -535,7 +545,7 @@ bool CoarseLocalizer::confirmGlobal(std::size_t best, std::size_t query_index, s
               std::to_string(p.query_index) + ", whose sequence overlaps this one";
         return false;
     }
-    pending_.push_back({query_index, arc, 0.0});
+    pending_.push_back({query_index, arc, 0.0, 0.0});
     why =
         "global match awaits confirmation by a later, non-overlapping sequence at the place "
         "odometry carries it to";
@@ -594,7 +604,7 @@ struct CoarseLocalizer::FramePlan {
     int track_cols = 0;     ///< frames a tracking search scores
     bool odometry = false;  ///< surveyed references and odometry over the whole sequence
     bool full = false;      ///< sequence_length frames buffered
-    double step_m = 0;      ///< odometry since the previous frame [m]
+    double step_m = 0;      ///< odometry since the previous frame [m], negative reversing
 };
 
 void CoarseLocalizer::agePending(const std::optional<double>& travelled_m,
@@ -604,7 +614,10 @@ void CoarseLocalizer::agePending(const std::optional<double>& travelled_m,
         pending_.clear();
         return;
     }
-    for (auto& p : pending_) p.travelled_m += *travelled_m;
+    for (auto& p : pending_) {
+        p.travelled_m += *travelled_m;
+        p.driven_m += std::abs(*travelled_m);
+    }
     // A match older than a few sequences no longer helps: the tolerance has grown loose.
     const std::size_t max_age = 4 * static_cast<std::size_t>(options_.sequence_length);
     pending_.erase(std::remove_if(pending_.begin(), pending_.end(),
@@ -618,9 +631,10 @@ void CoarseLocalizer::skipSearch(const std::optional<double>& travelled_m, doubl
                                  CoarseResult& r) {
     // With odometry the track moves on unsearched; otherwise the next search is global.
     const bool coast = tracking_ && travelled_m && options_.use_odometry &&
-                       references_->hasPoses() && coasted_m_ + step_m <= options_.max_coast_m;
+                       references_->hasPoses() &&
+                       coasted_m_ + std::abs(step_m) <= options_.max_coast_m;
     if (coast) {
-        coasted_m_ += step_m;
+        coasted_m_ += std::abs(step_m);
         track_arc_m_ += step_m;
         last_match_ = static_cast<std::size_t>(nearestArc(*references_, track_arc_m_));
     }
@@ -651,10 +665,10 @@ bool CoarseLocalizer::searchTrack(const FramePlan& plan, bool audit, CoarseResul
             ? std::abs(references_->arcLength(s.best) - (track_arc_m_ + plan.step_m))
             : 0.0;
     const bool far =
-        plan.odometry && s.valid && off_m > odometryTolerance(coasted_m_ + plan.step_m);
+        plan.odometry && s.valid && off_m > odometryTolerance(coasted_m_ + std::abs(plan.step_m));
     if (far && options_.max_coast_m > 0) confident = false;  // aliasing within the window
     if (confident) return true;
-    if (plan.odometry && coasted_m_ + plan.step_m <= options_.max_coast_m) {
+    if (plan.odometry && coasted_m_ + std::abs(plan.step_m) <= options_.max_coast_m) {
         // Aliased stretch: the window cannot tell its places apart, odometry still can.
         holdByOdometry(plan, predicted, s, far ? std::optional<double>(off_m) : std::nullopt, audit,
                        r);
@@ -665,7 +679,7 @@ bool CoarseLocalizer::searchTrack(const FramePlan& plan, bool audit, CoarseResul
 
 void CoarseLocalizer::holdByOdometry(const FramePlan& plan, long predicted, const Search& s,
                                      std::optional<double> far_m, bool audit, CoarseResult& r) {
-    coasted_m_ += plan.step_m;
+    coasted_m_ += std::abs(plan.step_m);
     track_arc_m_ += plan.step_m;
     r.search_ms = msSince(plan.t0);
     r.status = CoarseStatus::Odometry;
@@ -778,7 +792,7 @@ CoarseResult CoarseLocalizer::processDescriptor(const Descriptor& descriptor, do
                    " values, the references have " + std::to_string(expected);
         return r;
     }
-    if (travelled_m && !(std::isfinite(*travelled_m) && *travelled_m >= 0)) {
+    if (travelled_m && !std::isfinite(*travelled_m)) {
         travelled_m.reset();  // a broken odometry reading only disables odometry here
     }
     agePending(travelled_m, r.query_index);

@@ -104,7 +104,8 @@ class CoarseLocalizer : public CoarseSource {
     /// first > second), widened by tracking_half_window_refs.
     std::vector<std::pair<long, long>> globalWindows(bool odometry, int n_cols, int stride,
                                                      std::pair<long, long> extra);
-    /// Odometry distance from buffered frame k back to the newest frame [m], k < n_cols.
+    /// Odometry distance from buffered frame k back to the newest frame [m], k < n_cols;
+    /// negative where the vehicle reversed since.
     std::vector<double> backDistances(int n_cols) const;
     int strideFor(int frames) const;   ///< stride for a global search over `frames` frames
     std::size_t bufferLength() const;  ///< frames kept: the longest sequence searched
@@ -143,7 +144,8 @@ class CoarseLocalizer : public CoarseSource {
     bool tracking_ = false;
     std::size_t last_match_ = 0;
     double last_velocity_ = 1.0;
-    double coasted_m_ = 0;          ///< travelled since the last confident match while tracking [m]
+    /// Driven (either way) since the last confident match while tracking [m].
+    double coasted_m_ = 0;
     double track_arc_m_ = 0;        ///< arc length of the tracked place (odometry) [m]
     std::size_t coast_frames_ = 0;  ///< frames held by odometry since the last confident match
     int frames_since_audit_ = 0;    ///< tracking frames since auditTrack() last ran
@@ -153,7 +155,8 @@ class CoarseLocalizer : public CoarseSource {
     struct PendingMatch {
         std::size_t query_index = 0;
         double arc_m = 0;        ///< arc length of the matched reference [m]
-        double travelled_m = 0;  ///< odometry since that query frame [m]
+        double travelled_m = 0;  ///< odometry since that query frame [m], signed
+        double driven_m = 0;     ///< ... and the distance driven, either way [m]
     };
     std::vector<PendingMatch> pending_;
 };
