@@ -77,4 +77,8 @@ TEST(OdometryTrack, APoseInsideADropoutTellsHowFarItIsFromAReading) {
     EXPECT_NEAR(early->inside_gap_s, 0.30, 1e-9);  // from the reading before
     EXPECT_NEAR(late->inside_gap_s, 0.10, 1e-9);   // from the reading after
     EXPECT_EQ(late->extrapolated_s, 0.0);
+    // What the dropout's readings bracket: 0.5 rad of turn over a 4.95 m chord.
+    EXPECT_NEAR(early->gap_turn_rad, 0.5, 1e-9);
+    EXPECT_NEAR(early->gap_distance_m, 20 * std::sin(0.25), 1e-9);
+    EXPECT_NEAR(regular->gap_turn_rad, 0.01, 1e-9);
 }

@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 #include <mrpt/obs/CObservationOdometry.h>
+#include <Eigen/Dense>
 
 #include <cmath>
 #include <filesystem>
@@ -254,6 +255,58 @@ TEST(Localize, AnOdometryDropoutIsBridgedAtTheLastVelocityWithAGrowingEllipse) {
     ASSERT_EQ(report.rows.size(), 2u);
     EXPECT_EQ(report.rows[1].confident_wrong, 0u);
     EXPECT_EQ(run.frames[16].status, "refined") << run.frames[16].reason;
+}
+
+// A corner taken briskly while the odometry drops out (frames 7-13: readings not finite): the
+// vehicle turns 0.25 rad a frame from frame 10 on, and from frame 10 the ceiling is too flat to
+// match. The last fix (frame 9) lies inside the dropout, where the odometry is only the straight
+// line between the readings around it, 27 degrees off the vehicle's heading there: every pose
+// dead-reckoned from that fix after the dropout is turned by it, and its ellipse has to say so.
+TEST(Localize, AFixInsideAnOdometryDropoutThroughACornerWidensTheDeadReckoning) {
+    PlanarDrive drive;
+    drive.vehicle = [](int i) {
+        double x = -5, y = 0.4, yaw = 0.05;
+        for (int k = 0; k < i; ++k) {
+            x += 0.3 * std::cos(yaw);
+            y += 0.3 * std::sin(yaw);
+            if (k >= 9 && k < 14) yaw += 0.25;
+        }
+        return mrpt::poses::CPose3D(x, y, 0, yaw, 0, 0);
+    };
+    const auto spoil = [](int i, mrpt::obs::CObservationImage& img,
+                          mrpt::obs::CObservationOdometry& odo) {
+        if (i >= 7 && i <= 13) odo.odometry.x(std::numeric_limits<double>::quiet_NaN());
+        if (i >= 10) {
+            img.image = mrpt::img::CImage(cv::Mat(240, 320, CV_8UC1, cv::Scalar(128)),
+                                          mrpt::img::DEEP_COPY);
+        }
+    };
+    const int frames = 22;
+    const auto dir = lookup::test::freshDir("lookup_localize_dropout_corner");
+    auto req = planarRun(dir, spoil, frames, drive);
+    common::PoseTrack truth;
+    for (int i = 0; i < frames; ++i) truth.push_back({kT0 + 0.1 * i, drive.vehicle(i)});
+    common::writeMrptPoseFile((dir / "query.rawlog.GT.txt").string(), truth);
+    localize::runLocalization(req);
+    const auto run = eval::loadRun(req.out_dir);
+    ASSERT_EQ(run.frames.size(), std::size_t(frames));
+    ASSERT_EQ(run.frames[9].status, "refined") << run.frames[9].reason;
+    double largest_error = 0;
+    for (int i = 14; i < frames; ++i) {
+        const auto& f = run.frames[i];
+        ASSERT_EQ(f.status, "fallback") << i << ": " << f.reason;
+        const Eigen::Vector2d e(f.x - truth[i].pose.x(), f.y - truth[i].pose.y());
+        Eigen::Matrix2d cov;
+        cov << f.cov_xx, f.cov_xy, f.cov_xy, f.cov_yy;
+        largest_error = std::max(largest_error, e.norm());
+        // Inside the 99.7 % ellipse (chi-square, 2 degrees of freedom).
+        EXPECT_LT(e.dot(cov.inverse() * e), 11.8) << i << ": " << e.norm() << " m off";
+    }
+    EXPECT_GT(largest_error, 0.5) << "the dead reckoning was not turned: nothing tested";
+    const auto report =
+        eval::evaluate({eval::loadGroundTruth((dir / "query.rawlog.GT.txt").string())}, {run}, {});
+    ASSERT_EQ(report.rows.size(), 2u);
+    EXPECT_EQ(report.rows[1].confident_wrong, 0u);
 }
 
 // Odometry that under-reads by 20 % (a slipping wheel) against a ceiling that is right:

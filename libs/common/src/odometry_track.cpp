@@ -54,7 +54,13 @@ std::optional<OdometryTrack::Pose> OdometryTrack::at(double t, double max_extrap
     if (it == readings_.begin()) return Pose{it->second};
     const auto& [t1, p1] = *it;
     const auto& [t0, p0] = *std::prev(it);
-    return Pose{along(p0, p1, (t - t0) / (t1 - t0)), 0, t1 - t0, std::min(t - t0, t1 - t)};
+    const mrpt::poses::CPose2D d = p1 - p0;
+    return Pose{along(p0, p1, (t - t0) / (t1 - t0)),
+                0,
+                t1 - t0,
+                std::min(t - t0, t1 - t),
+                std::abs(d.phi()),
+                d.norm()};
 }
 
 OdometryTrack::Pose OdometryTrack::extrapolated(double t) const {

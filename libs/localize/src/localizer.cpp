@@ -408,7 +408,16 @@ std::optional<Localizer::Prediction> Localizer::deadReckon(double t) const {
         return p.extrapolated_s + (p.gap_s > options_.odometry_timeout_s ? p.inside_gap_s : 0.0);
     };
     const double extrapolated_s = std::max(uncovered_s(*odo_now), uncovered_s(*odo_fix));
-    return Prediction{pose, {delta.translation().norm(), extrapolated_s, true}, std::nullopt};
+    // A turn inside a dropout is not the straight line between its readings (the speed's
+    // change is bounded by the extrapolation above; the turn's, fast at a corner, is not).
+    refine::DeadReckoning motion{delta.translation().norm(), extrapolated_s, true};
+    for (const auto* p : {&*odo_now, &*odo_fix}) {
+        if (p->gap_s <= options_.odometry_timeout_s) continue;
+        const double turn = p->gap_turn_rad * p->inside_gap_s / p->gap_s;
+        motion.dropout_yaw_rad = std::hypot(motion.dropout_yaw_rad, turn);
+        motion.dropout_xy_m = std::hypot(motion.dropout_xy_m, turn * p->gap_distance_m);
+    }
+    return Prediction{pose, motion, std::nullopt};
 }
 
 void Localizer::keepFixHeading(double t, double yaw) {

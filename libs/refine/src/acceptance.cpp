@@ -61,11 +61,13 @@ mrpt::poses::CPosePDFGaussian AcceptancePolicy::deadReckoned(const mrpt::poses::
     const double yaw_extrapolation = d.velocity_known
                                          ? 0.5 * o.extrapolation_yaw_accel_deg_s2 * t * t
                                          : o.unknown_motion_yaw_rate_deg_s * t;
+    const double dropout_xy = d.dropout_xy_m + d.dropout_yaw_rad * d.travelled_m;
     return gaussian(pose,
                     o.dead_reckoning_sigma_xy_m + o.dead_reckoning_sigma_xy_per_m * d.travelled_m +
-                        extrapolationSigmaXy(d),
+                        extrapolationSigmaXy(d) + dropout_xy,
                     o.dead_reckoning_sigma_yaw_deg +
-                        o.dead_reckoning_sigma_yaw_deg_per_m * d.travelled_m + yaw_extrapolation);
+                        o.dead_reckoning_sigma_yaw_deg_per_m * d.travelled_m + yaw_extrapolation +
+                        mrpt::RAD2DEG(d.dropout_yaw_rad));
 }
 
 }  // namespace lookup::refine

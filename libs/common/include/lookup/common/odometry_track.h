@@ -23,6 +23,8 @@ class OdometryTrack {
         /// Between readings: their spacing, and the time to the nearer of them (a dropout's
         /// readings bracket a motion of which only the end points are known) [s].
         double gap_s = 0, inside_gap_s = 0;
+        /// Between readings: the turn [rad] and the distance [m] from one to the other.
+        double gap_turn_rad = 0, gap_distance_m = 0;
     };
 
     /// Appends a reading; false (and ignored) when it is not later than the last one.
