@@ -413,9 +413,11 @@ std::optional<Localizer::Prediction> Localizer::deadReckon(double t) const {
     refine::DeadReckoning motion{delta.translation().norm(), extrapolated_s, true};
     for (const auto* p : {&*odo_now, &*odo_fix}) {
         if (p->gap_s <= options_.odometry_timeout_s) continue;
-        const double turn = p->gap_turn_rad * p->inside_gap_s / p->gap_s;
+        const double share = p->inside_gap_s / p->gap_s;  // at most a half
+        const double turn = p->gap_turn_rad * share;
         motion.dropout_yaw_rad = std::hypot(motion.dropout_yaw_rad, turn);
-        motion.dropout_xy_m = std::hypot(motion.dropout_xy_m, turn * p->gap_distance_m);
+        motion.dropout_xy_m =
+            std::hypot(motion.dropout_xy_m, 0.5 * (1 - share) * turn * p->gap_distance_m);
     }
     return Prediction{pose, motion, std::nullopt};
 }

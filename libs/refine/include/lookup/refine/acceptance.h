@@ -21,9 +21,10 @@ struct DeadReckoning {
     double extrapolated_s = 0;   ///< time not covered by odometry readings
     bool velocity_known = true;  ///< false: no odometry at all, the vehicle's motion unknown
     /// An odometry pose interpolated inside a dropout lies on the straight line between the
-    /// readings around it: through a turn its heading is off by up to the turn between them
-    /// times its share of the dropout from the nearer reading [rad], its place by that angle
-    /// times the distance between them [m]; the heading error turns all the travel after it.
+    /// readings around it: through a turn its heading is off by about the turn between them
+    /// times its share s of the dropout from the nearer reading [rad], its place by the arc's
+    /// sagitta there, s (1 - s) / 2 times that turn times the distance between them [m]; the
+    /// heading error turns all the travel after it.
     double dropout_yaw_rad = 0;
     double dropout_xy_m = 0;
 };
