@@ -257,6 +257,33 @@ TEST(Localize, AnOdometryDropoutIsBridgedAtTheLastVelocityWithAGrowingEllipse) {
     EXPECT_EQ(run.frames[16].status, "refined") << run.frames[16].reason;
 }
 
+// The vehicle stops for a second (frames 8-18 at one place) and drives on: a stopped vehicle
+// keeps its fix, without drifting, and picks the motion up again.
+TEST(Localize, AStoppedVehicleKeepsItsFixAndDrivesOn) {
+    PlanarDrive drive;
+    drive.vehicle = [](int i) {
+        const int moving = i <= 8 ? i : std::max(8, i - 10);
+        return mrpt::poses::CPose3D(-5 + 0.3 * moving, 0.4, 0, 0.05, 0, 0);
+    };
+    const int frames = 26;
+    const auto dir = lookup::test::freshDir("lookup_localize_standstill");
+    auto req = planarRun(
+        dir, [](int, mrpt::obs::CObservationImage&, mrpt::obs::CObservationOdometry&) {}, frames,
+        drive);
+    localize::runLocalization(req);
+    const auto run = eval::loadRun(req.out_dir);
+    ASSERT_EQ(run.frames.size(), std::size_t(frames));
+    double x_lo = 1e9, x_hi = -1e9;
+    for (int i = 0; i < frames; ++i) {
+        const auto& f = run.frames[i];
+        const auto truth = drive.vehicle(i);
+        ASSERT_EQ(f.status, "refined") << i << ": " << f.reason;
+        EXPECT_LT(std::hypot(f.x - truth.x(), f.y - truth.y()), 0.03) << i;
+        if (i >= 8 && i <= 18) x_lo = std::min(x_lo, f.x), x_hi = std::max(x_hi, f.x);
+    }
+    EXPECT_LT(x_hi - x_lo, 0.01) << "the stopped vehicle's fixes drift";
+}
+
 // A corner taken briskly while the odometry drops out (frames 7-13: readings not finite): the
 // vehicle turns 0.25 rad a frame from frame 10 on, and from frame 10 the ceiling is too flat to
 // match. The last fix (frame 9) lies inside the dropout, where the odometry is only the straight
