@@ -274,6 +274,7 @@ std::vector<std::pair<long, long>> CoarseLocalizer::globalWindows(bool odometry,
                 const double arc = references_->arcLength(r) + back_m[k];
                 const double tol = options_.odometry_scale_tolerance * std::abs(back_m[k]);
                 if (arc - tol > references_->arcLength(n_refs - 1)) continue;  // beyond the end
+                if (arc + tol < references_->arcLength(0)) continue;  // before the start (reversed)
                 lo = lastAtOrBelow(*references_, arc - tol);
                 hi = std::min(n_refs - 1, lastAtOrBelow(*references_, arc + tol) + 1);
             } else {
@@ -342,11 +343,10 @@ void CoarseLocalizer::scoreWindow(long cand_lo, long cand_hi, bool odometry, int
     const long R = options_.contrast_window_refs;
     const int H = static_cast<int>(hyp.size());
 
-    // With odometry, the reference at query frame k on the path ending at j with scale
-    // hypothesis h; -1 when the path leaves the reference. (Without odometry the span below is
-    // a closed form, and the path scores use pathIndices.)
-    // The span of references the odometry paths reach at query frame k (a reversing vehicle's
-    // paths lie ahead of their candidates); lo > hi when all leave the reference.
+    // With odometry, the span of references the paths ending at the candidates reach at query
+    // frame k over all scale hypotheses (a reversing vehicle's lie ahead of their candidates);
+    // lo > hi when all leave the reference. (Without odometry the span below is a closed form;
+    // the path scores use pathIndices either way.)
     auto odometrySpan = [&](int k) -> std::pair<long, long> {
         const double a = references_->arcLength(cand_lo), b = references_->arcLength(cand_hi);
         const double d0 = hyp[0] * back_m[k], d1 = hyp[H - 1] * back_m[k];
