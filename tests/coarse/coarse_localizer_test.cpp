@@ -374,8 +374,9 @@ TEST(CoarseLocalizer, AStoppedAndReversingVehicleKeepsItsTrackByTheOdometrysSign
         int frames = 0, right = 0, wrong = 0;
     };
     // `sign`: the odometry's travel as given to the stage (signed, or its size alone).
-    auto drive = [&](bool sign) {
-        CoarseLocalizer loc(refs, o);
+    auto drive = [&](bool sign, const CoarseOptions& opt) {
+        CoarseLocalizer loc(refs, opt);
+        EXPECT_EQ(loc.indexed(), opt.global_index_min_references <= 400);
         Phase stopped, reversing, after;
         for (std::size_t t = 0; t < path.size(); ++t) {
             std::optional<double> step;
@@ -394,14 +395,18 @@ TEST(CoarseLocalizer, AStoppedAndReversingVehicleKeepsItsTrackByTheOdometrysSign
         }
         return std::array<Phase, 3>{stopped, reversing, after};
     };
-    const auto with = drive(true);
-    for (const Phase& p : with) {
-        EXPECT_GE(p.right, 0.9 * p.frames);
-        EXPECT_EQ(p.wrong, 0);
+    // Global searches scored whole (a short reference) and through the descriptor index.
+    CoarseOptions indexed = o;
+    indexed.global_index_min_references = 100;
+    for (const CoarseOptions& opt : {o, indexed}) {
+        for (const Phase& p : drive(true, opt)) {
+            EXPECT_GE(p.right, 0.9 * p.frames);
+            EXPECT_EQ(p.wrong, 0);
+        }
     }
     // With the distance's size alone the track runs on while the vehicle backs up: the
     // reversing frames are lost, or placed where the vehicle is not.
-    const auto unsigned_travel = drive(false);
+    const auto unsigned_travel = drive(false, o);
     EXPECT_LT(unsigned_travel[1].right, 0.5 * unsigned_travel[1].frames);
 }
 
