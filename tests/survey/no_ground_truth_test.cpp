@@ -115,6 +115,20 @@ TEST(CeilingDistance, MeasuredFromGeneratedImagesWithinTwoCentimetres) {
     EXPECT_TRUE(e.warning.empty());
 }
 
+TEST(CeilingDistance, APriorFarOffIsSearchedForTheDistanceTheImagesShow) {
+    // The camera 1.2 m from the ceiling where 3 m are configured: from the configured prior the
+    // matcher looks for every point far outside its window, and no triple is accepted.
+    const double kTrue = 3.2;
+    const auto g = generateTraverse(kTrue);
+    SurveyOptions o;
+    o.ceiling_height_m = 5.0;
+    o.ceiling_sample_spacing_m = 0.5;
+    const auto e = estimateCeilingDistance({{"gen", &g.images, &g.poses}}, o);
+    ASSERT_TRUE(e.estimated) << e.warning;
+    EXPECT_NEAR(e.ceiling_height_m, kTrue, 0.02);
+    EXPECT_TRUE(e.warning.empty());
+}
+
 TEST(CeilingDistance, TooFewTriplesWarnAndUseTheConfiguredValue) {
     const auto g = generateTraverse(4.2);
     SurveyOptions o;

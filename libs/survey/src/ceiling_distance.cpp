@@ -104,6 +104,30 @@ void summarise(std::vector<double> hs, CeilingDistanceEstimate& out) {
     out.spread_m = 1.4826 * median(dev);
 }
 
+// Two passes from the prior h: a short baseline first (the matcher searches around where the
+// prior predicts each point, and a wrong h shifts that prediction in proportion to the
+// baseline), its median the prior of the full-baseline pass; the last pass that accepted
+// enough triples, if any.
+std::optional<CeilingDistanceEstimate> passesFrom(double prior,
+                                                  const std::vector<CeilingTraverse>& traverses,
+                                                  const SurveyOptions& o,
+                                                  const std::optional<refine::Rectifier>& rectifier,
+                                                  const CeilingDistanceEstimate& start) {
+    std::optional<CeilingDistanceEstimate> found;
+    for (double baseline : {0.5 * o.ceiling_baseline_m, o.ceiling_baseline_m}) {
+        CeilingDistanceEstimate pass = start;
+        const auto hs =
+            onePass(traverses, o, rectifier ? &*rectifier : nullptr, baseline, prior, pass);
+        if (hs.size() < std::size_t(o.ceiling_min_pairs)) continue;
+        summarise(hs, pass);
+        if (pass.used < std::size_t(o.ceiling_min_pairs)) continue;
+        pass.estimated = true;
+        prior = pass.ceiling_height_m;
+        found = pass;
+    }
+    return found;
+}
+
 }  // namespace
 
 CeilingDistanceEstimate estimateCeilingDistance(const std::vector<CeilingTraverse>& traverses,
@@ -125,25 +149,18 @@ CeilingDistanceEstimate estimateCeilingDistance(const std::vector<CeilingTravers
             std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
         return out;
     };
-    // A short baseline first: the matcher searches around where the prior h predicts each
-    // point, and a wrong h shifts that prediction in proportion to the baseline. Its median
-    // is the prior of the full-baseline pass.
-    double prior = o.ceiling_height_m;
-    std::optional<CeilingDistanceEstimate> first;
-    for (double baseline : {0.5 * o.ceiling_baseline_m, o.ceiling_baseline_m}) {
-        CeilingDistanceEstimate pass = out;
-        const auto hs =
-            onePass(traverses, o, rectifier ? &*rectifier : nullptr, baseline, prior, pass);
-        if (hs.size() < std::size_t(o.ceiling_min_pairs)) continue;
-        summarise(hs, pass);
-        if (pass.used < std::size_t(o.ceiling_min_pairs)) continue;
-        pass.estimated = true;
-        prior = pass.ceiling_height_m;
-        first = pass;
+    // Far off, the prior predicts every point beyond the matcher's search window (a camera half
+    // as far from the ceiling as configured): other camera distances are tried, nearest the
+    // configured one first, until one gives enough triples.
+    auto found = passesFrom(o.ceiling_height_m, traverses, o, rectifier, out);
+    const double configured_m = o.ceiling_height_m - out.camera_z_m;
+    for (double factor : {1 / 1.5, 1.5, 1 / 2.25, 2.25, 1 / 3.375, 3.375}) {
+        if (found || !(configured_m > 0)) break;
+        found = passesFrom(out.camera_z_m + factor * configured_m, traverses, o, rectifier, out);
     }
-    if (first) {
+    if (found) {
         const double z = out.camera_z_m;
-        out = *first;
+        out = *found;
         out.camera_z_m = z;
         return finish();
     }
