@@ -65,6 +65,14 @@ TEST(OdometryTrack, ForgetsOldReadingsButKeepsOneForInterpolation) {
     EXPECT_NEAR(held->extrapolated_s, 0.2, 1e-12);
 }
 
+TEST(OdometryTrack, TravelIsSignedByTheDirectionTheVehicleMovedIn) {
+    const CPose2D heading_north(1, 2, M_PI / 2);
+    EXPECT_NEAR(lookup::common::signedTravel(heading_north, CPose2D(1, 2.5, M_PI / 2)), 0.5, 1e-12);
+    EXPECT_NEAR(lookup::common::signedTravel(heading_north, CPose2D(1, 1.7, M_PI / 2)), -0.3,
+                1e-12);
+    EXPECT_EQ(lookup::common::signedTravel(heading_north, heading_north), 0.0);
+}
+
 TEST(OdometryTrack, APoseInsideADropoutTellsHowFarItIsFromAReading) {
     OdometryTrack track;
     track.add(0.0, onCircle(0.0));

@@ -2,7 +2,7 @@
 
 #include <mrpt/obs/CObservationOdometry.h>
 
-#include "lookup/coarse/coarse_source.h"
+#include "lookup/common/odometry_track.h"
 
 namespace lookup::coarse {
 
@@ -59,7 +59,7 @@ bool CameraFrameStream::next(CameraFrame& frame) {
         frame.travelled_m.reset();
         if (odometry_now_) {
             if (odometry_at_last_frame_) {
-                frame.travelled_m = signedTravel(*odometry_at_last_frame_, *odometry_now_);
+                frame.travelled_m = common::signedTravel(*odometry_at_last_frame_, *odometry_now_);
             }
             odometry_at_last_frame_ = odometry_now_;
         }

@@ -6,12 +6,6 @@
 
 namespace lookup::coarse {
 
-double signedTravel(const mrpt::poses::CPose2D& from, const mrpt::poses::CPose2D& to) {
-    const mrpt::poses::CPose2D step = to - from;  // in the frame of `from`
-    const double d = step.norm();
-    return step.x() < 0 ? -d : d;
-}
-
 MatchFileSource::MatchFileSource(const std::string& path, double max_time_gap_s,
                                  std::shared_ptr<const ReferenceDescriptors> references)
     : path_(path), max_time_gap_s_(max_time_gap_s), references_(std::move(references)) {

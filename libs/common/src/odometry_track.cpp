@@ -76,4 +76,10 @@ void OdometryTrack::forgetBefore(double time_s) {
     while (readings_.size() > 2 && readings_[1].first < time_s) readings_.pop_front();
 }
 
+double signedTravel(const mrpt::poses::CPose2D& from, const mrpt::poses::CPose2D& to) {
+    const mrpt::poses::CPose2D step = to - from;  // in the frame of `from`
+    const double d = step.norm();
+    return step.x() < 0 ? -d : d;
+}
+
 }  // namespace lookup::common

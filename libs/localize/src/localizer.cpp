@@ -354,7 +354,7 @@ void Localizer::processOdometry(const mrpt::obs::CObservation& obs) {
     // check() refused a reading out of order already; never corrupt the track
     if (!odometry_.empty() && t <= odometry_.lastTime()) return;
     if (!odometry_.empty()) {
-        travelled_since_forward_ += coarse::signedTravel(odometry_.lastPose(), odo->odometry);
+        travelled_since_forward_ += common::signedTravel(odometry_.lastPose(), odo->odometry);
     }
     odometry_.add(t, odo->odometry);
     // Keep what dead reckoning can need: back to the last fix (bounded by the tracking gap, or

@@ -20,8 +20,8 @@ struct CameraFrame {
     double time_s = 0;       ///< time stamp [s] (mrpt::Clock::toDouble)
     mrpt::obs::CObservationImage::Ptr observation;
     /// Odometry distance since the previous frame of this camera [m], negative while reversing
-    /// (signedTravel); empty for the first frame and when the rawlog has no odometry with the
-    /// configured label.
+    /// (common::signedTravel); empty for the first frame and when the rawlog has no odometry
+    /// with the configured label.
     std::optional<double> travelled_m;
 };
 

@@ -5,7 +5,6 @@
 // (CoarseLocalizer), a file of query -> reference time stamps, or coarse poses in TUM form.
 
 #include <mrpt/img/CImage.h>
-#include <mrpt/poses/CPose2D.h>
 #include <mrpt/poses/CPose3D.h>
 
 #include <cstddef>
@@ -39,15 +38,12 @@ enum class CoarseStatus {
 /// "not_searched", "odometry", "unconfirmed".
 const char* toString(CoarseStatus status);
 
-/// The distance from odometry pose `from` to `to` [m], negative when the vehicle moved backwards
-/// (along -x of `from`).
-double signedTravel(const mrpt::poses::CPose2D& from, const mrpt::poses::CPose2D& to);
-
 struct CoarseQuery {
     double time_s = 0;                                 ///< query time stamp [s]
     const mrpt::img::CImage* forward_image = nullptr;  ///< needed by image-based sources
-    /// Odometry distance since the previous query [m], negative while reversing (signedTravel):
-    /// a reversing vehicle's forward camera sees the survey's views in the reverse order.
+    /// Odometry distance since the previous query [m], negative while reversing
+    /// (common::signedTravel): a reversing vehicle's forward camera sees the survey's views in
+    /// the reverse order.
     std::optional<double> travelled_m;
     /// false: the caller needs no match for this frame (e.g. the fine stage is tracking). A
     /// sequence matcher only adds the frame to its sequence; its next search is global.

@@ -47,4 +47,8 @@ class OdometryTrack {
     std::deque<std::pair<double, mrpt::poses::CPose2D>> readings_;
 };
 
+/// The distance from odometry pose `from` to `to` [m], negative when the vehicle moved backwards
+/// (along -x of `from`).
+double signedTravel(const mrpt::poses::CPose2D& from, const mrpt::poses::CPose2D& to);
+
 }  // namespace lookup::common
