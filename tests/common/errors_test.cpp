@@ -80,6 +80,43 @@ TEST(StrictOptions, BinaryOrNonIniFilesAreRefusedNamingFileAndLine) {
     EXPECT_EQ(IniSection(*cfg, "s").where("k"), good + " [s] k: ");
 }
 
+// A variant file keeps only what differs from its base: every key of both, its own winning,
+// through a chain of bases; a base that is missing or loops back is an error naming the file.
+TEST(StrictOptions, AFileLaidOverItsBaseKeepsOnlyWhatDiffers) {
+    const auto shared = writeFile("shared.ini", "[a]\nx = 1\ny = 2  // why\n[b]\nz = 3\n");
+    const auto name = [](const std::string& path) { return fs::path(path).filename().string(); };
+    const auto mine =
+        writeFile("mine.ini", "[ini]\nbase = " + name(shared) + "\n[a]\ny = 5\n[c]\nw = 6\n");
+    const auto pit = writeFile("pit.ini", "[ini]\nbase = " + name(mine) + "\n[b]\nz = 7\n");
+    const auto cfg = loadIniFile(pit);
+    EXPECT_EQ(cfg->read_int("a", "x", 0), 1);
+    EXPECT_EQ(cfg->read_int("a", "y", 0), 5);
+    EXPECT_EQ(cfg->read_int("b", "z", 0), 7);
+    EXPECT_EQ(cfg->read_int("c", "w", 0), 6);
+    EXPECT_FALSE(cfg->sectionExists("ini"));
+    EXPECT_EQ(configSourceName(*cfg), pit + " (over " + mine + " (over " + shared + "))");
+
+    // Installed under its base's name, a file takes its base from the share folders.
+    const auto dir = fs::temp_directory_path() / "lookup_errors_etc";
+    fs::create_directories(dir);
+    fs::copy_file(std::string(LOOKUP_SOURCE_SHARE_DIR) + "/localize-mine-b.ini",
+                  dir / "localize.ini", fs::copy_options::overwrite_existing);
+    const auto installed = loadIniFile((dir / "localize.ini").string());
+    EXPECT_EQ(installed->read_int("refine.matcher", "patch_px", 0), 60);
+    EXPECT_DOUBLE_EQ(installed->read_double("refine.acceptance", "min_inlier_share", 0), 0.45);
+
+    const auto missing = writeFile("missing.ini", "[ini]\nbase = nowhere.ini\n[a]\nx = 1\n");
+    const std::string why = messageOf([&] { loadIniFile(missing); });
+    EXPECT_NE(why.find(missing + " [ini] base: "), std::string::npos) << why;
+    EXPECT_NE(why.find("nowhere.ini: no such .ini file"), std::string::npos) << why;
+    const auto loop = writeFile("loop_b.ini", "[ini]\nbase = lookup_errors_loop_a.ini\n");
+    writeFile("loop_a.ini", "[ini]\nbase = " + name(loop) + "\n[a]\nx = 1\n");
+    EXPECT_NE(messageOf([&] { loadIniFile(loop); }).find("(a cycle)"), std::string::npos);
+    const auto typo = writeFile("typo.ini", "[ini]\nbsae = shared.ini\n[a]\nx = 1\n");
+    EXPECT_NE(messageOf([&] { loadIniFile(typo); }).find("[ini] bsae: unknown key"),
+              std::string::npos);
+}
+
 TEST(StrictOptions, MrptReadSectionsRefuseUnknownKeysAndMalformedValues) {
     const auto check = [](const std::string& text) {
         mrpt::config::CConfigFileMemory cfg(text);

@@ -18,22 +18,29 @@ const std::string kShare = LOOKUP_SOURCE_SHARE_DIR;
 }
 
 // The per-mine files lookup-localize --ini reads must load strictly (a typo in a key is an
-// error, not a silent default) and carry the values they document.
+// error, not a silent default) and carry the values they document: the shared settings from
+// their base, localize.ini, and their own matcher sizes; the calibrated suite's vehicles add
+// only their clocks to them.
 TEST(LocalizeIni, PerMineFilesLoadStrictly) {
     for (const auto& [file, search, patch] :
-         {std::tuple{"localize-mine-a.ini", 40, 40}, std::tuple{"localize-mine-b.ini", 70, 60}}) {
-        mrpt::config::CConfigFile ini(kShare + "/" + file);
+         {std::tuple{"localize-mine-a.ini", 40, 40}, std::tuple{"localize-mine-b.ini", 70, 60},
+          std::tuple{"suites/calibrated/localize-mine-a-real.ini", 40, 40},
+          std::tuple{"suites/calibrated/localize-mine-b-real.ini", 70, 60},
+          std::tuple{"suites/calibrated/localize-mine-b-offsets.ini", 70, 60}}) {
+        const auto ini = common::loadIniFile(kShare + "/" + file);
         localize::LocalizerOptions lo;
-        ASSERT_NO_THROW(lo.loadFromConfigFile(ini, "localizer")) << file;
+        ASSERT_NO_THROW(lo.loadFromConfigFile(*ini, "localizer")) << file;
         EXPECT_NO_THROW(lo.check()) << file;
         refine::RefinerOptions ro;
-        ASSERT_NO_THROW(ro.loadFromConfigFile(ini, "refine")) << file;
+        ASSERT_NO_THROW(ro.loadFromConfigFile(*ini, "refine")) << file;
         EXPECT_NO_THROW(ro.check()) << file;
         EXPECT_EQ(ro.matcher.search_range_px, search) << file;
         EXPECT_EQ(ro.matcher.patch_px, patch) << file;
         EXPECT_DOUBLE_EQ(ro.acceptance.min_inlier_share, 0.45) << file;
         EXPECT_DOUBLE_EQ(ro.acceptance.min_inlier_share_tracked, 0.3) << file;
         EXPECT_LT(ro.estimator.tilt_sigma_deg, 1.0) << file;
+        EXPECT_EQ(ini->sectionExists("time_offsets"), std::string(file).find("suites/") == 0)
+            << file;
     }
 }
 

@@ -17,6 +17,7 @@
 #include <sstream>
 
 #include "lookup/common/errors.h"
+#include "lookup/common/share_dirs.h"
 
 namespace lookup::common {
 namespace {
@@ -72,9 +73,10 @@ template std::string rangeText(double, double);
 template std::string rangeText(int, int);
 template std::string rangeText(std::uint64_t, std::uint64_t);
 
-namespace {}  // namespace
+namespace {
 
-std::unique_ptr<NamedConfigFile> loadIniFile(const std::string& path) {
+// One file read strictly (what loadIniFile promises), its [ini] base not followed.
+std::unique_ptr<NamedConfigFile> readIniFile(const std::string& path) {
     if (!std::filesystem::is_regular_file(path)) throw ConfigError(path + ": no such .ini file");
     std::ifstream file(path, std::ios::binary);
     std::stringstream buffer;
@@ -99,6 +101,67 @@ std::unique_ptr<NamedConfigFile> loadIniFile(const std::string& path) {
     }
     if (!in_section) throw ConfigError(path + ": no [section] (not an .ini file?)");
     return std::make_unique<NamedConfigFile>(text, path);
+}
+
+constexpr const char* kIniSection = "ini";
+
+// The file `[ini] base` of `including` names: as given when absolute, else beside `including`
+// (unless that is `including` itself: a per-mine file installed as /etc/lookup/localize.ini),
+// else in the share folders (a per-mine file copied elsewhere still finds its shipped base).
+std::string resolveBase(const std::string& base, const std::string& including) {
+    namespace fs = std::filesystem;
+    const fs::path given(base);
+    if (given.is_absolute()) return base;
+    const fs::path beside = fs::path(including).parent_path() / given;
+    if (fs::is_regular_file(beside) && !fs::equivalent(beside, including)) return beside.string();
+    const std::string shared = findShareFile(base);
+    return shared.empty() ? beside.string() : shared;
+}
+
+// Every key of `from` but the [ini] section's, written into `into` (a key in both takes
+// `from`'s value).
+void overlay(const mrpt::config::CConfigFileBase& from, mrpt::config::CConfigFileBase& into) {
+    std::vector<std::string> sections;
+    from.getAllSections(sections);
+    for (const auto& section : sections) {
+        if (section == kIniSection) continue;
+        std::vector<std::string> keys;
+        from.getAllKeys(section, keys);
+        for (const auto& key : keys) into.write(section, key, from.read_string(section, key, ""));
+    }
+}
+
+std::unique_ptr<NamedConfigFile> loadLayered(const std::string& path,
+                                             std::vector<std::string>& chain) {
+    auto file = readIniFile(path);
+    const IniSection ini(*file, kIniSection, path);
+    if (!ini.exists()) return file;
+    ini.rejectUnknownKeys({"base"});
+    const std::string base_path = resolveBase(ini.requireString("base"), path);
+    chain.push_back(std::filesystem::weakly_canonical(path).string());
+    if (std::find(chain.begin(), chain.end(),
+                  std::filesystem::weakly_canonical(base_path).string()) != chain.end()) {
+        throw ConfigError(ini.where("base") + base_path + " is already in this file's chain of " +
+                          "bases (a cycle)");
+    }
+    std::unique_ptr<NamedConfigFile> base;
+    try {
+        base = loadLayered(base_path, chain);
+    } catch (const ConfigError& e) {
+        throw ConfigError(ini.where("base") + e.what());
+    }
+    auto merged = std::make_unique<NamedConfigFile>();
+    overlay(*base, *merged);
+    overlay(*file, *merged);
+    merged->setFileName(path + " (over " + base->fileName() + ")");
+    return merged;
+}
+
+}  // namespace
+
+std::unique_ptr<NamedConfigFile> loadIniFile(const std::string& path) {
+    std::vector<std::string> chain;
+    return loadLayered(path, chain);
 }
 
 std::string configSourceName(const mrpt::config::CConfigFileBase& config) {

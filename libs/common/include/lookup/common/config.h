@@ -44,6 +44,10 @@ std::string rangeText(T min, T max);
 /// Reads an .ini file strictly: ConfigError naming the file (and line) when it is missing,
 /// unreadable, binary (NUL bytes), has no [section], or holds a line that is neither a comment
 /// (`;`, `#`, `//`), a `[section]`, a `key = value` nor an MRPT `@directive`.
+/// A file with `[ini] base = FILE` is laid over FILE (itself read this way): every section of
+/// both, a key in both takes this file's value, so a variant keeps only what differs. FILE is
+/// absolute, beside this file, or in the share folders; a missing base, a cycle or another key
+/// in [ini] is a ConfigError naming this file. The result is named "PATH (over BASE)".
 std::unique_ptr<NamedConfigFile> loadIniFile(const std::string& path);
 
 /// The file a configuration source was read from (CConfigFile, NamedConfigFile), else

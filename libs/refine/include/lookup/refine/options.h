@@ -2,7 +2,8 @@
 // Options of the refinement stages (paper Sec. III, Table I). Each struct is an MRPT
 // CLoadableOptions read strictly (unknown keys and malformed values are refused, naming the
 // file, section and key) and validated by check(), which names every failing field.
-// Defaults are the paper's Mine A values; share/lookup/refiner.ini also holds a Mine B preset.
+// Defaults are the paper's Mine A values (share/lookup/refiner.ini); mineB() its Mine B sizes.
+// What lookup-localize runs with, measured on the mines, is share/lookup/localize.ini.
 
 #include <mrpt/config/CLoadableOptions.h>
 
