@@ -15,6 +15,7 @@
 #include "lookup/refine/geometry.h"
 #include "lookup/refine/homography.h"
 #include "lookup/refine/matcher.h"
+#include "lookup/refine/patch_warp.h"
 #include "lookup/refine/refiner.h"
 #include "lookup/refine/sampler.h"
 #include "lookup/refine/testing/synthetic_ceiling.h"
@@ -167,6 +168,7 @@ BENCHMARK_CAPTURE(matcherBench, MineA_24pts, mineA(), 24, bestSimdLevel(), false
 BENCHMARK_CAPTURE(matcherBench, MineB_12pts, mineB(), 12, bestSimdLevel(), false);
 BENCHMARK_CAPTURE(matcherBench, MineB_24pts, mineB(), 24, bestSimdLevel(), false);
 BENCHMARK_CAPTURE(matcherBench, MineB_12pts_with_query_pyramid, mineB(), 12, bestSimdLevel(), true);
+BENCHMARK_CAPTURE(matcherBench, MineB_24pts_sse2, mineB(), 24, SimdLevel::Sse2, false);
 BENCHMARK_CAPTURE(matcherBench, MineB_12pts_scalar, mineB(), 12, SimdLevel::Scalar, false);
 BENCHMARK_CAPTURE(matcherBench, MineB_12pts_exhaustive, exhaustive(mineB()), 12, bestSimdLevel(),
                   false);
@@ -177,13 +179,42 @@ BENCHMARK_CAPTURE(matcherBench, MineB_12pts_exhaustive_scalar, exhaustive(mineB(
 // Motion-compensated matching (what the localiser runs): the reference warped into the query
 // frame by the predicted ceiling homography (here the true one), then the SAD search. The
 // warp is done per sample point and pyramid level, so the cost follows the number of points.
-void compensatedMatcherBench(benchmark::State& state, MatcherOptions o, int points) {
+// `simd` picks the SAD kernel and the patch warp (hand-written with AVX2, cv::warpPerspective
+// otherwise).
+void compensatedMatcherBench(benchmark::State& state, MatcherOptions o, int points,
+                             SimdLevel simd) {
     timeMatching(state, o, points, [&](const World::Pair& p, const auto& sample) {
-        return matchPointsCompensated(p.ref_pyramid, p.query_pyramid, sample, p.H, o);
+        return matchPointsCompensated(p.ref_pyramid, p.query_pyramid, sample, p.H, o, simd);
     });
+    state.SetLabel(std::string(toString(simd)) + " SAD, " +
+                   (simd == SimdLevel::Avx2 ? "AVX2 warp" : "cv::warpPerspective"));
 }
-BENCHMARK_CAPTURE(compensatedMatcherBench, Compensated_MineA_12pts, mineA(), 12);
-BENCHMARK_CAPTURE(compensatedMatcherBench, Compensated_MineA_24pts, mineA(), 24);
+BENCHMARK_CAPTURE(compensatedMatcherBench, Compensated_MineA_12pts, mineA(), 12, bestSimdLevel());
+BENCHMARK_CAPTURE(compensatedMatcherBench, Compensated_MineA_24pts, mineA(), 24, bestSimdLevel());
+BENCHMARK_CAPTURE(compensatedMatcherBench, Compensated_MineB_24pts, mineB(), 24, bestSimdLevel());
+BENCHMARK_CAPTURE(compensatedMatcherBench, Compensated_MineB_24pts_opencv_warp, mineB(), 24,
+                  SimdLevel::Sse2);
+
+// One Mine B level-0 patch (60 px and the bilinear taps' pixel each side) warped by a ceiling
+// homography: the hand-written AVX2 warp against cv::warpPerspective.
+void patchWarpBench(benchmark::State& state, SimdLevel simd) {
+    OneCore one_core;
+    const World& w = world();
+    const int side = mineB().patch_px + 2;
+    cv::Mat patch(side, side, CV_8UC1);
+    std::size_t i = 0;
+    for (auto _ : state) {
+        const auto& p = w.pairs[i++ % w.pairs.size()];
+        const cv::Matx33d patch_to_ref =
+            p.H.inv() * cv::Matx33d(1, 0, 320 - side / 2, 0, 1, 240 - side / 2, 0, 0, 1);
+        warpPatch(simd, p.ref_pyramid.levels[0], patch_to_ref, patch);
+        benchmark::DoNotOptimize(patch.data);
+    }
+    state.SetItemsProcessed(state.iterations());
+    state.SetLabel(simd == SimdLevel::Avx2 ? "AVX2" : "cv::warpPerspective");
+}
+BENCHMARK_CAPTURE(patchWarpBench, PatchWarp_62px, bestSimdLevel());
+BENCHMARK_CAPTURE(patchWarpBench, PatchWarp_62px_opencv, SimdLevel::Sse2);
 
 // The OpenCV way to do the same search: cv::matchTemplate (no SAD there; TM_SQDIFF), exhaustive
 // over the Mine B window, integer peak. Shows what the hand-written SAD path buys.

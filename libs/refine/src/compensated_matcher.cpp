@@ -1,10 +1,10 @@
 #include <algorithm>
 #include <cmath>
-#include <opencv2/imgproc.hpp>
 #include <vector>
 
 #include "lookup/refine/geometry.h"
 #include "lookup/refine/matcher.h"
+#include "lookup/refine/patch_warp.h"
 
 namespace lookup::refine {
 
@@ -71,7 +71,7 @@ std::vector<PointMatch> matchPointsCompensated(const ImagePyramid& reference,
         cv::Mat level = buffers[std::size_t(k)](cv::Rect(0, 0, q.cols, q.rows));
         const double s = 1.0 / (1 << k);
         const cv::Matx33d S(s, 0, 0, 0, s, 0, 0, 0, 1), S_inv(1 / s, 0, 0, 0, 1 / s, 0, 0, 0, 1);
-        const cv::Matx33d H_k = S * H * S_inv;
+        const cv::Matx33d H_k_inv = S * H_inv * S_inv;
         const int side = options.patch_px >> k;
         for (const cv::Point2f& c : centres) {
             // The matcher's patch at this level, one pixel wider each side.
@@ -80,10 +80,10 @@ std::vector<PointMatch> matchPointsCompensated(const ImagePyramid& reference,
                 cv::Rect(centre.x - side / 2 - 1, centre.y - side / 2 - 1, side + 2, side + 2) &
                 cv::Rect(0, 0, level.cols, level.rows);
             if (patch.empty()) continue;
-            const cv::Matx33d to_patch = cv::Matx33d(1, 0, -patch.x, 0, 1, -patch.y, 0, 0, 1) * H_k;
+            const cv::Matx33d patch_to_ref =
+                H_k_inv * cv::Matx33d(1, 0, patch.x, 0, 1, patch.y, 0, 0, 1);
             cv::Mat dst = level(patch);
-            cv::warpPerspective(reference.levels[k], dst, cv::Mat(to_patch), patch.size(),
-                                cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar(0));
+            warpPatch(simd, reference.levels[k], patch_to_ref, dst);
         }
         warped_pyramid.levels.push_back(level);
     }
