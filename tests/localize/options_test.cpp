@@ -39,6 +39,7 @@ TEST(LocalizeIni, PerMineFilesLoadStrictly) {
         EXPECT_DOUBLE_EQ(ro.acceptance.min_inlier_share, 0.45) << file;
         EXPECT_DOUBLE_EQ(ro.acceptance.min_inlier_share_tracked, 0.3) << file;
         EXPECT_LT(ro.estimator.tilt_sigma_deg, 1.0) << file;
+        EXPECT_DOUBLE_EQ(ro.matcher.max_contrast_gain, 64.0) << file;
         EXPECT_EQ(ini->sectionExists("time_offsets"), std::string(file).find("suites/") == 0)
             << file;
     }

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <opencv2/imgproc.hpp>
 
 #include "lookup/refine/geometry.h"
 #include "lookup/refine/matcher.h"
@@ -285,4 +286,46 @@ TEST(Matcher, IlluminationPreprocessingIsRecordedOnThePyramid) {
     cv::meanStdDev(p.levels[0], mean, stddev);
     EXPECT_NEAR(mean[0], 128.0, 3.0);
     EXPECT_NEAR(stddev[0], 48.0, 6.0);
+}
+
+TEST(Matcher, ADimBlurredNoisyQueryMatchesASharpReferenceOnceItsContrastIsStretched) {
+    // Another vehicle's weaker lamp: a tenth of the survey's contrast, the sensor's noise, and
+    // at 40 km/h a 3 ms exposure smears the ceiling by 2.4 px along the drive (7 px: 9 ms).
+    // The blur is symmetric, so the SAD minimum stays where the sharp reference's texture is,
+    // once both images are stretched to the same contrast: a gain of 4 leaves the query at 0.4
+    // of the reference's and no peak stands out.
+    const Pair pair = makePair(0.12, -0.05);
+    const auto dim_blurred = [](const cv::Mat& image, int smear_px) {
+        cv::Mat blurred, noise(image.size(), CV_32F), out;
+        cv::blur(image, blurred, cv::Size(smear_px, 1));
+        cv::RNG(5).fill(noise, cv::RNG::NORMAL, 0.0, 1.0);
+        blurred.convertTo(out, CV_32F, 0.1, 10.0);
+        out += noise;
+        out.convertTo(out, CV_8U);
+        return out;
+    };
+    const auto correct = [&](const MatcherOptions& o, int smear_px) {
+        const auto points = gridPoints(pair.ref.size(), 24, o.patch_px / 2);
+        const int levels = effectivePyramidLevels(o);
+        const ImagePyramid r = ImagePyramid::build(pair.ref, levels, o);
+        const ImagePyramid q = ImagePyramid::build(dim_blurred(pair.qry, smear_px), levels, o);
+        int n = 0;
+        for (const auto& m : matchPoints(r, q, points, {}, o)) {
+            const cv::Point2d truth = apply(pair.H, m.reference_px);
+            if (m.matched() && cv::norm(cv::Point2d(m.query_px) - truth) < 0.5) ++n;
+        }
+        return n;
+    };
+    MatcherOptions stretched;
+    stretched.min_distinctiveness = 0.2;  // as share/lookup/localize.ini
+    stretched.max_contrast_gain = 64;
+    MatcherOptions capped = stretched;
+    capped.max_contrast_gain = 4;
+    for (const int smear_px : {3, 7}) {
+        const int with = correct(stretched, smear_px), without = correct(capped, smear_px);
+        std::printf("smear %d px: %d of 24 correct stretched, %d with the gain capped at 4\n",
+                    smear_px, with, without);
+        EXPECT_GE(with, 18) << "smear " << smear_px << " px";
+        EXPECT_LE(2 * without, with) << "smear " << smear_px << " px";
+    }
 }

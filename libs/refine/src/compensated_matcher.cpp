@@ -60,6 +60,7 @@ std::vector<PointMatch> matchPointsCompensated(const ImagePyramid& reference,
     ImagePyramid warped_pyramid;
     warped_pyramid.normalized = reference.normalized;
     warped_pyramid.illumination_sigma_px = reference.illumination_sigma_px;
+    warped_pyramid.max_contrast_gain = reference.max_contrast_gain;
     // Level buffers are kept between calls and never cleared: the matcher reads a reference
     // level only inside the patches written below (it copies each patch's own rectangle).
     thread_local std::vector<cv::Mat> buffers;

@@ -53,11 +53,12 @@ cv::Mat stretchContrast(const cv::Mat& texture, double max_gain) {
 
 ImagePyramid ImagePyramid::build(const cv::Mat& image, int extra_levels,
                                  const MatcherOptions& matcher) {
-    return build(image, extra_levels, matcher.normalize_brightness, matcher.illumination_sigma_px);
+    return build(image, extra_levels, matcher.normalize_brightness, matcher.illumination_sigma_px,
+                 matcher.max_contrast_gain);
 }
 
 ImagePyramid ImagePyramid::build(const cv::Mat& image, int extra_levels, bool normalize,
-                                 double illumination_sigma_px) {
+                                 double illumination_sigma_px, double max_contrast_gain) {
     ImagePyramid p;
     if (image.empty()) return p;
     cv::Mat grey;
@@ -72,8 +73,9 @@ ImagePyramid ImagePyramid::build(const cv::Mat& image, int extra_levels, bool no
     const cv::Mat source = removeIllumination(grey, illumination_sigma_px);
     p.illumination_sigma_px = std::max(0.0, illumination_sigma_px);
     if (normalize) {
-        grey = stretchContrast(source);
+        grey = stretchContrast(source, max_contrast_gain);
         p.normalized = true;
+        p.max_contrast_gain = max_contrast_gain;
     } else if (source.type() != CV_8U) {
         source.convertTo(grey, CV_8U, 1.0, 128.0);  // the texture around mid-grey
     }

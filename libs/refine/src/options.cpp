@@ -46,6 +46,7 @@ void MatcherOptions::declareKeys(OptionsTable& t) {
     t.add("subpixel", subpixel, kSubpixelMethods);
     t.add("use_simd", use_simd);
     t.add("normalize_brightness", normalize_brightness);
+    t.add("max_contrast_gain", max_contrast_gain, 1.0, 256.0);
     t.add("illumination_sigma_px", illumination_sigma_px);
     t.add("compensate_motion", compensate_motion);
 }

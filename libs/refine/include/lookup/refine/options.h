@@ -73,6 +73,8 @@ struct MatcherOptions : public common::TableOptions<MatcherOptions> {
     SubpixelMethod subpixel = SubpixelMethod::Equiangular;
     bool use_simd = true;              ///< false forces the scalar SAD (verification)
     bool normalize_brightness = true;  ///< per-image gain/offset normalisation before SAD
+    /// The normalisation's gain at most: a flat, noisy image is not stretched into texture.
+    double max_contrast_gain = 4.0;
     /// Gaussian sigma [px] of the illumination subtracted from both images before SAD (a
     /// high-pass; 0 = off, the paper's raw SAD). The vehicle carries its lights, so a query and
     /// a reference taken a metre apart see the same ceiling lit differently; on smooth

@@ -29,20 +29,23 @@ namespace lookup::refine {
 struct ImagePyramid {
     std::vector<cv::Mat> levels;
     bool normalized = false;           ///< brightness normalised (see build)
+    double max_contrast_gain = 0;      ///< the normalisation's gain cap (see build)
     double illumination_sigma_px = 0;  ///< illumination removed at this scale (see build)
 
     /// `grey` must be CV_8UC1 (CV_8UC3 is converted); `extra_levels` coarser levels are added.
     /// `illumination_sigma_px` > 0: a Gaussian blur of that sigma (the illumination) is
     /// subtracted first, keeping the texture. `normalize`: linear stretch of the whole image to
-    /// mean 128, standard deviation 48 (gain capped at 4) so SAD ignores global gain and offset
-    /// changes (exposure).
+    /// mean 128, standard deviation 48 (gain capped at `max_contrast_gain`) so SAD ignores global
+    /// gain and offset changes (exposure).
     static ImagePyramid build(const cv::Mat& grey, int extra_levels, bool normalize = false,
-                              double illumination_sigma_px = 0);
-    /// With the preprocessing `matcher` asks for (normalize_brightness, illumination_sigma_px).
+                              double illumination_sigma_px = 0, double max_contrast_gain = 4.0);
+    /// With the preprocessing `matcher` asks for (normalize_brightness, max_contrast_gain,
+    /// illumination_sigma_px).
     static ImagePyramid build(const cv::Mat& grey, int extra_levels, const MatcherOptions& matcher);
     /// Whether this pyramid was preprocessed as `matcher` asks.
     bool preprocessedFor(const MatcherOptions& matcher) const {
         return normalized == matcher.normalize_brightness &&
+               (!normalized || max_contrast_gain == matcher.max_contrast_gain) &&
                illumination_sigma_px == matcher.illumination_sigma_px;
     }
     bool empty() const { return levels.empty() || levels[0].empty(); }
