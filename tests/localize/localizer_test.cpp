@@ -1276,3 +1276,50 @@ TEST(Localize, RollingShutterReferencesAreSeenFromTheSurveyVehiclesRowPoses) {
     EXPECT_LT(meanError("db_recorded"), 0.01);
     EXPECT_GT(meanError("db_unrecorded"), 0.03);
 }
+
+// A ceiling camera that never gives a fix (flat images: a covered lens, a dead lamp) leaves
+// only the coarse stage's place, which in tunnels that alias may be tens of metres off with
+// nothing to say so: no pose is reported, and the coarse match stays in its own columns. Once
+// a fix was made, the odometry carries on from it, its ellipse growing, past the few metres a
+// coarse place could claim.
+TEST(Localize, ACoarseMatchTheCeilingNeverConfirmedIsNoPose) {
+    const auto flat = [](mrpt::obs::CObservationImage& img) {
+        img.image =
+            mrpt::img::CImage(cv::Mat(240, 320, CV_8UC1, cv::Scalar(128)), mrpt::img::DEEP_COPY);
+    };
+    const auto never = lookup::test::freshDir("lookup_localize_coarse_unconfirmed");
+    auto req = planarRun(
+        never, [&](int, mrpt::obs::CObservationImage& img, auto&) { flat(img); }, 12);
+    localize::runLocalization(req);
+    const auto run = eval::loadRun(req.out_dir);
+    ASSERT_EQ(run.frames.size(), 12u);
+    for (const auto& f : run.frames) {
+        EXPECT_EQ(f.status, "lost") << f.reason;
+        EXPECT_FALSE(f.has_pose);
+        EXPECT_TRUE(f.has_coarse);
+        EXPECT_NE(f.reason.find("not confirmed by the ceiling"), std::string::npos) << f.reason;
+    }
+
+    // A fix at frames 0-3, then the ceiling is lost for the rest of a drive long enough for
+    // the dead reckoning's sigma to pass 2 m (the odometry here is exact).
+    const auto later = lookup::test::freshDir("lookup_localize_coarse_after_a_fix");
+    PlanarDrive drive;
+    drive.vehicle = [](int i) { return mrpt::poses::CPose3D(-5 + 1.5 * i, 0.4, 0, 0.05, 0, 0); };
+    req = planarRun(
+        later,
+        [&](int i, mrpt::obs::CObservationImage& img, auto&) {
+            if (i >= 4) flat(img);
+        },
+        60, drive);
+    localize::runLocalization(req);
+    const auto dead = eval::loadRun(req.out_dir);
+    ASSERT_EQ(dead.frames.size(), 60u);
+    ASSERT_EQ(dead.frames[3].status, "refined") << dead.frames[3].reason;
+    for (int i = 4; i < 60; ++i) {
+        const auto& f = dead.frames[i];
+        ASSERT_EQ(f.status, "fallback") << i << ": " << f.reason;
+        EXPECT_LT(std::hypot(f.x - (-5 + 1.5 * i), f.y - 0.4), 0.2) << i;
+    }
+    EXPECT_GT(dead.frames.back().cov_xx + dead.frames.back().cov_yy, 2 * 2.0 * 2.0)
+        << "the drive never took the dead reckoning past the coarse fallback's sigma";
+}

@@ -1270,12 +1270,15 @@ void Localizer::emit(const Attempt& a, const std::optional<Prediction>& predicti
         out.has_pose = true;
         out.pose_source = "prediction";
         out.pose = *dead_reckoned;
-    } else if (out.coarse_pose) {
-        out.has_pose = true;
-        out.pose_source = "coarse";
-        out.pose = refiner_.acceptance().fallback(*out.coarse_pose);
+        return;
+    }
+    // The coarse stage names a place, or one of the places that look like it: in tunnels that
+    // alias its error is metres or tens of metres with nothing to tell which, so no sigma would
+    // be honest. Unconfirmed by the ceiling, it stays in the coarse columns, not the pose.
+    out.status = FrameStatus::Lost;
+    if (out.coarse_pose) {
+        out.reason = "coarse match not confirmed by the ceiling (" + out.reason + ")";
     } else {
-        out.status = FrameStatus::Lost;
         out.reason = last_coarse_ ? "coarse stage not confident: " + last_coarse_->reason
                                   : "no coarse match yet";
         out.reason += a.note;
@@ -1298,21 +1301,11 @@ bool Localizer::acquisitionAllowed() const {
 
 std::optional<mrpt::poses::CPosePDFGaussian> Localizer::deadReckonedFallback(
     const std::optional<Prediction>& prediction, const FrameResult& out) const {
-    const auto& policy = refiner_.acceptance();
     if (prediction) return predictedPose(*prediction);
     if (!options_.use_tracking) return std::nullopt;
     const auto dead = deadReckon(out.time_s);
     if (!dead || !dead->motion.velocity_known) return std::nullopt;
-    auto pose = predictedPose(*dead);
-    // A coarse pose is the forward camera's guess of a place; odometry from a fix is better
-    // evidence until its uncertainty has grown past the guess's.
-    if (out.coarse_pose) {
-        const auto coarse = policy.fallback(*out.coarse_pose);
-        if (pose.cov(0, 0) + pose.cov(1, 1) >= coarse.cov(0, 0) + coarse.cov(1, 1)) {
-            return std::nullopt;
-        }
-    }
-    return pose;
+    return predictedPose(*dead);
 }
 
 mrpt::math::CMatrixDouble33 Localizer::surveyCovariance(

@@ -38,10 +38,10 @@ namespace lookup::localize {
 
 enum class FrameStatus {
     Refined,   ///< refinement accepted (N_th, d_th)
-    Fallback,  ///< refinement rejected or impossible: predicted or coarse pose emitted
+    Fallback,  ///< refinement rejected or impossible: the pose dead-reckoned from the last fix
     /// Several places explain the frame nearly as well: no pose (never one of them, tightly).
     Ambiguous,
-    Lost,     ///< no pose at all (no coarse match, no recent fix)
+    Lost,     ///< no pose: no fix to dead-reckon from (a coarse match alone is not one)
     Dropped,  ///< not processed: the localiser was behind real time
 };
 const char* toString(FrameStatus s);  ///< "refined", "fallback", "ambiguous", "lost", "dropped"
@@ -62,7 +62,7 @@ struct FrameResult {
     bool has_pose = false;
     mrpt::poses::CPosePDFGaussian pose;  ///< emitted vehicle pose (x, y, yaw) with covariance
     std::optional<mrpt::poses::CPose2D> coarse_pose;  ///< the coarse stage's pose, if any
-    std::string pose_source;                          ///< "refined", "prediction", "coarse"
+    std::string pose_source;                          ///< "refined", "prediction"
     double inlier_share = 0;                          ///< of the accepted / last refinement attempt
     std::vector<std::size_t> reference_indices;       ///< database indices refined against
     int refinement_attempts = 0;
