@@ -3,7 +3,7 @@
 // sample point's patch on every pyramid level, and cv::warpPerspective's per-call set-up and
 // 1/32-pixel remap tables cost more than the SAD search on patches this small. The AVX2
 // version computes eight source positions at a time in float and gathers their four taps;
-// other levels call OpenCV.
+// without AVX2 it calls OpenCV.
 
 #include <opencv2/core.hpp>
 
