@@ -156,8 +156,8 @@ struct AcceptanceOptions : public common::TableOptions<AcceptanceOptions> {
     /// tracked frame over a changed ceiling has fewer testable points that still match.
     double min_inlier_share_tracked = 1.0;
     double max_offset_m = 2.0;         ///< d_th: max |refined - coarse (or reference)| in x, y [m]
-    double fallback_sigma_xy_m = 2.0;  ///< sigma reported with a fallback pose [m]
-    double fallback_sigma_yaw_deg = 10.0;  ///< sigma reported with a fallback pose [deg]
+    double fallback_sigma_xy_m = 2.0;  ///< sigma of a failed result's coarse pose [m]
+    double fallback_sigma_yaw_deg = 10.0;  ///< sigma of a failed result's coarse pose [deg]
     /// Sigma of a pose dead-reckoned from the last fix: this much [m] plus `_per_m` of the
     /// odometry's distance since the fix (wheel odometry drifts by a few percent).
     double dead_reckoning_sigma_xy_m = 0.05;
