@@ -38,7 +38,8 @@ struct ImagePyramid {
     /// mean 128, standard deviation 48 (gain capped at `max_contrast_gain`) so SAD ignores global
     /// gain and offset changes (exposure).
     static ImagePyramid build(const cv::Mat& grey, int extra_levels, bool normalize = false,
-                              double illumination_sigma_px = 0, double max_contrast_gain = 4.0);
+                              double illumination_sigma_px = 0,
+                              double max_contrast_gain = MatcherOptions().max_contrast_gain);
     /// With the preprocessing `matcher` asks for (normalize_brightness, max_contrast_gain,
     /// illumination_sigma_px).
     static ImagePyramid build(const cv::Mat& grey, int extra_levels, const MatcherOptions& matcher);
