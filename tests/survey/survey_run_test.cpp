@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 
 #include <mrpt/config/CConfigFile.h>
+#include <mrpt/math/wrap2pi.h>
 #include <mrpt/obs/CObservationImage.h>
 #include <algorithm>
 #include <cmath>
@@ -191,6 +192,72 @@ TEST(SurveyRun, TheStartPoseErrorIsARigidErrorInEveryCovariance) {
         EXPECT_NEAR(b.vehicle_cov(0, 0) - a.vehicle_cov(0, 0), 0.0025 + syaw2 * y * y, 1e-6) << i;
         EXPECT_NEAR(b.vehicle_cov(1, 1) - a.vehicle_cov(1, 1), 0.0025 + syaw2 * x * x, 1e-6) << i;
         EXPECT_NEAR(b.vehicle_cov(2, 2) - a.vehicle_cov(2, 2), syaw2, 1e-9) << i;
+    }
+}
+
+// A start mark's heading error turns the whole map about the start. A second mark where the
+// drive ends turns it back (the map's shape is the laser's); one that disagrees with the map
+// beyond both marks' uncertainty is reported and not used.
+TEST(SurveyRun, AnEndMarkTurnsTheMapBackOntoBothMarks) {
+    const auto dir = lookup::test::freshDir("lookup_survey_end_mark");
+    const auto f = lookup::test::makeSurveyRawlog(dir.string(), "corridor", 12.0);
+    const auto run = [&](const std::string& end_pose, const std::string& name) {
+        auto o = shareOptions();
+        o.start_pose = "0 0 7.7106";  // the truth's heading is 5.7106 deg
+        o.start_pose_std_yaw_deg = 2.0;
+        o.end_pose = end_pose;
+        o.end_pose_std_xy_m = 0.3;  // the fixture's map is 0.3 m long at its end, see below
+        o.end_pose_std_yaw_deg = 0.5;
+        auto result = Survey(o, shareIni()).run(inputsFor(f, dir / name));
+        EXPECT_TRUE(result.ok()) << result.reason;
+        return std::make_pair(result,
+                              lookup::database::ReferenceDatabase::load((dir / name).string()));
+    };
+    // Worst position error and mean heading error of the references against the truth.
+    const auto errors = [](const lookup::database::ReferenceDatabase& db) {
+        double worst = 0, heading = 0;
+        for (const auto& r : db.references()) {
+            const auto truth = lookup::test::truePoseAt(r.time_s - 1.7e9);
+            worst = std::max(
+                worst, std::hypot(r.vehicle_pose.x() - truth.x(), r.vehicle_pose.y() - truth.y()));
+            heading += std::abs(mrpt::math::wrapToPi(r.vehicle_pose.yaw() - truth.phi()));
+        }
+        return std::make_pair(worst, mrpt::RAD2DEG(heading / db.size()));
+    };
+    const mrpt::poses::CPose2D end = lookup::test::truePoseAt(12.0);  // the last scan
+    const std::string end_text = std::to_string(end.x()) + " " + std::to_string(end.y()) + " " +
+                                 std::to_string(mrpt::RAD2DEG(end.phi()));
+    const auto [start_result, start_only] = run("", "start_only");
+    const auto [end_result, both] = run(end_text, "both");
+    const auto [wrong_result, wrong] = run("14 2 0", "wrong");
+
+    EXPECT_FALSE(start_result.end_mark.given);
+    EXPECT_GT(errors(start_only).second, 1.5);
+    EXPECT_TRUE(end_result.end_mark.used);
+    EXPECT_NEAR(mrpt::RAD2DEG(end_result.end_mark.correction.phi()), -2.0, 0.4);
+    EXPECT_LT(errors(both).second, 0.3);
+    // The fixture's map is also stretched along its straight corridor (odometry scale, which
+    // the scans hardly see): that part of the end's error is the map's, not the frame's.
+    EXPECT_LT(errors(both).first, 0.7 * errors(start_only).first);
+    // What is left of the frame's error is smaller, and every covariance says so at the far end.
+    EXPECT_LT(end_result.end_mark.std_yaw_deg, 0.5);
+    ASSERT_EQ(both.size(), start_only.size());
+    const std::size_t last = both.size() - 1;
+    EXPECT_LT(both.reference(last).vehicle_cov(1, 1),
+              0.2 * start_only.reference(last).vehicle_cov(1, 1));
+
+    EXPECT_TRUE(wrong_result.end_mark.given);
+    EXPECT_FALSE(wrong_result.end_mark.used);
+    EXPECT_GT(wrong_result.end_mark.disagreement_m, 1.5);
+    const auto& warnings = wrong_result.warnings;
+    EXPECT_TRUE(std::any_of(warnings.begin(), warnings.end(), [](const std::string& w) {
+        return w.find("end_pose '14 2 0'") != std::string::npos &&
+               w.find("not used") != std::string::npos;
+    }));
+    ASSERT_EQ(wrong.size(), start_only.size());
+    for (std::size_t i = 0; i < wrong.size(); ++i) {
+        EXPECT_EQ(wrong.reference(i).vehicle_pose.y(), start_only.reference(i).vehicle_pose.y())
+            << i;
     }
 }
 

@@ -332,26 +332,40 @@ void drivePlan(const std::vector<PlanLeg>& legs, double s, double length, double
     }
 }
 
-// Bounds of the error of the start pose lookup-sim hands the survey: a vehicle parked over a
-// surveyed mark at the portal, aligned by eye with a painted line (docs/survey.md).
-constexpr double kStartErrorMaxM = 0.05;
-constexpr double kStartErrorMaxDeg = 0.1;
+// Bounds of the error of the start and end poses lookup-sim hands the survey: a vehicle parked
+// over a surveyed mark, aligned by eye with a painted line (docs/survey.md).
+constexpr double kMarkErrorMaxM = 0.05;
+constexpr double kMarkErrorMaxDeg = 0.1;
 
-// The operator's start pose of a traverse, "x y yaw_deg": its true pose at the first lidar
-// scan with a seeded error within the bounds above, never the exact truth.
-std::string operatorStartPose(const ScenarioOptions& sc, const common::PoseTrack& track,
-                              std::size_t index) {
-    const mrpt::poses::CPose3D p = poseAt(track, track.front().time_s + sc.lidar.phase_s);
-    const uint32_t seed = hash3(static_cast<uint32_t>(sc.seed),
-                                static_cast<uint32_t>(sc.seed >> 32), 0x57a27u + uint32_t(index));
-    const double r = kStartErrorMaxM * (0.5 + 0.5 * unit(hash3(seed, 1, 0)));
+// "x y yaw_deg" of `p` with a seeded error within the bounds above, never the exact truth.
+std::string operatorMark(const mrpt::poses::CPose3D& p, uint32_t seed) {
+    const double r = kMarkErrorMaxM * (0.5 + 0.5 * unit(hash3(seed, 1, 0)));
     const double dir = 2 * M_PI * unit(hash3(seed, 2, 0));
     const double sign = unit(hash3(seed, 3, 0)) < 0.5 ? -1.0 : 1.0;
-    const double dyaw = sign * kStartErrorMaxDeg * (0.5 + 0.5 * unit(hash3(seed, 4, 0)));
+    const double dyaw = sign * kMarkErrorMaxDeg * (0.5 + 0.5 * unit(hash3(seed, 4, 0)));
     char buf[96];
     std::snprintf(buf, sizeof(buf), "%.3f %.3f %.3f", p.x() + r * std::cos(dir),
                   p.y() + r * std::sin(dir), mrpt::RAD2DEG(p.yaw()) + dyaw);
     return buf;
+}
+
+uint32_t markSeed(const ScenarioOptions& sc, uint32_t salt) {
+    return hash3(static_cast<uint32_t>(sc.seed), static_cast<uint32_t>(sc.seed >> 32), salt);
+}
+
+// The operator's start pose of a traverse: its true pose at the first lidar scan, with an error.
+std::string operatorStartPose(const ScenarioOptions& sc, const common::PoseTrack& track,
+                              std::size_t index) {
+    return operatorMark(poseAt(track, track.front().time_s + sc.lidar.phase_s),
+                        markSeed(sc, 0x57a27u + uint32_t(index)));
+}
+
+// The operator's end pose: where the drive ends, the vehicle at rest over a second mark, with
+// an error of its own.
+std::string operatorEndPose(const ScenarioOptions& sc, const common::PoseTrack& track,
+                            std::size_t index) {
+    return operatorMark(poseAt(track, track.back().time_s),
+                        markSeed(sc, 0xe4d5bu + uint32_t(index)));
 }
 
 /// A scan of `lidar`'s geometry with no ranges yet.
@@ -403,8 +417,8 @@ void writeDatasetIni(const std::string& path, const ScenarioOptions& sc,
       << "lidar_label = " << sc.lidar.label << "\n"
       << "odometry_label = " << sc.odometry.label << "\n";
     if (sc.imu.activeIn(!sc.world.grade.empty())) f << "imu_label = " << sc.imu.label << "\n";
-    // No ceiling height and no exact start: the survey measures the one and is given the
-    // other as an operator would give it.
+    // No ceiling height and no exact start or end: the survey measures the one and is given
+    // the others as an operator would give them.
     bool start_written = false;
     for (std::size_t i = 0; i < sc.traverses.size(); ++i) {
         const auto& t = sc.traverses[i];
@@ -414,7 +428,8 @@ void writeDatasetIni(const std::string& path, const ScenarioOptions& sc,
           << "ground_truth = " << t.name << ".rawlog.GT.txt\n"
           << "roles = " << t.roles << "\n";
         if (!start_written && t.roles.find("mapping") != std::string::npos) {
-            f << "start_pose = " << operatorStartPose(sc, tracks[i], i) << "\n";
+            f << "start_pose = " << operatorStartPose(sc, tracks[i], i) << "\n"
+              << "end_pose = " << operatorEndPose(sc, tracks[i], i) << "\n";
             start_written = true;
         }
     }

@@ -390,6 +390,10 @@ struct GridMap {
     common::PoseTrack mapping_track;               ///< where the other traverses' starts are sought
     std::optional<common::PoseTrack> graph_track;  ///< the mapping traverse's pose-graph track
     std::vector<mrpt::math::CMatrixDouble33> graph_covs;  ///< its covariances, when final
+    /// The mapping traverse's last pose (grid frame) and the graph's covariance of it relative
+    /// to the start (zero where none was computed): where the end mark is compared.
+    mrpt::poses::CPose2D end;
+    Eigen::Matrix3d end_cov = Eigen::Matrix3d::Zero();
 };
 
 /// The mapping traverse's own pose graph over its ICP-SLAM track, and the grid rebuilt from it.
@@ -436,6 +440,8 @@ GridMap buildMap(const SurveyInputs& in, std::size_t mapping, SurveyData& survey
         map.grid = std::move(icp.grid);
     }
     map.mapping_track = map.graph_track ? *map.graph_track : icp.icp_track.poses;
+    if (!map.mapping_track.empty()) map.end = mrpt::poses::CPose2D(map.mapping_track.back().pose);
+    if (!map.graph_covs.empty()) map.end_cov = map.graph_covs.back().asEigen();
     result.mapping_time_s = timer.Tac();
     return map;
 }
@@ -490,6 +496,8 @@ void jointGraph(const SurveyInputs& in, const SurveyData& survey, std::size_t ma
         covs.resize(members.size());  // none when the graph had no keyframes
         member_covs = std::move(covs);
         map.grid = gridFromTracks(graph, member_tracks, config);
+        if (!member_tracks[0].empty()) map.end = mrpt::poses::CPose2D(member_tracks[0].back().pose);
+        if (!member_covs[0].empty()) map.end_cov = member_covs[0].back().asEigen();
         result.mapping_time_s += timer.Tac();
     }
     const mrpt::math::CMatrixDouble33 floor = mapErrorCovariance(o);
@@ -504,22 +512,96 @@ void jointGraph(const SurveyInputs& in, const SurveyData& survey, std::size_t ma
     }
 }
 
-/// The operator's start pose defines the map frame, and its error is a rigid error of the whole
-/// map: the start's offset everywhere, its heading error times the distance from the start.
-/// Every laser pose's covariance (the graph's is relative to the fixed start) carries it.
-void addStartUncertainty(const mrpt::poses::CPose2D& origin, const SurveyOptions& o,
-                         VehiclePoses& poses) {
-    const double sxy2 = o.start_pose_std_xy_m * o.start_pose_std_xy_m;
-    const double syaw2 = std::pow(mrpt::DEG2RAD(o.start_pose_std_yaw_deg), 2);
+/// The rigid correction of the map frame (x, y, yaw about `pivot`) and its covariance.
+struct FrameTie {
+    Eigen::Vector3d delta = Eigen::Vector3d::Zero();
+    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+};
+
+/// d(pose at `p`)/d(correction about `pivot`): the offset, and the heading times the lever.
+Eigen::Matrix3d leverJacobian(const mrpt::poses::CPose2D& pivot, double x, double y) {
+    Eigen::Matrix3d j = Eigen::Matrix3d::Identity();
+    j(0, 2) = -(y - pivot.y());
+    j(1, 2) = x - pivot.x();
+    return j;
+}
+
+Eigen::Matrix3d markCovariance(double std_xy_m, double std_yaw_deg) {
+    return Eigen::Vector3d(std_xy_m * std_xy_m, std_xy_m * std_xy_m,
+                           std::pow(mrpt::DEG2RAD(std_yaw_deg), 2))
+        .asDiagonal();
+}
+
+/// The two marks against the map (map frame): the start lies on its mark by construction, the
+/// end where the graph put the last pose. Weighted least squares over a small rigid correction
+/// about the start (the laser map's shape is kept: it is centimetres apart from the marks'
+/// errors); the end's weight includes the graph's uncertainty of the end relative to the start.
+/// A 3-dof chi-square beyond 99.9 % means the end mark, or the map, is wrong: it is not used.
+FrameTie tieToEndMark(const mrpt::poses::CPose2D& start, const mrpt::poses::CPose2D& map_end,
+                      const mrpt::poses::CPose2D& end_mark, const Eigen::Matrix3d& end_graph_cov,
+                      const SurveyOptions& o, EndMarkReport& report) {
+    const Eigen::Matrix3d w_start =
+        markCovariance(o.start_pose_std_xy_m, o.start_pose_std_yaw_deg).inverse();
+    const Eigen::Matrix3d w_end =
+        (markCovariance(o.end_pose_std_xy_m, o.end_pose_std_yaw_deg) + end_graph_cov).inverse();
+    const Eigen::Matrix3d a = leverJacobian(start, map_end.x(), map_end.y());
+    const Eigen::Vector3d b(end_mark.x() - map_end.x(), end_mark.y() - map_end.y(),
+                            mrpt::math::wrapToPi(end_mark.phi() - map_end.phi()));
+    const Eigen::Matrix3d h = w_start + a.transpose() * w_end * a;
+    FrameTie tie;
+    tie.cov = h.inverse();
+    tie.delta = tie.cov * (a.transpose() * w_end * b);
+    const Eigen::Vector3d r_end = b - a * tie.delta;
+    report.given = true;
+    report.disagreement_m = std::hypot(b.x(), b.y());
+    report.disagreement_deg = mrpt::RAD2DEG(b.z());
+    report.chi2 = tie.delta.dot(w_start * tie.delta) + r_end.dot(w_end * r_end);
+    constexpr double kChi2Dof3At999 = 16.27;
+    report.used = report.chi2 <= kChi2Dof3At999;
+    if (!report.used) return {Eigen::Vector3d::Zero(), w_start.inverse()};
+    return tie;
+}
+
+/// The operator's marks define the map frame, and their errors are a rigid error of the whole
+/// map: an offset everywhere, a heading error times the distance from the start. With an end
+/// mark the map is moved by the correction both marks agree on; every laser pose's covariance
+/// (the graph's is relative to the fixed start) carries what is left of that rigid error.
+void tieMapToMarks(const mrpt::poses::CPose2D& origin, const GridMap& map, const SurveyInputs& in,
+                   const SurveyOptions& o, VehiclePoses& poses, SurveyResult& result) {
+    FrameTie tie{Eigen::Vector3d::Zero(),
+                 markCovariance(o.start_pose_std_xy_m, o.start_pose_std_yaw_deg)};
+    const std::string& end_text = o.end_pose.empty() ? in.end_pose : o.end_pose;
+    if (auto end_mark = parseStartPose(end_text)) {
+        const mrpt::poses::CPose2D map_end = origin + map.end;
+        // The graph's covariance is in the grid frame: turned into the map frame.
+        const Eigen::Matrix3d turn =
+            Eigen::AngleAxisd(origin.phi(), Eigen::Vector3d::UnitZ()).toRotationMatrix();
+        const Eigen::Matrix3d end_cov = turn * map.end_cov * turn.transpose();
+        tie = tieToEndMark(origin, map_end, *end_mark, end_cov, o, result.end_mark);
+        if (!result.end_mark.used) {
+            result.warnings.push_back(
+                "end_pose '" + end_text + "' is " + std::to_string(result.end_mark.disagreement_m) +
+                " m and " + std::to_string(result.end_mark.disagreement_deg) +
+                " deg from the mapping traverse's last laser pose, more than the marks' and the "
+                "map's uncertainty allow: not used (a wrong mark, or a map that drifted)");
+        }
+    }
+    const double c = std::cos(tie.delta.z()), s = std::sin(tie.delta.z());
+    const mrpt::poses::CPose2D correction(
+        origin.x() + tie.delta.x() - (c * origin.x() - s * origin.y()),
+        origin.y() + tie.delta.y() - (s * origin.x() + c * origin.y()), tie.delta.z());
+    const mrpt::poses::CPose3D correction3(correction);
+    result.end_mark.correction = mrpt::poses::CPose2D(tie.delta.x(), tie.delta.y(), tie.delta.z());
+    result.end_mark.std_xy_m = std::sqrt(0.5 * (tie.cov(0, 0) + tie.cov(1, 1)));
+    result.end_mark.std_yaw_deg = mrpt::RAD2DEG(std::sqrt(tie.cov(2, 2)));
+    for (auto& start : poses.starts) start.pose = correction + start.pose;
     for (auto& track : poses.tracks) {
-        for (std::size_t k = 0; k < track.poses.size() && k < track.covs.size(); ++k) {
-            // d(pose)/d(start heading): the lever from the start, turned by 90 deg.
-            const Eigen::Vector3d lever(-(track.poses[k].pose.y() - origin.y()),
-                                        track.poses[k].pose.x() - origin.x(), 1.0);
-            Eigen::Matrix3d added = syaw2 * lever * lever.transpose();
-            added(0, 0) += sxy2;
-            added(1, 1) += sxy2;
-            track.covs[k].asEigen() += added;
+        for (std::size_t k = 0; k < track.poses.size(); ++k) {
+            mrpt::poses::CPose3D& p = track.poses[k].pose;
+            p = correction3 + p;
+            if (k >= track.covs.size()) continue;
+            const Eigen::Matrix3d j = leverJacobian(origin, p.x(), p.y());
+            track.covs[k].asEigen() += j * tie.cov * j.transpose();
         }
     }
 }
@@ -564,8 +646,10 @@ VehiclePoses posesFromLaser(const SurveyInputs& in, SurveyData& survey, const Su
         poses.starts[mapping] = {"map origin", mrpt::poses::CPose2D(), 0};
     }
     toMapFrame(map.origin, poses);
-    // The frame's own error: the operator's start (not a map file's frame, nor the truth's).
-    if (in.map_file.empty() && !o.start_at_ground_truth) addStartUncertainty(map.origin, o, poses);
+    // The frame's own error: the operator's marks (not a map file's frame, nor the truth's).
+    if (in.map_file.empty() && !o.start_at_ground_truth) {
+        tieMapToMarks(map.origin, map, in, o, poses, result);
+    }
     poses.grid = std::move(map.grid);
     return poses;
 }
@@ -943,6 +1027,18 @@ std::string SurveyResult::toJson() const {
     }
     if (time_offset_across.tried) {
         j["time_offset_across_traverses"] = timeOffsetJson(time_offset_across);
+    }
+    if (end_mark.given) {
+        j["end_mark"] = {{"used", end_mark.used},
+                         {"disagreement_m", end_mark.disagreement_m},
+                         {"disagreement_deg", end_mark.disagreement_deg},
+                         {"chi2", end_mark.chi2},
+                         {"correction",
+                          {{"x", end_mark.correction.x()},
+                           {"y", end_mark.correction.y()},
+                           {"yaw_deg", mrpt::RAD2DEG(end_mark.correction.phi())}}},
+                         {"frame_std_xy_m", end_mark.std_xy_m},
+                         {"frame_std_yaw_deg", end_mark.std_yaw_deg}};
     }
     j["pose_audit"] = poseAuditJson(pose_audit);
     j["traverses"] = ordered_json::array();

@@ -84,6 +84,14 @@ void readDataset(const std::string& path, SurveyInputs& inputs, SurveyOptions& o
             }
             if (spec.mapping && inputs.start_pose.empty()) inputs.start_pose = start;
         }
+        const std::string end = t.getString("end_pose", "");
+        if (!end.empty()) {
+            if (!parseStartPose(end)) {
+                throw common::ConfigError(t.where("end_pose") +
+                                          "expected three numbers: x y yaw_deg");
+            }
+            if (spec.mapping && inputs.end_pose.empty()) inputs.end_pose = end;
+        }
         if (spec.mapping || spec.reference) inputs.traverses.push_back(spec);
     }
 }

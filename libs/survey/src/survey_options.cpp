@@ -65,6 +65,9 @@ void SurveyOptions::declareKeys(common::OptionsTable& t) {
     t.add("start_pose", start_pose);
     t.add("start_pose_std_xy_m", start_pose_std_xy_m, 0.0);
     t.add("start_pose_std_yaw_deg", start_pose_std_yaw_deg, 0.0, 180.0);
+    t.add("end_pose", end_pose);
+    t.add("end_pose_std_xy_m", end_pose_std_xy_m, common::kPositive);
+    t.add("end_pose_std_yaw_deg", end_pose_std_yaw_deg, common::kPositive, 180.0);
     t.add("start_search_spacing_m", start_search_spacing_m, common::kPositive);
     t.add("start_match_travel_m", start_match_travel_m, 0.0);
     t.add("start_min_goodness", start_min_goodness, 0.0, 1.0);
@@ -95,6 +98,8 @@ void SurveyOptions::check() const {
     c.require(time_offset_max_pairs >= time_offset_min_pairs, "time_offset_max_pairs",
               ">= time_offset_min_pairs");
     c.require(start_pose.empty() || parseStartPose(start_pose).has_value(), "start_pose",
+              "three numbers: x y yaw_deg");
+    c.require(end_pose.empty() || parseStartPose(end_pose).has_value(), "end_pose",
               "three numbers: x y yaw_deg");
     c.require(icp_max_range_m >= 0, "icp_max_range_m", ">= 0 (0 = no limit)");
     c.throwIfFailed();

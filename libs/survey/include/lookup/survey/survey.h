@@ -47,6 +47,8 @@ struct SurveyInputs {
     /// The dataset's operator start pose of the mapping traverse ("x y yaw_deg", "" = none);
     /// SurveyOptions::start_pose overrides it.
     std::string start_pose;
+    /// ... and its end pose ("" = none); SurveyOptions::end_pose overrides it.
+    std::string end_pose;
     bool show_progress = false;  ///< progress bar on stderr
 };
 
@@ -94,6 +96,17 @@ struct TraverseReport {
 std::vector<std::string> traverseWarnings(const TraverseReport& r, const std::string& rawlog,
                                           const SurveyOptions& o);
 
+/// How the map frame was tied to the operator's end mark (SurveyOptions::end_pose).
+struct EndMarkReport {
+    bool given = false;                    ///< an end pose was given (and a laser map built)
+    bool used = false;                     ///< ... and agreed with the map within its uncertainty
+    double disagreement_m = 0;             ///< end mark against the map's last pose, before [m]
+    double disagreement_deg = 0;           ///< ... in heading [deg]
+    double chi2 = 0;                       ///< of the two marks' residuals after the fit (3 dof)
+    mrpt::poses::CPose2D correction;       ///< rigid correction applied about the start [m, rad]
+    double std_xy_m = 0, std_yaw_deg = 0;  ///< the map frame's uncertainty at the start after it
+};
+
 enum class SurveyStatus { Ok, Failed };
 
 struct SurveyResult {
@@ -117,6 +130,7 @@ struct SurveyResult {
     /// The ceiling camera's offset from the audit's fixes across traverses (tried when the
     /// image motion did not pin it down; applied, and copied into time_offsets, if estimated).
     TimeOffsetEstimate time_offset_across;
+    EndMarkReport end_mark;  ///< the map frame tied to the end mark
     /// Refused or skipped input, one line each (file, record, reason, count); lookup-survey
     /// prints them on stderr.
     std::vector<std::string> warnings;

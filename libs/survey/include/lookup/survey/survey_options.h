@@ -131,6 +131,12 @@ struct SurveyOptions : public common::TableOptions<SurveyOptions> {
     /// [deg].
     double start_pose_std_xy_m = 0.05;
     double start_pose_std_yaw_deg = 0.1;
+    /// Operator's end pose of the mapping traverse: the vehicle at rest over a second surveyed
+    /// mark at its last lidar scan, "x y yaw_deg" ("" = the dataset's `end_pose`, else none).
+    /// The map is turned and moved rigidly to agree with both marks (docs/survey.md).
+    std::string end_pose;
+    double end_pose_std_xy_m = 0.05;      ///< its standard deviation [m]
+    double end_pose_std_yaw_deg = 0.1;    ///< ... in heading [deg]
     double start_search_spacing_m = 1.0;  ///< spacing of the start guesses along the map [m]
     double start_match_travel_m = 4.0;    ///< scans of the first metres matched together [m]
     double start_min_goodness = 0.5;      ///< a start with a lower ICP goodness is an error
@@ -163,7 +169,8 @@ struct SurveyOptions : public common::TableOptions<SurveyOptions> {
     void check() const;
 };
 
-/// "x y yaw_deg" (blank-separated, finite) as a pose; nullopt when malformed.
+/// "x y yaw_deg" (blank-separated, finite) as a pose; nullopt when malformed. Start and end
+/// poses alike.
 std::optional<mrpt::poses::CPose2D> parseStartPose(const std::string& text);
 
 }  // namespace lookup::survey
