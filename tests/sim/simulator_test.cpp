@@ -80,6 +80,20 @@ TEST(Simulator, WritesTheDatasetLayout) {
         EXPECT_LT(d, 0.06);
         EXPECT_LT(std::abs(yaw_deg - mrpt::RAD2DEG(truth.yaw())), 0.11);
     }
+    // ... and its end pose, where the drive ends at rest, with an error of its own.
+    EXPECT_FALSE(ini.keyExists("traverse_1", "end_pose"));
+    {
+        std::istringstream in(ini.read_string("traverse_0", "end_pose", ""));
+        double x = 0, y = 0, yaw_deg = 0;
+        ASSERT_TRUE(in >> x >> y >> yaw_deg);
+        const auto& truth = sim.groundTruth(0).back().pose;
+        const double d = std::hypot(x - truth.x(), y - truth.y());
+        EXPECT_GT(d, 0.01);
+        EXPECT_LT(d, 0.06);
+        EXPECT_LT(std::abs(yaw_deg - mrpt::RAD2DEG(truth.yaw())), 0.11);
+        EXPECT_NE(ini.read_string("traverse_0", "start_pose", ""),
+                  ini.read_string("traverse_0", "end_pose", ""));
+    }
     // The map is an MRPT occupancy grid: free along the route, occupied rock beside it.
     mrpt::maps::COccupancyGridMap2D grid;
     {

@@ -222,23 +222,26 @@ TEST(DatasetIni, WithoutCeilingHeightWorksAndAStatedOneIsIgnored) {
     }
 }
 
-TEST(DatasetIni, MalformedStartPoseRefusedNamingTheKey) {
+TEST(DatasetIni, MalformedStartOrEndPoseRefusedNamingTheKey) {
     const auto dir = lookup::test::freshDir("lookup_nogt_badstart");
     const auto f = lookup::test::makeSurveyRawlog(dir.string(), "corridor", 2.0);
-    {
-        std::ofstream d(dir / "dataset.ini");
-        d << "[dataset]\ntraverse_count = 1\n[traverse_0]\nrawlog = corridor.rawlog\n"
-          << "start_pose = 1 2\n";
+    for (const std::string bad : {"start_pose = 1 2\n", "start_pose = 0 0 0\nend_pose = 2 0 x\n"}) {
+        {
+            std::ofstream d(dir / "dataset.ini");
+            d << "[dataset]\ntraverse_count = 1\n[traverse_0]\nrawlog = corridor.rawlog\n" << bad;
+        }
+        const std::string key =
+            bad.find("end_pose") != std::string::npos ? "end_pose" : "start_pose";
+        const std::string ds = (dir / "dataset.ini").string(), out = (dir / "db").string();
+        const char* argv[] = {"lookup-survey", "--dataset", ds.c_str(), "--out", out.c_str(), "-q"};
+        SurveyApp app;
+        testing::internal::CaptureStderr();
+        EXPECT_FALSE(app.initialize(6, argv));
+        const std::string err = testing::internal::GetCapturedStderr();
+        EXPECT_NE(app.exitCode(), 0);
+        EXPECT_NE(err.find(key), std::string::npos) << err;
+        EXPECT_NE(err.find("traverse_0"), std::string::npos) << err;
     }
-    const std::string ds = (dir / "dataset.ini").string(), out = (dir / "db").string();
-    const char* argv[] = {"lookup-survey", "--dataset", ds.c_str(), "--out", out.c_str(), "-q"};
-    SurveyApp app;
-    testing::internal::CaptureStderr();
-    EXPECT_FALSE(app.initialize(6, argv));
-    const std::string err = testing::internal::GetCapturedStderr();
-    EXPECT_NE(app.exitCode(), 0);
-    EXPECT_NE(err.find("start_pose"), std::string::npos) << err;
-    EXPECT_NE(err.find("traverse_0"), std::string::npos) << err;
     SurveyOptions o;
     o.start_pose = "1 2 x";
     EXPECT_THROW(o.check(), std::exception);

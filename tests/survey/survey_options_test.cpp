@@ -55,6 +55,19 @@ TEST(SurveyOptions, NegativeIcpMaxRangeIsRefusedByName) {
     expectRefusedByName("icp_max_range_m", -3.0);
 }
 
+TEST(SurveyOptions, AMalformedOrZeroUncertainEndMarkIsRefusedByName) {
+    expectRefusedByName("end_pose_std_xy_m", 0.0);
+    mrpt::config::CConfigFileMemory mem;
+    mem.write("survey", "end_pose", "60 1");
+    SurveyOptions o;
+    try {
+        lookup::common::loadAndCheck(o, mem, "survey");
+        FAIL() << "end_pose = 60 1 accepted";
+    } catch (const lookup::common::ConfigError& e) {
+        EXPECT_NE(std::string(e.what()).find("end_pose"), std::string::npos) << e.what();
+    }
+}
+
 TEST(SurveyOptions, RejectsBadFieldAndUnknownKey) {
     expectRefusedByName("keyframe_spacing_m", -1.0);
     SurveyOptions o;
@@ -67,6 +80,8 @@ TEST(SurveyOptions, SurveyAndPoseGraphRoundTrip) {
     SurveyOptions s;
     s.lidar_label = "SCAN";
     s.start_pose = "1 2 90";
+    s.end_pose = "61.5 -2 89.5";
+    s.end_pose_std_xy_m = 0.02;
     s.ceiling_estimate = false;
     s.min_sharpness = 1.0 / 7.0;
     lookup::options_testing::expectRoundTrip(s, "survey");
