@@ -176,8 +176,9 @@ plan = drive 15, stop 1, reverse 5
 )";
 
 /// FNV-1a 64 over every file under `root` in path order (path, NUL, bytes, NUL), without
-/// scenario.ini's `threads` line and without the camera images: those go through OpenCV
-/// kernels that pick their SIMD code at run time, so another CPU may round a pixel
+/// scenario.ini's `threads` line (the machine's), dataset.ini's `end_pose` line (written since
+/// the grades; Simulator.WritesTheDatasetLayout checks it) and the camera images: those go through
+/// OpenCV kernels that pick their SIMD code at run time, so another CPU may round a pixel
 /// differently; rawlogs, ground truth, odometry, lidar and the map are plain double arithmetic.
 uint64_t datasetHash(const fs::path& root) {
     std::map<std::string, std::string> files;
@@ -188,8 +189,6 @@ uint64_t datasetHash(const fs::path& root) {
         }
         std::ifstream f(e.path(), std::ios::binary);
         std::string bytes((std::istreambuf_iterator<char>(f)), {});
-        // scenario.ini's thread count is the machine's; dataset.ini's end mark came after the
-        // grades (Simulator.WritesTheDatasetLayout checks it).
         const auto drop = [&bytes](const char* key, bool with_newline) {
             const auto at = bytes.find(key);
             if (at != std::string::npos) {
