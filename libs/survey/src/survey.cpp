@@ -534,8 +534,9 @@ Eigen::Matrix3d markCovariance(double std_xy_m, double std_yaw_deg) {
 
 /// The two marks against the map (map frame): the start lies on its mark by construction, the
 /// end where the graph put the last pose. Weighted least squares over a small rigid correction
-/// about the start (the laser map's shape is kept: it is centimetres apart from the marks'
-/// errors); the end's weight includes the graph's uncertainty of the end relative to the start.
+/// about the start: the laser map's shape is kept (over a survey's length it is far more
+/// precise than a mark), and the end's weight includes the graph's uncertainty of the end
+/// relative to the start.
 /// A 3-dof chi-square beyond 99.9 % means the end mark, or the map, is wrong: it is not used.
 FrameTie tieToEndMark(const mrpt::poses::CPose2D& start, const mrpt::poses::CPose2D& map_end,
                       const mrpt::poses::CPose2D& end_mark, const Eigen::Matrix3d& end_graph_cov,
