@@ -75,23 +75,18 @@ void readDataset(const std::string& path, SurveyInputs& inputs, SurveyOptions& o
                 throw common::ConfigError(t.where("roles") + "unknown role '" + r + "'");
             }
         }
-        // The operator's start pose of the mapping traverse (the first one that has one).
-        const std::string start = t.getString("start_pose", "");
-        if (!start.empty()) {
-            if (!parseStartPose(start)) {
-                throw common::ConfigError(t.where("start_pose") +
-                                          "expected three numbers: x y yaw_deg");
+        // The operator's start and end poses of the mapping traverse (the first one that has
+        // them).
+        const auto mark = [&](const char* key, std::string& into) {
+            const std::string text = t.getString(key, "");
+            if (text.empty()) return;
+            if (!parseStartPose(text)) {
+                throw common::ConfigError(t.where(key) + "expected three numbers: x y yaw_deg");
             }
-            if (spec.mapping && inputs.start_pose.empty()) inputs.start_pose = start;
-        }
-        const std::string end = t.getString("end_pose", "");
-        if (!end.empty()) {
-            if (!parseStartPose(end)) {
-                throw common::ConfigError(t.where("end_pose") +
-                                          "expected three numbers: x y yaw_deg");
-            }
-            if (spec.mapping && inputs.end_pose.empty()) inputs.end_pose = end;
-        }
+            if (spec.mapping && into.empty()) into = text;
+        };
+        mark("start_pose", inputs.start_pose);
+        mark("end_pose", inputs.end_pose);
         if (spec.mapping || spec.reference) inputs.traverses.push_back(spec);
     }
 }
