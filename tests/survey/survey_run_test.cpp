@@ -201,10 +201,11 @@ TEST(SurveyRun, TheStartPoseErrorIsARigidErrorInEveryCovariance) {
 TEST(SurveyRun, AnEndMarkTurnsTheMapBackOntoBothMarks) {
     const auto dir = lookup::test::freshDir("lookup_survey_end_mark");
     const auto f = lookup::test::makeSurveyRawlog(dir.string(), "corridor", 12.0);
-    const auto run = [&](const std::string& end_pose, const std::string& name) {
+    const auto run = [&](const std::string& end_pose, const std::string& name,
+                         double start_std_yaw_deg = 2.0) {
         auto o = shareOptions();
         o.start_pose = "0 0 7.7106";  // the truth's heading is 5.7106 deg
-        o.start_pose_std_yaw_deg = 2.0;
+        o.start_pose_std_yaw_deg = start_std_yaw_deg;
         o.end_pose = end_pose;
         o.end_pose_std_xy_m = 0.3;  // the fixture's map is 0.3 m long at its end, see below
         o.end_pose_std_yaw_deg = 0.5;
@@ -254,6 +255,11 @@ TEST(SurveyRun, AnEndMarkTurnsTheMapBackOntoBothMarks) {
         return w.find("end_pose '14 2 0'") != std::string::npos &&
                w.find("not used") != std::string::npos;
     }));
+    // A start given as exact holds the frame where it is, whatever the end mark says.
+    const auto [exact_result, exact_start] = run(end_text, "exact_start", 0.0);
+    ASSERT_EQ(exact_start.size(), start_only.size());
+    EXPECT_NEAR(exact_start.reference(last).vehicle_pose.y(),
+                start_only.reference(last).vehicle_pose.y(), 1e-4);
     ASSERT_EQ(wrong.size(), start_only.size());
     for (std::size_t i = 0; i < wrong.size(); ++i) {
         EXPECT_EQ(wrong.reference(i).vehicle_pose.y(), start_only.reference(i).vehicle_pose.y())

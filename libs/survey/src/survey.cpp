@@ -526,10 +526,11 @@ Eigen::Matrix3d leverJacobian(const mrpt::poses::CPose2D& pivot, double x, doubl
     return j;
 }
 
+/// A mark's covariance; a mark given as exact (zero deviation) keeps a micrometre's, so that it
+/// can be weighed against the other one: it then holds the frame where it is.
 Eigen::Matrix3d markCovariance(double std_xy_m, double std_yaw_deg) {
-    return Eigen::Vector3d(std_xy_m * std_xy_m, std_xy_m * std_xy_m,
-                           std::pow(mrpt::DEG2RAD(std_yaw_deg), 2))
-        .asDiagonal();
+    const double xy = std::max(std_xy_m, 1e-6), yaw = mrpt::DEG2RAD(std::max(std_yaw_deg, 1e-6));
+    return Eigen::Vector3d(xy * xy, xy * xy, yaw * yaw).asDiagonal();
 }
 
 /// The two marks against the map (map frame): the start lies on its mark by construction, the
