@@ -588,20 +588,24 @@ void tieMapToMarks(const mrpt::poses::CPose2D& origin, const GridMap& map, const
                 "map's uncertainty allow: not used (a wrong mark, or a map that drifted)");
         }
     }
-    const double c = std::cos(tie.delta.z()), s = std::sin(tie.delta.z());
-    const mrpt::poses::CPose2D correction(
-        origin.x() + tie.delta.x() - (c * origin.x() - s * origin.y()),
-        origin.y() + tie.delta.y() - (s * origin.x() + c * origin.y()), tie.delta.z());
-    const mrpt::poses::CPose3D correction3(correction);
     result.end_mark.correction = mrpt::poses::CPose2D(tie.delta.x(), tie.delta.y(), tie.delta.z());
     result.end_mark.std_xy_m = std::sqrt(0.5 * (tie.cov(0, 0) + tie.cov(1, 1)));
     result.end_mark.std_yaw_deg = mrpt::RAD2DEG(std::sqrt(tie.cov(2, 2)));
-    for (auto& start : poses.starts) start.pose = correction + start.pose;
+    if (result.end_mark.used) {
+        // Turned by the correction's heading about the start, then shifted by its offset.
+        const mrpt::poses::CPose2D correction =
+            mrpt::poses::CPose2D(origin.x() + tie.delta.x(), origin.y() + tie.delta.y(),
+                                 tie.delta.z()) +
+            mrpt::poses::CPose2D(-origin.x(), -origin.y(), 0);
+        const mrpt::poses::CPose3D correction3(correction);
+        for (auto& start : poses.starts) start.pose = correction + start.pose;
+        for (auto& track : poses.tracks) {
+            for (auto& p : track.poses) p.pose = correction3 + p.pose;
+        }
+    }
     for (auto& track : poses.tracks) {
-        for (std::size_t k = 0; k < track.poses.size(); ++k) {
-            mrpt::poses::CPose3D& p = track.poses[k].pose;
-            p = correction3 + p;
-            if (k >= track.covs.size()) continue;
+        for (std::size_t k = 0; k < track.poses.size() && k < track.covs.size(); ++k) {
+            const mrpt::poses::CPose3D& p = track.poses[k].pose;
             const Eigen::Matrix3d j = leverJacobian(origin, p.x(), p.y());
             track.covs[k].asEigen() += j * tie.cov * j.transpose();
         }
