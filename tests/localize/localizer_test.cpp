@@ -124,6 +124,16 @@ TEST(Localize, RefinesCoarsePosesToCentimetresOnASyntheticCeiling) {
         EXPECT_TRUE(fs::exists(fs::path(req.out_dir) / f)) << f;
     }
 
+    // The options a run resolved, given back as --ini, give the same poses.
+    {
+        localize::LocalizeRequest again = req;
+        again.out_dir = (dir / "again").string();
+        again.ini_file = (fs::path(req.out_dir) / "run.ini").string();
+        localize::runLocalization(again);
+        EXPECT_EQ(readText(fs::path(again.out_dir) / "poses.tum"),
+                  readText(fs::path(req.out_dir) / "poses.tum"));
+    }
+
     // --repeat: three passes, each timed one second after the previous one ended.
     {
         localize::LocalizeRequest again = req;

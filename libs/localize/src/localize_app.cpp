@@ -227,7 +227,10 @@ class Session {
             const auto file = common::loadIniFile(req.ini_file);  // binary or garbled: refused
             const auto& ini = *file;
             std::vector<std::string> known = refine::RefinerOptions::sectionNames("refine");
-            known.insert(known.end(), {"localizer", "coarse", "place_index", "time_offsets"});
+            // [run] is what a run.ini records of the run itself (method, database, source):
+            // the command line says those, so a run's run.ini can be given back as --ini.
+            known.insert(known.end(),
+                         {"localizer", "coarse", "place_index", "time_offsets", "run"});
             common::rejectUnknownSections(ini, known);
             common::loadAndCheck(options_, ini, "localizer");
             common::loadAndCheck(refiner_options_, ini, "refine");
