@@ -198,6 +198,14 @@ TEST(TrainApp, FlagsFillTheRequestAndTheOptionsComeFromTheIni) {
     EXPECT_FALSE(app.request().write_heat_maps);
     EXPECT_FALSE(app.request().progress);
     EXPECT_EQ(app.options().training.epochs, 3);
+
+    // An empty pose file keeps its place: that rawlog trains on the survey's own poses.
+    TrainApp mixed;
+    ASSERT_TRUE(initialize(mixed, {"--db", "D", "--train", "a.rawlog,b.rawlog", "--train-poses",
+                                   ",b.tum", "--ini", ini},
+                           &err))
+        << err;
+    EXPECT_EQ(mixed.request().train_poses, (std::vector<std::string>{"", "b.tum"}));
 }
 
 TEST(TrainApp, BadFlagsAndIniTyposAreRefusedNamingThem) {

@@ -18,11 +18,13 @@
 namespace lookup::fcn {
 namespace {
 
-std::vector<std::string> splitList(const std::string& s) {
+// `keep_empty`: an empty item keeps its place (in --train-poses, "the survey's poses" for the
+// rawlog at that place, so survey traverses and other drives can train together).
+std::vector<std::string> splitList(const std::string& s, bool keep_empty = false) {
     std::vector<std::string> out;
     std::stringstream in(s);
     for (std::string item; std::getline(in, item, ',');) {
-        if (!item.empty()) out.push_back(item);
+        if (keep_empty || !item.empty()) out.push_back(item);
     }
     return out;
 }
@@ -64,8 +66,9 @@ bool TrainApp::initialize(int argc, const char* const* argv) {
     ValueArg<std::string> train_poses(
         "", "train-poses",
         "vehicle poses of the training rawlogs (TUM or MRPT pose files, comma separated, one "
-        "per rawlog, e.g. lookup-localize runs' poses.tum); default: the survey's poses of the "
-        "database's traverse recorded during each rawlog",
+        "per rawlog, e.g. lookup-localize runs' poses.tum; an empty item, as in ',,run/poses.tum', "
+        "takes the survey's); default: the survey's poses of the database's traverse recorded "
+        "during each rawlog",
         false, "", "FILES", cmd);
     ValueArg<std::string> heat_only(
         "", "heatmaps-only",
@@ -96,7 +99,7 @@ bool TrainApp::initialize(int argc, const char* const* argv) {
 
     request_.db_dir = db.getValue();
     request_.train_rawlogs = splitList(train.getValue());
-    request_.train_poses = splitList(train_poses.getValue());
+    request_.train_poses = splitList(train_poses.getValue(), true);
     request_.out_model = out_model.getValue();
     request_.report_dir = out.getValue();
     request_.init_model = init.getValue();
