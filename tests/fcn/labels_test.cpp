@@ -74,6 +74,36 @@ TEST(Labels, PipesAreOutliersAndTheCeilingInliers) {
     }
 }
 
+// Another vehicle's camera, 0.6 m nearer the ceiling (a fifth larger) and turned 14°: the
+// reference patches are warped by the pose prior's homography before SAD compares them, as the
+// localiser matches, so the ceiling is labelled on the plane; matched unwarped, at the prior's
+// offsets only, most of it is not.
+TEST(Labels, AnotherCameraHeightAndHeadingAreLabelledThroughThePriorsWarp) {
+    const auto& sc = fixture::scene();
+    const mrpt::poses::CPose3D ref_pose(1.0, 0, 0, 0, 0, 0), query_pose(1.2, 0.1, 0.6, 0.25, 0, 0);
+    const cv::Mat ref = sc.render(ref_pose), query = sc.render(query_pose);
+    const cv::Mat pipes = sc.pipeMask(ref_pose);
+    refine::Pinhole cam;
+    ASSERT_TRUE(refine::pinholeFrom(sc.camera, cam, nullptr));
+    const cv::Matx33d H = refine::ceilingHomography(cam, ref_pose + sc.mount, cam,
+                                                    query_pose + sc.mount, fixture::kCeilingHeight);
+    const auto ceilingInliers = [&](bool warp) {
+        auto options = fixture::smallOptions().labels;
+        options.matcher.compensate_motion = warp;
+        const auto labels = labelPair(ref, query, options, &H);
+        int matched = 0, inliers = 0;  // ceiling points that the query sees
+        for (const auto& m : labels.matches) {
+            if (!m.matched() || pipes.at<std::uint8_t>(cv::Point(m.reference_px)) != 0) continue;
+            ++matched;
+            inliers += labels.fit.ok && m.inlier;
+        }
+        return matched > 20 ? double(inliers) / matched : 0.0;
+    };
+    const double warped = ceilingInliers(true), unwarped = ceilingInliers(false);
+    EXPECT_GT(warped, 0.8);
+    EXPECT_GT(warped, unwarped + 0.25) << "warped " << warped << ", unwarped " << unwarped;
+}
+
 // `image` of the scene's pinhole camera as `lens` (its intrinsics with distortion) takes it.
 cv::Mat throughLens(const cv::Mat& image, const mrpt::img::TCamera& lens) {
     std::vector<cv::Point2f> raw;
@@ -102,6 +132,7 @@ TEST(Labels, ThroughADistortingLensTheCeilingIsLabelledOnRectifiedImages) {
     const cv::Mat query = throughLens(sc.render(query_pose), lens);
     auto options = fixture::smallOptions().labels;
     options.precise_inlier_px = 0.75;
+    options.matcher.compensate_motion = false;  // the rectification alone: the warp helps both
     refine::Pinhole cam;
     ASSERT_TRUE(refine::pinholeFrom(sc.camera, cam, nullptr));
     const cv::Matx33d H = refine::ceilingHomography(cam, ref_pose + sc.mount, cam,

@@ -182,8 +182,11 @@ PairLabels labelPair(const cv::Mat& reference, const cv::Mat& query, const Label
             points.emplace_back(float(x), float(y));
         }
     }
+    // Matched as the localiser matches them: with the motion-compensating warp the patches of
+    // another camera height or heading are aligned before SAD compares them.
+    const bool warp = reference_to_query && options.matcher.compensate_motion;
     std::vector<cv::Point2f> offsets;
-    if (reference_to_query) {
+    if (reference_to_query && !warp) {
         offsets.reserve(points.size());
         for (const auto& p : points) {
             const cv::Vec3d q = (*reference_to_query) * cv::Vec3d(p.x, p.y, 1.0);
@@ -193,7 +196,9 @@ PairLabels labelPair(const cv::Mat& reference, const cv::Mat& query, const Label
         }
     }
     PairLabels out;
-    out.matches = refine::matchPoints(ref, qry, points, offsets, options.matcher);
+    out.matches = warp ? refine::matchPointsCompensated(ref, qry, points, *reference_to_query,
+                                                        options.matcher)
+                       : refine::matchPoints(ref, qry, points, offsets, options.matcher);
     out.fit = refine::estimateHomography(out.matches, options.homography);
     out.residual_px.assign(out.matches.size(), std::numeric_limits<double>::infinity());
     for (std::size_t i = 0; i < out.matches.size(); ++i) {
