@@ -201,9 +201,10 @@ TEST(TrainApp, FlagsFillTheRequestAndTheOptionsComeFromTheIni) {
 
     // An empty pose file keeps its place: that rawlog trains on the survey's own poses.
     TrainApp mixed;
-    ASSERT_TRUE(initialize(mixed, {"--db", "D", "--train", "a.rawlog,b.rawlog", "--train-poses",
-                                   ",b.tum", "--ini", ini},
-                           &err))
+    ASSERT_TRUE(initialize(
+        mixed,
+        {"--db", "D", "--train", "a.rawlog,b.rawlog", "--train-poses", ",b.tum", "--ini", ini},
+        &err))
         << err;
     EXPECT_EQ(mixed.request().train_poses, (std::vector<std::string>{"", "b.tum"}));
 }
