@@ -118,6 +118,29 @@ TEST(PoseAudit, AStretchMetresOffAlongTheDriveIsFoundOnThatTraverseOnly) {
     EXPECT_FALSE(a.excludes("left", timeAt(drives[0], 11)));
 }
 
+// A traverse whose start was found at the wrong place (a uniform drive aliases its lidar) is off
+// as a whole: its images match nowhere near its poses, so nothing disagrees; the audit leaves
+// the whole traverse out, and only when the other traverses' comparisons agree.
+TEST(PoseAudit, AWholeTraversePlacedMetresOffMatchesNowhereAndIsLeftOut) {
+    const std::vector<Drive> drives{makeDrive("left", 100, 0.5),
+                                    makeDrive("middle", 200, 0, 8.0, -2, kLength_m + 2),
+                                    makeDrive("right", 300, -0.5)};
+    const auto a = audit(drives);
+    EXPECT_EQ(a.traverses_discarded, 1u);
+    for (double s : {1.0, 6.0, 12.0, 23.0}) {
+        EXPECT_TRUE(a.excludes("middle", timeAt(drives[1], s))) << s;
+        EXPECT_FALSE(a.excludes("left", timeAt(drives[0], s))) << s;
+        EXPECT_FALSE(a.excludes("right", timeAt(drives[2], s))) << s;
+    }
+    EXPECT_EQ(poseAuditJson(a)["traverses_discarded"], 1);
+    // Placed right, the same traverse is kept whole.
+    const std::vector<Drive> right_place{makeDrive("left", 100, 0.5), makeDrive("middle", 200, 0),
+                                         makeDrive("right", 300, -0.5)};
+    const auto b = audit(right_place);
+    EXPECT_EQ(b.traverses_discarded, 0u);
+    EXPECT_FALSE(b.excludes("middle", timeAt(right_place[1], 12)));
+}
+
 TEST(PoseAudit, ASmallerOffsetBeyondTheLimitIsFoundTooAndOneWithinItIsNot) {
     SurveyOptions o;
     const std::vector<Drive> beyond{makeDrive("left", 100, 0.5),

@@ -185,12 +185,27 @@ double quantile(std::vector<double> v, double q) {
     return v[std::min(v.size() - 1, std::size_t(q * double(v.size())))];
 }
 
-/// One traverse's samples: audited against every other, suspects into `out`.
-void auditTraverse(const std::vector<AuditedTraverse>& all, std::size_t ai, double h, double step_m,
-                   const SurveyOptions& o, const refine::Refiner& refiner, Images& images,
-                   std::vector<double>& agreed_m, PoseAudit& out) {
+// Whether an image can be read at all (an external file may be missing): comparisons of an
+// unreadable one say nothing about where the traverse is.
+bool readable(const mrpt::obs::CObservationImage& obs) {
+    try {
+        return obs.image.getWidth() > 0;
+    } catch (const std::exception&) {
+        return false;
+    }
+}
+
+/// One traverse's samples: audited against every other, suspects into `out`. Returns how many
+/// of its comparisons were made on readable images and how many agreed.
+std::pair<std::size_t, std::size_t> auditTraverse(const std::vector<AuditedTraverse>& all,
+                                                  std::size_t ai, double h, double step_m,
+                                                  const SurveyOptions& o,
+                                                  const refine::Refiner& refiner, Images& images,
+                                                  std::vector<double>& agreed_m, PoseAudit& out) {
     const auto& a = all[ai];
-    if (a.frames.empty()) return;
+    const std::size_t compared_before = out.compared, agreed_before = out.agreed;
+    std::size_t unreadable = 0;
+    if (a.frames.empty()) return {0, 0};
     std::vector<std::size_t> samples;
     for (double s = 0; s <= a.frames.back().travel_m; s += o.pose_audit_spacing_m) {
         const std::size_t j = detail::nearestTravel(a.frames, s);
@@ -199,19 +214,23 @@ void auditTraverse(const std::vector<AuditedTraverse>& all, std::size_t ai, doub
     out.sampled += samples.size();
     for (std::size_t si = 0; si < samples.size(); ++si) {
         const std::size_t j = samples[si];
+        const bool sample_readable = readable(*(*a.t->ceiling)[a.frames[j].index]);
         std::size_t agreed = 0;
         std::optional<std::pair<double, std::size_t>> worst;  ///< disagreement, against
         for (std::size_t bi = 0; bi < all.size(); ++bi) {
             if (bi == ai) continue;
             Comparison c;
+            bool threw = false;
             try {
                 c = compare(a, j, all[bi], h, step_m, o, refiner, images);
             } catch (const std::exception&) {
                 images.clear();  // an unreadable image: nothing to compare with
                 c.verdict = Verdict::Inconclusive;
+                threw = true;
             }
             if (c.verdict == Verdict::NotCompared) continue;
             ++out.compared;
+            unreadable += threw || !sample_readable ? 1 : 0;
             if (c.verdict == Verdict::Inconclusive) ++out.inconclusive;
             if (c.verdict == Verdict::Agreed || c.verdict == Verdict::Disagreed) {
                 const auto& laser = a.frames[j].pose;
@@ -239,6 +258,22 @@ void auditTraverse(const std::vector<AuditedTraverse>& all, std::size_t ai, doub
         s.against = all[worst->second].t->name;
         out.stretches.push_back(s);
     }
+    return {out.compared - compared_before - unreadable, out.agreed - agreed_before};
+}
+
+// A traverse none of whose many comparisons found its ceiling where its poses put it, while the
+// others' did, is placed wrong as a whole (a start aliased along a uniform drive): every
+// reference of it is suspect.
+constexpr std::size_t kMinComparedToDiscard = 10;
+
+void discardWholeTraverse(const std::string& name, std::size_t compared, PoseAudit& out) {
+    SuspectStretch s;
+    s.traverse = name;
+    s.from_s = -1e300;
+    s.to_s = 1e300;
+    s.whole_traverse_compared = compared;
+    out.stretches.push_back(s);
+    ++out.traverses_discarded;
 }
 
 }  // namespace
@@ -278,8 +313,16 @@ PoseAudit auditLaserPoses(const std::vector<CeilingTraverse>& traverses, double 
     const double step_m = shiftStep(rectifier, refiner, ceiling_height_m - camera_z);
     Images images(rectifier, refiner);
     std::vector<double> agreed_m;
+    std::vector<std::pair<std::size_t, std::size_t>> counts;  // compared, agreed per traverse
     for (std::size_t ai = 0; ai < all.size(); ++ai) {
-        auditTraverse(all, ai, ceiling_height_m, step_m, o, refiner, images, agreed_m, out);
+        counts.push_back(
+            auditTraverse(all, ai, ceiling_height_m, step_m, o, refiner, images, agreed_m, out));
+    }
+    for (std::size_t ai = 0; ai < all.size(); ++ai) {
+        const auto [compared, agreed] = counts[ai];
+        if (compared >= kMinComparedToDiscard && agreed == 0 && out.agreed > 0) {
+            discardWholeTraverse(all[ai].t->name, compared, out);
+        }
     }
     out.median_m = quantile(agreed_m, 0.5);
     out.p95_m = quantile(agreed_m, 0.95);
@@ -298,6 +341,7 @@ nlohmann::ordered_json poseAuditJson(const PoseAudit& a) {
                              {"disagreed", a.disagreed},
                              {"inconclusive", a.inconclusive},
                              {"suspect", a.suspect},
+                             {"traverses_discarded", a.traverses_discarded},
                              {"agreed_median_m", a.median_m},
                              {"agreed_p95_m", a.p95_m},
                              {"agreed_max_m", a.max_agreed_m},
@@ -310,7 +354,8 @@ nlohmann::ordered_json poseAuditJson(const PoseAudit& a) {
              {"from_time_s", s.from_s > -1e299 ? nlohmann::ordered_json(s.from_s) : nullptr},
              {"to_time_s", s.to_s < 1e299 ? nlohmann::ordered_json(s.to_s) : nullptr},
              {"disagreement_m", s.disagreement_m},
-             {"against", s.against}});
+             {"against", s.against},
+             {"whole_traverse_compared", s.whole_traverse_compared}});
     }
     return j;
 }

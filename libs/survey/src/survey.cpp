@@ -999,6 +999,9 @@ std::string SurveyResult::summaryLine() const {
     if (pose_audit.ran && pose_audit.note.empty()) {
         o << "; pose audit: " << pose_audit.suspect << " suspect of " << pose_audit.sampled
           << " frames";
+        if (pose_audit.traverses_discarded > 0) {
+            o << ", " << pose_audit.traverses_discarded << " traverse(s) matching nowhere left out";
+        }
     } else {
         o << "; poses not audited: " << pose_audit.note;
     }
@@ -1157,6 +1160,15 @@ void Survey::auditPoses(const SurveyInputs& in, std::vector<TraverseData>& data,
     }
     for (const auto& s : result.pose_audit.stretches) {
         char buf[400];
+        if (s.whole_traverse_compared > 0) {
+            std::snprintf(buf, sizeof(buf),
+                          "%s: none of its %zu comparisons with the other traverses found its "
+                          "ceiling where its laser poses put it (a start aliased along a uniform "
+                          "drive?): none of its references kept",
+                          s.traverse.c_str(), s.whole_traverse_compared);
+            result.warnings.push_back(buf);
+            continue;
+        }
         std::snprintf(buf, sizeof(buf),
                       "%s: the ceiling images put the frame at t=%.3f s %.2f m from its pose "
                       "(against traverse %s, agreeing with none): no references kept between "

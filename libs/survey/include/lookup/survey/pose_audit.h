@@ -33,6 +33,9 @@ struct SuspectStretch {
     double sample_s = 0;        ///< the suspect sample's image time [s]
     double disagreement_m = 0;  ///< |fix - laser pose| of that sample [m]
     std::string against;        ///< the traverse whose images placed it there
+    /// Non-zero when the whole traverse is suspect: this many comparisons, none agreeing
+    /// (its poses put it where no other traverse's ceiling matches its images).
+    std::size_t whole_traverse_compared = 0;
 };
 
 /// One frame's fix against another traverse's images: what the camera's time offset is fitted
@@ -55,7 +58,8 @@ struct PoseAudit {
     std::size_t disagreed = 0;     ///< pairs whose fix lies beyond it
     std::size_t inconclusive = 0;  ///< no fix, or a repeating ceiling's rival
     std::size_t suspect = 0;       ///< samples that disagree and agree with no traverse
-    double median_m = 0;           ///< |fix - laser pose| over the agreeing pairs [m]
+    std::size_t traverses_discarded = 0;  ///< whole traverses whose ceiling matched nowhere
+    double median_m = 0;                  ///< |fix - laser pose| over the agreeing pairs [m]
     double p95_m = 0;
     double max_agreed_m = 0;
     std::vector<SuspectStretch> stretches;
