@@ -186,13 +186,15 @@ double quantile(std::vector<double> v, double q) {
 }
 
 // Whether an image can be read at all (an external file may be missing): comparisons of an
-// unreadable one say nothing about where the traverse is.
-bool readable(const mrpt::obs::CObservationImage& obs) {
+// unreadable one say nothing about where the traverse is. An external image is unloaded again.
+bool readable(mrpt::obs::CObservationImage& obs) {
+    bool ok = false;
     try {
-        return obs.image.getWidth() > 0;
+        ok = obs.image.getWidth() > 0;
     } catch (const std::exception&) {
-        return false;
     }
+    obs.image.unload();
+    return ok;
 }
 
 /// One traverse's samples: audited against every other, suspects into `out`. Returns how many
