@@ -76,8 +76,9 @@ struct PairLabels {
 /// predicted position instead of the same pixel, so pairs farther apart than L_SR / 2 can be
 /// labelled; with options.matcher.compensate_motion the reference is warped by it first
 /// (refine::matchPointsCompensated, as the localiser matches), so another camera height or
-/// heading is compared patch to patch at the same scale and orientation. With `cameras` of which one distorts or that differ, the reference is rectified into
-/// its ideal pinhole twin and the query into the same camera, as the localiser matches them
+/// heading is compared patch to patch at the same scale and orientation. With `cameras` of which
+/// one distorts or that differ, the reference is rectified into its ideal pinhole twin and the
+/// query into the same camera, as the localiser matches them
 /// (`reference_to_query` then relates labelCamera(cameras) on both sides): through a distorting
 /// lens the raw pixels of a plane seen twice are no homography, and the rim of the image would
 /// be labelled off the plane; a query of another size or focal length would be searched at
