@@ -131,20 +131,29 @@ double distance(const Fix& f, const mrpt::poses::CPose3D& p) {
     return std::hypot(f.pose.x() - p.x(), f.pose.y() - p.y());
 }
 
-/// Sample `j` of `a` against traverse `b`: at its laser pose, else shifted along its heading.
-Comparison compare(const AuditedTraverse& a, std::size_t j, const AuditedTraverse& b,
-                   double ceiling_height_m, double shift_step_m, const SurveyOptions& o,
+/// How one frame is compared with another traverse.
+struct Search {
+    double ceiling_height_m = 0;
+    double shift_step_m = 0;  ///< between hints shifted along the heading [m]
+    double reach_m = 0;       ///< the farthest shift [m]
+};
+
+/// Sample `j` of `a`, at vehicle pose `laser`, against traverse `b`: at that pose, else shifted
+/// along its heading.
+Comparison compare(const AuditedTraverse& a, std::size_t j, const mrpt::poses::CPose3D& laser,
+                   const AuditedTraverse& b, const Search& search, const SurveyOptions& o,
                    const refine::Refiner& refiner, Images& images) {
     const double view_m = o.pose_audit_view_distance_m;
-    const auto& laser = a.frames[j].pose;
-    if (nearestCameras(b, a.cameras[j], view_m).empty()) return {};
+    const double ceiling_height_m = search.ceiling_height_m;
+    const auto camera = laser + (*a.t->ceiling)[a.frames[j].index]->cameraPose;
+    if (nearestCameras(b, {camera.x(), camera.y()}, view_m).empty()) return {};
     Comparison c{Verdict::Inconclusive, 0, {}};
     const auto query = images.query(a, j);
     std::vector<Fix> fixes;
     if (auto f = refineAt(a, j, b, laser, ceiling_height_m, view_m, query, refiner, images)) {
         fixes.push_back(*f);
     } else {
-        for (double s = shift_step_m; s <= o.pose_audit_search_m + 1e-9; s += shift_step_m) {
+        for (double s = search.shift_step_m; s <= search.reach_m + 1e-9; s += search.shift_step_m) {
             for (double sign : {-1.0, 1.0}) {
                 const auto hint = laser + mrpt::poses::CPose3D(sign * s, 0, 0, 0, 0, 0);
                 if (auto f =
@@ -179,6 +188,33 @@ double shiftStep(const std::optional<refine::Rectifier>& rectifier, const refine
     return 0.5 * refiner.options().matcher.search_range_px * metres_per_px;
 }
 
+refine::RefinerOptions auditRefinerOptions(double ceiling_height_m) {
+    // The localiser's guard against repeating texture: a point whose second-best match is
+    // within 20 % of the best is not used (share/lookup/localize-mine-*.ini).
+    refine::RefinerOptions ro;
+    ro.matcher.min_distinctiveness = 0.2;
+    ro.estimator.ceiling_height_m = ceiling_height_m;
+    return ro;
+}
+
+/// What frames are compared with: the localiser's refiner, the stored references' camera and
+/// the shift between hints at the ceiling's distance.
+struct Matching {
+    Matching(const std::vector<CeilingTraverse>& traverses, double ceiling_height_m,
+             const SurveyOptions& o)
+        : refiner(auditRefinerOptions(ceiling_height_m)),
+          rectifier(detail::storedCameraRectifier(traverses, o)) {
+        double camera_z = 0;
+        for (const auto& t : traverses) {
+            if (!t.ceiling->empty()) camera_z = t.ceiling->front()->cameraPose.z();
+        }
+        shift_step_m = shiftStep(rectifier, refiner, ceiling_height_m - camera_z);
+    }
+    const refine::Refiner refiner;
+    const std::optional<refine::Rectifier> rectifier;
+    double shift_step_m = 0.5;
+};
+
 double quantile(std::vector<double> v, double q) {
     if (v.empty()) return 0;
     std::sort(v.begin(), v.end());
@@ -197,10 +233,21 @@ bool readable(mrpt::obs::CObservationImage& obs) {
     return ok;
 }
 
+/// The frames of `a` every `spacing_m` of travel up to `up_to_m`.
+std::vector<std::size_t> sampleFrames(const AuditedTraverse& a, double up_to_m, double spacing_m) {
+    std::vector<std::size_t> samples;
+    if (a.frames.empty()) return samples;
+    for (double s = 0; s <= up_to_m; s += spacing_m) {
+        const std::size_t j = detail::nearestTravel(a.frames, s);
+        if (samples.empty() || samples.back() != j) samples.push_back(j);
+    }
+    return samples;
+}
+
 /// One traverse's samples: audited against every other, suspects into `out`. Returns how many
 /// of its comparisons were made on readable images and how many agreed.
 std::pair<std::size_t, std::size_t> auditTraverse(const std::vector<AuditedTraverse>& all,
-                                                  std::size_t ai, double h, double step_m,
+                                                  std::size_t ai, const Search& search,
                                                   const SurveyOptions& o,
                                                   const refine::Refiner& refiner, Images& images,
                                                   std::vector<double>& agreed_m, PoseAudit& out) {
@@ -208,11 +255,7 @@ std::pair<std::size_t, std::size_t> auditTraverse(const std::vector<AuditedTrave
     const std::size_t compared_before = out.compared, agreed_before = out.agreed;
     std::size_t unreadable = 0;
     if (a.frames.empty()) return {0, 0};
-    std::vector<std::size_t> samples;
-    for (double s = 0; s <= a.frames.back().travel_m; s += o.pose_audit_spacing_m) {
-        const std::size_t j = detail::nearestTravel(a.frames, s);
-        if (samples.empty() || samples.back() != j) samples.push_back(j);
-    }
+    const auto samples = sampleFrames(a, a.frames.back().travel_m, o.pose_audit_spacing_m);
     out.sampled += samples.size();
     for (std::size_t si = 0; si < samples.size(); ++si) {
         const std::size_t j = samples[si];
@@ -224,7 +267,7 @@ std::pair<std::size_t, std::size_t> auditTraverse(const std::vector<AuditedTrave
             Comparison c;
             bool threw = false;
             try {
-                c = compare(a, j, all[bi], h, step_m, o, refiner, images);
+                c = compare(a, j, a.frames[j].pose, all[bi], search, o, refiner, images);
             } catch (const std::exception&) {
                 images.clear();  // an unreadable image: nothing to compare with
                 c.verdict = Verdict::Inconclusive;
@@ -278,7 +321,58 @@ void discardWholeTraverse(const std::string& name, std::size_t compared, PoseAud
     ++out.traverses_discarded;
 }
 
+/// The start a trial puts `a` at (its frames' poses relative to the trial's origin), corrected by
+/// where `b`'s ceiling finds its first sampled frame with a fix: none when fewer than two find
+/// one, or a later one implies a start farther than the odometry between them may slip.
+std::optional<mrpt::poses::CPose2D> trialStart(const AuditedTraverse& a,
+                                               const std::vector<std::size_t>& samples,
+                                               const mrpt::poses::CPose2D& start,
+                                               const AuditedTraverse& b, const Search& search,
+                                               const SurveyOptions& o, const Matching& m,
+                                               Images& images) {
+    std::vector<std::pair<mrpt::poses::CPose2D, double>> implied;  // start, travel
+    for (std::size_t k = 0; k < samples.size() && implied.size() + samples.size() - k >= 2; ++k) {
+        const std::size_t j = samples[k];
+        const mrpt::poses::CPose2D relative(a.frames[j].pose);
+        const mrpt::poses::CPose3D hint(start + relative);
+        Comparison c;
+        try {
+            c = compare(a, j, hint, b, search, o, m.refiner, images);
+        } catch (const std::exception&) {
+            images.clear();  // an unreadable image decides nothing
+            continue;
+        }
+        if (c.verdict == Verdict::Agreed || c.verdict == Verdict::Disagreed) {
+            implied.emplace_back(c.fix.pose + (-relative), a.frames[j].travel_m);
+        }
+    }
+    if (implied.size() < 2) return std::nullopt;
+    const auto& [first, first_travel_m] = implied.front();
+    for (const auto& [p, travel_m] : implied) {
+        const double slip_m = kOdometrySlipShare * (travel_m - first_travel_m);
+        if (p.distanceTo(first) > o.pose_audit_max_disagreement_m + slip_m) return std::nullopt;
+    }
+    return first;
+}
+
 }  // namespace
+
+std::vector<std::optional<mrpt::poses::CPose2D>> startsFromCeiling(
+    const CeilingTraverse& traverse, const std::vector<mrpt::poses::CPose2D>& trial_starts,
+    const CeilingTraverse& mapped, double ceiling_height_m, double travel_m, double reach_m,
+    const SurveyOptions& o) {
+    std::vector<std::optional<mrpt::poses::CPose2D>> out(trial_starts.size());
+    const AuditedTraverse a = audited(traverse), b = audited(mapped);
+    const auto samples = sampleFrames(a, travel_m, o.pose_audit_spacing_m);
+    if (samples.empty() || b.frames.empty()) return out;
+    const Matching m({traverse, mapped}, ceiling_height_m, o);
+    const Search search{ceiling_height_m, m.shift_step_m, reach_m};
+    Images images(m.rectifier, m.refiner);
+    for (std::size_t k = 0; k < trial_starts.size(); ++k) {
+        out[k] = trialStart(a, samples, trial_starts[k], b, search, o, m, images);
+    }
+    return out;
+}
 
 bool PoseAudit::excludes(const std::string& traverse, double time_s) const {
     return std::any_of(stretches.begin(), stretches.end(), [&](const SuspectStretch& s) {
@@ -301,24 +395,13 @@ PoseAudit auditLaserPoses(const std::vector<CeilingTraverse>& traverses, double 
     out.ran = true;
     std::vector<AuditedTraverse> all;
     for (const auto& t : traverses) all.push_back(audited(t));
-    // The localiser's guard against repeating texture: a point whose second-best match is
-    // within 20 % of the best is not used (share/lookup/localize-mine-*.ini).
-    refine::RefinerOptions ro;
-    ro.matcher.min_distinctiveness = 0.2;
-    ro.estimator.ceiling_height_m = ceiling_height_m;
-    const refine::Refiner refiner(ro);
-    const auto rectifier = detail::storedCameraRectifier(traverses, o);
-    double camera_z = 0;
-    for (const auto& t : traverses) {
-        if (!t.ceiling->empty()) camera_z = t.ceiling->front()->cameraPose.z();
-    }
-    const double step_m = shiftStep(rectifier, refiner, ceiling_height_m - camera_z);
-    Images images(rectifier, refiner);
+    const Matching m(traverses, ceiling_height_m, o);
+    const Search search{ceiling_height_m, m.shift_step_m, o.pose_audit_search_m};
+    Images images(m.rectifier, m.refiner);
     std::vector<double> agreed_m;
     std::vector<std::pair<std::size_t, std::size_t>> counts;  // compared, agreed per traverse
     for (std::size_t ai = 0; ai < all.size(); ++ai) {
-        counts.push_back(
-            auditTraverse(all, ai, ceiling_height_m, step_m, o, refiner, images, agreed_m, out));
+        counts.push_back(auditTraverse(all, ai, search, o, m.refiner, images, agreed_m, out));
     }
     for (std::size_t ai = 0; ai < all.size(); ++ai) {
         const auto [compared, agreed] = counts[ai];

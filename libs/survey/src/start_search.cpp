@@ -1,14 +1,17 @@
 #include "lookup/survey/start_search.h"
 
 #include <mrpt/maps/CSimplePointsMap.h>
+#include <mrpt/math/wrap2pi.h>
 #include <mrpt/obs/CObservation2DRangeScan.h>
 #include <mrpt/obs/CObservationOdometry.h>
 #include <mrpt/slam/CICP.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 
 #include "lookup/common/rawlog_io.h"
+#include "lookup/survey/pose_audit.h"
 
 namespace lookup::survey {
 namespace {
@@ -79,6 +82,45 @@ std::vector<mrpt::poses::CPose2D> guessesFrom(const common::PoseTrack& track,
     return out;
 }
 
+bool samePlace(const mrpt::poses::CPose2D& a, const mrpt::poses::CPose2D& b) {
+    constexpr double kSamePlace_m = 0.3, kSameHeading_rad = 0.2;
+    return a.distanceTo(b) < kSamePlace_m &&
+           std::abs(mrpt::math::wrapToPi(a.phi() - b.phi())) < kSameHeading_rad;
+}
+
+bool isNewPlace(const mrpt::poses::CPose2D& p, const mrpt::poses::CPose2D& winner,
+                const std::vector<mrpt::poses::CPose2D>& kept) {
+    if (samePlace(p, winner)) return false;
+    return std::none_of(kept.begin(), kept.end(),
+                        [&](const mrpt::poses::CPose2D& k) { return samePlace(p, k); });
+}
+
+// The vehicle's odometry relative to its pose at the traverse's first scan (the start's
+// origin), as a pose track.
+common::PoseTrack odometryFromFirstScan(const TraverseData& t) {
+    common::PoseTrack out;
+    mrpt::poses::CPose2D odometry, first;
+    bool have_odometry = false, have_first = false;
+    for (const auto& o : t.laser_sequence) {
+        if (auto odo = std::dynamic_pointer_cast<mrpt::obs::CObservationOdometry>(o)) {
+            odometry = odo->odometry;
+            have_odometry = true;
+            if (have_first) {
+                out.push_back({mrpt::Clock::toDouble(odo->timestamp),
+                               mrpt::poses::CPose3D(odometry - first)});
+            }
+            continue;
+        }
+        if (have_odometry && !have_first &&
+            std::dynamic_pointer_cast<mrpt::obs::CObservation2DRangeScan>(o)) {
+            first = odometry;
+            have_first = true;
+            out.push_back({mrpt::Clock::toDouble(o->timestamp), mrpt::poses::CPose3D()});
+        }
+    }
+    return out;
+}
+
 }  // namespace
 
 StartFix findStartInMap(const TraverseData& traverse, const mrpt::maps::COccupancyGridMap2D& grid,
@@ -104,14 +146,21 @@ StartFix findStartInMap(const TraverseData& traverse, const mrpt::maps::COccupan
     StartFix best;
     best.guesses = guesses.size();
     bool found = false;
+    std::vector<std::pair<mrpt::poses::CPose2D, double>> fits;
     for (const auto& g : guesses) {
         mrpt::slam::CICP::TReturnInfo info;
         const auto pdf = icp.Align(&map, &local, g, info);
         if (!pdf) continue;
+        fits.emplace_back(pdf->getMeanVal(), info.goodness);
         if (!found || info.goodness > best.goodness + kTie) {
             best.pose = pdf->getMeanVal();
             best.goodness = info.goodness;
             found = true;
+        }
+    }
+    for (const auto& [pose, goodness] : fits) {
+        if (goodness >= best.goodness - kTie && isNewPlace(pose, best.pose, best.tied)) {
+            best.tied.push_back(pose);
         }
     }
     if (!found || best.goodness < options.start_min_goodness) {
@@ -123,6 +172,48 @@ StartFix findStartInMap(const TraverseData& traverse, const mrpt::maps::COccupan
         throw common::RawlogError(traverse.rawlog, buf);
     }
     return best;
+}
+
+}  // namespace lookup::survey
+
+namespace lookup::survey {
+
+void decideStartByCeiling(StartFix& fix, const TraverseData& traverse,
+                          const CeilingTraverse& mapped, double ceiling_height_m,
+                          const SurveyOptions& o) {
+    if (fix.tied.empty()) return;
+    const auto relative =
+        common::makeInterpolator(odometryFromFirstScan(traverse), o.max_pose_gap_s);
+    const CeilingTraverse own{"start", &traverse.ceiling, &relative};
+    const auto starts = [&](const std::vector<mrpt::poses::CPose2D>& trials) {
+        return startsFromCeiling(own, trials, mapped, ceiling_height_m, o.start_match_travel_m,
+                                 o.start_search_spacing_m, o);
+    };
+    const auto winner = starts({fix.pose}).front();
+    if (winner && winner->distanceTo(fix.pose) <= o.pose_audit_max_disagreement_m) {
+        fix.ceiling = "confirmed";
+        return;
+    }
+    std::vector<mrpt::poses::CPose2D> placed;
+    if (winner) placed.push_back(*winner);
+    for (const auto& s : starts(fix.tied)) {
+        if (s) placed.push_back(*s);
+    }
+    // Trials finding one place may imply its start from frames metres apart.
+    const double same_place_m =
+        o.pose_audit_max_disagreement_m + kOdometrySlipShare * o.start_match_travel_m;
+    const bool one_place =
+        std::all_of(placed.begin(), placed.end(), [&](const mrpt::poses::CPose2D& p) {
+            return p.distanceTo(placed.front()) <= same_place_m;
+        });
+    if (placed.empty()) {
+        fix.ceiling = "no match";
+    } else if (!one_place) {
+        fix.ceiling = "ambiguous";
+    } else {
+        fix.ceiling = "placed";
+        fix.pose = placed.front();
+    }
 }
 
 }  // namespace lookup::survey

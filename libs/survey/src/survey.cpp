@@ -186,6 +186,8 @@ struct TraverseStart {
     std::string source;         ///< "map origin", "ground truth" or "scan match"
     mrpt::poses::CPose2D pose;  ///< grid frame while the laser stage runs, then map frame
     double goodness = 0;        ///< of the scan match
+    std::size_t tied_places = 0;
+    std::string ceiling;  ///< StartFix::ceiling
 };
 
 // The operator's start pose of the mapping traverse ([survey] start_pose, else the dataset's),
@@ -197,16 +199,69 @@ mrpt::poses::CPose2D operatorStart(const SurveyOptions& o, const SurveyInputs& i
     throw common::ConfigError("start_pose '" + text + "': expected three numbers: x y yaw_deg");
 }
 
+/// The mapping traverse's ceiling frames on its track (grid frame), which decide a start the
+/// lidar leaves tied, and the ceiling height they are compared at: measured on them alone
+/// (the survey's estimate waits for every traverse's poses), when first needed.
+class MappedCeiling {
+  public:
+    /// `mapping` null: no mapping traverse (a map file's frame).
+    MappedCeiling(const SurveyInputs& in, const SurveyOptions& o, const TraverseData* mapping,
+                  const common::PoseTrack& track)
+        : in_(in),
+          o_(o),
+          poses_(common::makeInterpolator(track, o.max_pose_gap_s)),
+          traverse_{"mapping", mapping ? &mapping->ceiling : nullptr, &poses_} {}
+
+    bool usable() const { return o_.start_by_ceiling && traverse_.ceiling && !poses_.empty(); }
+    const CeilingTraverse& traverse() const { return traverse_; }
+    double ceilingHeight() {
+        if (height_m_) return *height_m_;
+        if (in_.ceiling_height_m > 0 && o_.use_dataset_ceiling_height) {
+            height_m_ = in_.ceiling_height_m;
+        } else if (!o_.ceiling_estimate) {
+            height_m_ = o_.ceiling_height_m;
+        } else {
+            height_m_ = estimateCeilingDistance({traverse_}, o_).ceiling_height_m;
+        }
+        return *height_m_;
+    }
+
+  private:
+    const SurveyInputs& in_;
+    const SurveyOptions& o_;
+    mrpt::poses::CPose3DInterpolator poses_;
+    CeilingTraverse traverse_;
+    std::optional<double> height_m_;
+};
+
 // Where MCL starts a traverse on the grid: the map's own origin for the traverse that built
-// it, the ground truth only as a diagnostic, else its first scans matched against the map.
+// it, the ground truth only as a diagnostic, else its first scans matched against the map, a
+// tie along a uniform drive decided by the ceiling.
 TraverseStart startInGrid(bool own_map, bool use_gt, const mrpt::poses::CPose2D& gt_start,
                           const mrpt::poses::CPose2D& fallback, const TraverseData& d,
                           const mrpt::maps::COccupancyGridMap2D& grid,
-                          const common::PoseTrack& mapping_track, const SurveyOptions& o) {
-    if (use_gt) return {"ground truth", gt_start, 0};
-    if (own_map) return {"map origin", mrpt::poses::CPose2D(), 0};
-    const StartFix fix = findStartInMap(d, grid, mapping_track, fallback, o);
-    return {"scan match", fix.pose, fix.goodness};
+                          const common::PoseTrack& mapping_track, MappedCeiling& mapped,
+                          const SurveyOptions& o) {
+    if (use_gt) return {"ground truth", gt_start, 0, 0, ""};
+    if (own_map) return {"map origin", mrpt::poses::CPose2D(), 0, 0, ""};
+    StartFix fix = findStartInMap(d, grid, mapping_track, fallback, o);
+    if (!fix.tied.empty() && mapped.usable()) {
+        decideStartByCeiling(fix, d, mapped.traverse(), mapped.ceilingHeight(), o);
+    }
+    return {"scan match", fix.pose, fix.goodness, fix.tied.size(), fix.ceiling};
+}
+
+/// The warning for a start the lidar left tied and the ceiling did not decide; else empty.
+std::string undecidedStartWarning(const std::string& rawlog, const TraverseStart& s) {
+    if (s.ceiling != "ambiguous" && s.ceiling != "no match") return {};
+    return rawlog +
+           mrpt::format(
+               ": the lidar fits its first metres as well at %zu other places "
+               "along the drive and the ceiling images %s: started at the fit "
+               "nearest the mapping traverse's start (the pose audit checks "
+               "it; start every survey traverse at the same portal)",
+               s.tied_places,
+               s.ceiling == "ambiguous" ? "agree with several of them" : "match none of them");
 }
 
 // The cameras' configured time offsets, applied to their stamps as read: every later step
@@ -276,7 +331,9 @@ nlohmann::ordered_json traverseJson(const TraverseReport& t) {
                       {"x", t.start.x()},
                       {"y", t.start.y()},
                       {"yaw_deg", mrpt::RAD2DEG(t.start.phi())},
-                      {"goodness", t.start_goodness}};
+                      {"goodness", t.start_goodness},
+                      {"tied_places", t.start_tied_places},
+                      {"ceiling", t.start_ceiling}};
     }
     j["has_ground_truth"] = t.has_ground_truth;
     if (t.has_ground_truth) {
@@ -452,6 +509,8 @@ void localizeOnGrid(const SurveyInputs& in, const SurveyData& survey, const Grid
                     std::size_t mapping, bool joint, const SurveyOptions& o,
                     const mrpt::config::CConfigFileBase& config, VehiclePoses& poses,
                     SurveyResult& result) {
+    MappedCeiling mapped(in, o, mapping < survey.data.size() ? &survey.data[mapping] : nullptr,
+                         map.mapping_track);
     for (std::size_t i = 0; i < survey.data.size(); ++i) {
         if (!in.traverses[i].reference || (joint && i == mapping)) continue;
         mrpt::system::CTicTac timer;
@@ -463,7 +522,9 @@ void localizeOnGrid(const SurveyInputs& in, const SurveyData& survey, const Grid
         poses.starts[i] =
             startInGrid(own_map, use_gt, gt_start,
                         in.map_file.empty() ? mrpt::poses::CPose2D() : operatorStart(o, in),
-                        survey.data[i], map.grid, map.mapping_track, o);
+                        survey.data[i], map.grid, map.mapping_track, mapped, o);
+        const auto warning = undecidedStartWarning(survey.data[i].rawlog, poses.starts[i]);
+        if (!warning.empty()) result.warnings.push_back(warning);
         poses.tracks[i] =
             localizeMcl(survey.data[i], map.grid, config, o, poses.starts[i].pose, bar);
         poses.localisation_time_s[i] = timer.Tac();
@@ -649,7 +710,7 @@ VehiclePoses posesFromLaser(const SurveyInputs& in, SurveyData& survey, const Su
     localizeOnGrid(in, survey, map, mapping, joint, o, config, poses, result);
     if (joint) {
         jointGraph(in, survey, mapping, o, g, config, map, poses, result);
-        poses.starts[mapping] = {"map origin", mrpt::poses::CPose2D(), 0};
+        poses.starts[mapping] = {"map origin", mrpt::poses::CPose2D(), 0, 0, ""};
     }
     toMapFrame(map.origin, poses);
     // The frame's own error: the operator's marks (not a map file's frame, nor the truth's).
@@ -898,6 +959,8 @@ TraverseReport addTraverse(const TraverseSpec& spec, const TraverseData& d, cons
     rep.start_source = start.source;
     rep.start = start.pose;
     rep.start_goodness = start.goodness;
+    rep.start_tied_places = start.tied_places;
+    rep.start_ceiling = start.ceiling;
     if (track.poses.empty()) {
         throw common::RawlogError(d.rawlog, "no vehicle poses (no lidar scans localised)");
     }

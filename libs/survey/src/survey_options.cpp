@@ -71,6 +71,7 @@ void SurveyOptions::declareKeys(common::OptionsTable& t) {
     t.add("start_search_spacing_m", start_search_spacing_m, common::kPositive);
     t.add("start_match_travel_m", start_match_travel_m, 0.0);
     t.add("start_min_goodness", start_min_goodness, 0.0, 1.0);
+    t.add("start_by_ceiling", start_by_ceiling);
     t.add("mcl_particles", mcl_particles, 10, 10000000);
     t.add("mcl_init_std_xy_m", mcl_init_std_xy_m, 0.0);
     t.add("mcl_init_std_yaw_deg", mcl_init_std_yaw_deg, 0.0);

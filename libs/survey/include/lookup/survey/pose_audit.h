@@ -17,6 +17,9 @@
 
 #include <nlohmann/json.hpp>
 
+#include <mrpt/poses/CPose2D.h>
+
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -75,6 +78,22 @@ struct PoseAudit {
 /// inconclusive.
 PoseAudit auditLaserPoses(const std::vector<CeilingTraverse>& traverses, double ceiling_height_m,
                           const SurveyOptions& options);
+
+/// Dead reckoning over a traverse's first metres may be off by this share of the travel (wheel
+/// slip on a wet floor).
+constexpr double kOdometrySlipShare = 0.25;
+
+/// Where the ceiling puts a traverse tried at each of `trial_starts` (map poses of its vehicle at
+/// the origin of `traverse.poses`, which are relative to it): its frames every
+/// pose_audit_spacing_m within its first `travel_m`, each placed by the trial, refined against
+/// `mapped`'s images near there, from that pose and shifted along the heading up to `reach_m`.
+/// Per trial, the start the first fix implies when at least two samples found one and the later
+/// ones agree within pose_audit_max_disagreement_m and the odometry's slip; else none. A trial
+/// stops once two fixes are out of reach, so a wrong place costs all but one sample's refinements.
+std::vector<std::optional<mrpt::poses::CPose2D>> startsFromCeiling(
+    const CeilingTraverse& traverse, const std::vector<mrpt::poses::CPose2D>& trial_starts,
+    const CeilingTraverse& mapped, double ceiling_height_m, double travel_m, double reach_m,
+    const SurveyOptions& o);
 
 /// survey_report.json's "pose_audit" object.
 nlohmann::ordered_json poseAuditJson(const PoseAudit& a);

@@ -86,6 +86,8 @@ struct TraverseReport {
     std::string start_source;          ///< "map origin", "ground truth" or "scan match"
     mrpt::poses::CPose2D start;        ///< first scan's pose in the map frame
     double start_goodness = 0;         ///< ICP goodness of the scan-matched start
+    std::size_t start_tied_places = 0;  ///< other places its start's fit tied with
+    std::string start_ceiling;          ///< what the ceiling made of the tie (StartFix::ceiling)
     bool has_ground_truth = false;
     PoseErrorStats error;                ///< over the references (when ground truth)
     std::vector<SegmentError> segments;  ///< error per 10 m of travel (when ground truth)

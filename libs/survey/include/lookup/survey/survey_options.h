@@ -140,6 +140,8 @@ struct SurveyOptions : public common::TableOptions<SurveyOptions> {
     double start_search_spacing_m = 1.0;  ///< spacing of the start guesses along the map [m]
     double start_match_travel_m = 4.0;    ///< scans of the first metres matched together [m]
     double start_min_goodness = 0.5;      ///< a start with a lower ICP goodness is an error
+    /// Start fits tied along a uniform drive are decided by the ceiling images (start_search.h).
+    bool start_by_ceiling = true;
     /// Lidar returns farther than this are dropped before ICP-SLAM [m] (0 = keep all). Far
     /// returns graze the walls of a long drive sparsely and match the frontier of the map
     /// built so far, which pulls every scan back and shrinks the map along the drive.
