@@ -174,10 +174,6 @@ StartFix findStartInMap(const TraverseData& traverse, const mrpt::maps::COccupan
     return best;
 }
 
-}  // namespace lookup::survey
-
-namespace lookup::survey {
-
 void decideStartByCeiling(StartFix& fix, const TraverseData& traverse,
                           const CeilingTraverse& mapped, double ceiling_height_m,
                           const SurveyOptions& o) {
