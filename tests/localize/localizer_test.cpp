@@ -685,6 +685,38 @@ TEST(Localize, AnUncertainImageTimeWidensThePoseAlongTheMotion) {
     }
 }
 
+// Against a database whose survey camera clock is known, a vehicle camera without a configured
+// offset is late by an unknown amount the references no longer share: 3 m/s along x with
+// uncalibrated_image_time_sigma_s 0.025 s adds (0.075 m)^2 along the motion to every emitted
+// pose, and nothing once [time_offsets] calibrates the camera or the survey's clock is unknown.
+TEST(Localize, AnUncalibratedCameraAgainstAKnownSurveyClockWidensThePoseAlongTheMotion) {
+    const auto run = [&](const std::string& name, std::optional<double> survey_sigma_s,
+                         const std::string& ini_text) {
+        const auto dir = lookup::test::freshDir("lookup_localize_uncalibrated_" + name);
+        PlanarDrive drive;
+        drive.survey_camera.time_offset_sigma_s = survey_sigma_s;
+        auto req = planarRun(
+            dir, [](int, mrpt::obs::CObservationImage&, mrpt::obs::CObservationOdometry&) {}, 8,
+            drive);
+        req.ini_file = (dir / "localize.ini").string();
+        std::ofstream(req.ini_file) << ini_text;
+        localize::runLocalization(req);
+        return eval::loadRun(req.out_dir);
+    };
+    const auto unknown = run("unknown", std::nullopt, "[localizer]\n");
+    const auto uncalibrated = run("uncalibrated", 0.004, "[localizer]\n");
+    const auto calibrated = run("calibrated", 0.004, "[time_offsets]\nCEILING_CAM = 0\n");
+    for (int i = 3; i < 8; ++i) {
+        ASSERT_EQ(uncalibrated.frames[i].status, "refined") << uncalibrated.frames[i].reason;
+        EXPECT_NEAR(uncalibrated.frames[i].cov_xx - unknown.frames[i].cov_xx, 0.075 * 0.075, 0.001)
+            << i;
+        EXPECT_NEAR(uncalibrated.frames[i].cov_yy - unknown.frames[i].cov_yy, 0.0, 0.001) << i;
+        EXPECT_NEAR(calibrated.frames[i].cov_xx, unknown.frames[i].cov_xx, 1e-6) << i;
+        // The track itself is the same: its fixes and predictions share the vehicle's clock.
+        EXPECT_EQ(uncalibrated.frames[i].x, unknown.frames[i].x) << i;
+    }
+}
+
 TEST(Localize, PastTheTrackingGapOdometryFromTheLastFixStaysTheFallback) {
     const auto dir = lookup::test::freshDir("lookup_localize_dead_reckoning");
     // From frame 5 on (1.5 s, past the 1 s tracking gap) a ceiling too flat to match, as in a

@@ -239,10 +239,12 @@ class Session {
             clock_ = SensorClock::fromConfig(ini, req.ini_file);
         }
         // A configured ceiling camera offset is the vehicle's calibration: the estimate then
-        // checks it and is applied only when asked to.
-        if (options_.apply_camera_time_offset == CameraClockApply::Auto &&
-            clock_.configures(options_.ceiling_camera_label)) {
-            options_.apply_camera_time_offset = CameraClockApply::Never;
+        // checks it and is applied only when asked to, and its stamps carry no unknown lateness.
+        if (clock_.configures(options_.ceiling_camera_label)) {
+            if (options_.apply_camera_time_offset == CameraClockApply::Auto) {
+                options_.apply_camera_time_offset = CameraClockApply::Never;
+            }
+            options_.uncalibrated_image_time_sigma_s = 0;
         }
         if (req.realtime >= 0) options_.realtime = req.realtime == 1;
         if (!req.sampling.empty() && req.sampling != "grid" && req.sampling != "heatmap" &&

@@ -215,6 +215,8 @@ Localizer::Localizer(database::ReferenceDatabase& db, const LocalizerOptions& op
       coarse_(std::move(coarse)),
       coarse_uses_images_(coarse_uses_images),
       camera_clock_(cameraClockOptions(options, db.info())),
+      uncalibrated_clock_sigma_s_(
+          surveyClockKnown(options, db.info()) ? options.uncalibrated_image_time_sigma_s : 0.0),
       ceiling_refiner_(gridSampling(refiner_options)) {
     options_.check();
 }
@@ -1322,12 +1324,12 @@ mrpt::math::CMatrixDouble33 Localizer::surveyCovariance(
     return cov;
 }
 
-mrpt::math::CMatrixDouble33 Localizer::imageTimeCovariance(double time_s, double yaw) const {
+mrpt::math::CMatrixDouble33 Localizer::imageTimeCovariance(double time_s, double yaw,
+                                                           double sigma_s) const {
     // The vehicle moves and turns over the image time's uncertainty; velocity in its frame.
     mrpt::math::CMatrixDouble33 cov;
     cov.setZero();
-    const double sigma_s = std::hypot(options_.image_time_sigma_s, camera_clock_.appliedSigma());
-    if (sigma_s <= 0) return cov;
+    if (!(sigma_s > 0)) return cov;
     const auto v = velocityAt(time_s);
     if (!v) return cov;
     const double c = std::cos(yaw), s = std::sin(yaw);
@@ -1342,7 +1344,11 @@ void Localizer::finishFrame(FrameResult& out) {
         !std::isfinite(out.coarse_pose->x() + out.coarse_pose->y() + out.coarse_pose->phi())) {
         out.coarse_pose.reset();
     }
-    if (out.has_pose) out.pose.cov += imageTimeCovariance(out.time_s, out.pose.mean.phi());
+    if (out.has_pose) {
+        const double sigma_s =
+            std::hypot(options_.image_time_sigma_s, camera_clock_.appliedSigma());
+        out.pose.cov += imageTimeCovariance(out.time_s, out.pose.mean.phi(), sigma_s);
+    }
     if (out.has_pose && !finite(out.pose)) {
         // Last line of defence: a pose or covariance that is not finite is no pose at all.
         out.reason = "non-finite " + out.pose_source + " pose or covariance" +
@@ -1363,6 +1369,12 @@ void Localizer::finishFrame(FrameResult& out) {
     }
     fine_tracking_ = out.status == FrameStatus::Refined;
     if (fine_tracking_) open_places_.clear();
+    // The vehicle's unknown lateness moves its fixes and predictions alike: the track keeps its
+    // own covariance, the emitted pose carries it.
+    if (out.has_pose) {
+        out.pose.cov +=
+            imageTimeCovariance(out.time_s, out.pose.mean.phi(), uncalibrated_clock_sigma_s_);
+    }
 }
 
 }  // namespace lookup::localize

@@ -29,6 +29,7 @@ void LocalizerOptions::declareKeys(common::OptionsTable& t) {
     refresh.declareKeys(t);
     t.add("odometry_timeout_s", odometry_timeout_s, common::kPositive);
     t.add("image_time_sigma_s", image_time_sigma_s, 0.0, 1.0);
+    t.add("uncalibrated_image_time_sigma_s", uncalibrated_image_time_sigma_s, 0.0, 1.0);
     t.add("estimate_camera_time_offset", camera_clock.enabled);
     t.add("apply_camera_time_offset", apply_camera_time_offset, kCameraClockApply);
     t.add("survey_clock_max_sigma_s", survey_clock_max_sigma_s, 0.0, 1.0);

@@ -203,7 +203,9 @@ class Localizer {
     void emit(const Attempt& a, const std::optional<Prediction>& prediction,
               FrameResult& out) const;
     mrpt::math::CMatrixDouble33 surveyCovariance(const std::vector<std::size_t>& references) const;
-    mrpt::math::CMatrixDouble33 imageTimeCovariance(double time_s, double yaw) const;
+    /// What an image time uncertain by `sigma_s` adds to the pose at `time_s` [s].
+    mrpt::math::CMatrixDouble33 imageTimeCovariance(double time_s, double yaw,
+                                                    double sigma_s) const;
     void finishFrame(FrameResult& out);
     void processForward(const mrpt::obs::CObservationImage& image);
     void processOdometry(const mrpt::obs::CObservation& odo);
@@ -338,13 +340,16 @@ class Localizer {
     double coarse_ms_since_frame_ = 0;
     common::OdometryTrack odometry_;
     CameraClock camera_clock_;
+    /// LocalizerOptions::uncalibrated_image_time_sigma_s where it applies, else 0 [s].
+    double uncalibrated_clock_sigma_s_ = 0;
     double travelled_since_forward_ = 0;
     bool forward_had_odometry_ = false;  ///< the previous forward frame had live odometry
 
     struct Fix {
         double time_s = 0;
         mrpt::poses::CPose2D pose;
-        mrpt::math::CMatrixDouble33 cov = mrpt::math::CMatrixDouble33::Zero();  ///< as emitted
+        /// As emitted, less the vehicle clock's unknown lateness (uncalibrated_clock_sigma_s_).
+        mrpt::math::CMatrixDouble33 cov = mrpt::math::CMatrixDouble33::Zero();
     };
     std::optional<Fix> last_fix_;
     /// The fixes' times and headings over the last kFixHeadingsSpanS, time order: against the

@@ -60,6 +60,13 @@ struct LocalizerOptions : public common::TableOptions<LocalizerOptions> {
     /// this much in time it is off by the vehicle's speed x this along its motion, which every
     /// emitted pose's covariance carries.
     double image_time_sigma_s = 0.0;
+    /// Against a database whose survey camera clock is known (survey_clock_max_sigma_s), the
+    /// references no longer share the vehicle's lateness: a ceiling camera without a
+    /// [time_offsets] value (lookup-localize sets this to 0 where it has one) stamps late by an
+    /// unknown amount, of this standard deviation against true time, which widens every
+    /// emitted pose's covariance along the motion [s]. The tracker's own covariance leaves it
+    /// out: its fixes and predictions share the vehicle's clock.
+    double uncalibrated_image_time_sigma_s = 0.025;
     /// The ceiling camera's offset against the odometry, estimated from the drive's turns and
     /// reported (camera_clock.h); where apply_camera_time_offset says, applied to its stamps
     /// once precise and significant, its sigma then adding to image_time_sigma_s.
