@@ -66,7 +66,7 @@ struct LocalizerOptions : public common::TableOptions<LocalizerOptions> {
     /// unknown amount, of this standard deviation against true time, which widens every
     /// emitted pose's covariance along the motion [s]. The tracker's own covariance leaves it
     /// out: its fixes and predictions share the vehicle's clock.
-    double uncalibrated_image_time_sigma_s = 0.025;
+    double uncalibrated_image_time_sigma_s = 0.015;
     /// The ceiling camera's offset against the odometry, estimated from the drive's turns and
     /// reported (camera_clock.h); where apply_camera_time_offset says, applied to its stamps
     /// once precise and significant, its sigma then adding to image_time_sigma_s.
