@@ -161,26 +161,25 @@ TEST(StartSearch, ATraverseStartedAtThePortalKeepsItsFitWhenTheCeilingConfirmsIt
     EXPECT_LT(fix.pose.distanceTo(truth), 0.3);
 }
 
-TEST(StartSearch, ARepeatingCeilingLeavesTheTieUndecidedAndTheFitNearestTheMappingStart) {
-    const auto ceiling = repeatingCeiling();
-    const Mapped m = mapped(ceiling);
-    const auto d = traverseFrom({18, 0.3, M_PI}, ceiling);
+// The ceiling's verdict on a far-end start; the lidar's fit must stay when it decides nothing.
+std::string verdictLeavingTheFit(const Mapped& m, const TraverseData& d) {
     StartFix fix = findStart(d, m);
     const auto lidar = fix.pose;
     decideStartByCeiling(fix, d, m.traverse(), kCeiling_m, options());
-    EXPECT_EQ(fix.ceiling, "ambiguous");
     EXPECT_EQ(fix.pose, lidar);
+    return fix.ceiling;
+}
+
+TEST(StartSearch, ARepeatingCeilingLeavesTheTieUndecidedAndTheFitNearestTheMappingStart) {
+    const auto ceiling = repeatingCeiling();
+    EXPECT_EQ(verdictLeavingTheFit(mapped(ceiling), traverseFrom({18, 0.3, M_PI}, ceiling)),
+              "ambiguous");
 }
 
 TEST(StartSearch, ACeilingChangedSinceTheMappingDriveMatchesNoTie) {
-    const Mapped m = mapped(distinctCeiling());
     const auto other = synth::SyntheticCeiling::make(kCeiling_m, 2 * kEnd_m + 8, 0.02, 23);
-    const auto d = traverseFrom({18, 0.3, M_PI}, other);
-    StartFix fix = findStart(d, m);
-    const auto lidar = fix.pose;
-    decideStartByCeiling(fix, d, m.traverse(), kCeiling_m, options());
-    EXPECT_EQ(fix.ceiling, "no match");
-    EXPECT_EQ(fix.pose, lidar);
+    EXPECT_EQ(verdictLeavingTheFit(mapped(distinctCeiling()), traverseFrom({18, 0.3, M_PI}, other)),
+              "no match");
 }
 
 }  // namespace
