@@ -182,6 +182,9 @@ TEST(StartSearch, StartPoseOffByMetresStillPlacesTheOtherTraverse) {
     ASSERT_EQ(r.traverses.size(), 2u);
     EXPECT_EQ(r.traverses[1].start_source, "scan match");
     EXPECT_GT(r.traverses[1].start_goodness, o.start_min_goodness);
+    const auto start = nlohmann::json::parse(r.toJson())["traverses"][1]["start"];
+    EXPECT_EQ(start["ceiling"], "confirmed") << start;
+    EXPECT_GT(start["tied_places"], 0) << start;
     // In the map frame, b (driven where a was) starts where a started.
     const auto& sb = r.traverses[1].start;
     EXPECT_LT(std::hypot(sb.x() - given.x(), sb.y() - given.y()), 0.3) << r.toJson();
