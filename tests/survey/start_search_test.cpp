@@ -16,6 +16,7 @@
 #include "lookup/common/pose_files.h"
 #include "lookup/refine/testing/synthetic_ceiling.h"
 #include "lookup/survey/start_search.h"
+#include "lookup/survey/survey.h"
 #include "survey_fixture.h"
 
 namespace lookup::survey {
@@ -180,6 +181,20 @@ TEST(StartSearch, ACeilingChangedSinceTheMappingDriveMatchesNoTie) {
     const auto other = synth::SyntheticCeiling::make(kCeiling_m, 2 * kEnd_m + 8, 0.02, 23);
     EXPECT_EQ(verdictLeavingTheFit(mapped(distinctCeiling()), traverseFrom({18, 0.3, M_PI}, other)),
               "no match");
+}
+
+TEST(StartSearch, AStartPlacedByTheCeilingIsSaidInTheSurveysSummary) {
+    SurveyResult r;
+    r.status = SurveyStatus::Ok;
+    for (const std::string verdict : {"placed", "confirmed"}) {
+        TraverseReport t;
+        t.name = verdict == "placed" ? "against" : "left";
+        t.start_ceiling = verdict;
+        r.traverses.push_back(t);
+    }
+    const auto line = r.summaryLine();
+    EXPECT_NE(line.find("against's start placed by the ceiling"), std::string::npos) << line;
+    EXPECT_EQ(line.find("left's start"), std::string::npos) << line;
 }
 
 }  // namespace

@@ -1069,6 +1069,9 @@ std::string SurveyResult::summaryLine() const {
         o << "; poses not audited: " << pose_audit.note;
     }
     for (const auto& t : traverses) {
+        if (t.start_ceiling == "placed") o << "; " << t.name << "'s start placed by the ceiling";
+    }
+    for (const auto& t : traverses) {
         if (!t.has_ground_truth) continue;
         o.precision(3);
         o << "; " << t.name << " error mean " << t.error.mean_m << " p95 " << t.error.p95_m
