@@ -199,6 +199,16 @@ mrpt::poses::CPose2D operatorStart(const SurveyOptions& o, const SurveyInputs& i
     throw common::ConfigError("start_pose '" + text + "': expected three numbers: x y yaw_deg");
 }
 
+/// Where the database's ceiling height comes from ([survey]): the dataset's stated height when
+/// use_dataset_ceiling_height asks for it, the configured one when ceiling_estimate is off, else
+/// measured on the images.
+enum class CeilingRule { Dataset, Configured, Measured };
+
+CeilingRule ceilingRule(const SurveyInputs& in, const SurveyOptions& o) {
+    if (in.ceiling_height_m > 0 && o.use_dataset_ceiling_height) return CeilingRule::Dataset;
+    return o.ceiling_estimate ? CeilingRule::Measured : CeilingRule::Configured;
+}
+
 /// The mapping traverse's ceiling frames on its track (grid frame), which decide a start the
 /// lidar leaves tied, and the ceiling height they are compared at: measured on them alone
 /// (the survey's estimate waits for every traverse's poses), when first needed.
@@ -216,12 +226,16 @@ class MappedCeiling {
     const CeilingTraverse& traverse() const { return traverse_; }
     double ceilingHeight() {
         if (height_m_) return *height_m_;
-        if (in_.ceiling_height_m > 0 && o_.use_dataset_ceiling_height) {
-            height_m_ = in_.ceiling_height_m;
-        } else if (!o_.ceiling_estimate) {
-            height_m_ = o_.ceiling_height_m;
-        } else {
-            height_m_ = estimateCeilingDistance({traverse_}, o_).ceiling_height_m;
+        switch (ceilingRule(in_, o_)) {
+            case CeilingRule::Dataset:
+                height_m_ = in_.ceiling_height_m;
+                break;
+            case CeilingRule::Configured:
+                height_m_ = o_.ceiling_height_m;
+                break;
+            case CeilingRule::Measured:
+                height_m_ = estimateCeilingDistance({traverse_}, o_).ceiling_height_m;
+                break;
         }
         return *height_m_;
     }
@@ -1139,7 +1153,8 @@ Survey::Survey(SurveyOptions options, const mrpt::config::CConfigFileBase& confi
 
 double Survey::ceilingHeight(const SurveyInputs& in, const std::vector<TraverseData>& data,
                              const std::vector<LaserTrack>& tracks, SurveyResult& result) const {
-    if (in.ceiling_height_m > 0 && options_.use_dataset_ceiling_height) {
+    const CeilingRule rule = ceilingRule(in, options_);
+    if (rule == CeilingRule::Dataset) {
         result.ceiling_source = "dataset";
         result.ceiling.ceiling_height_m = in.ceiling_height_m;
         result.warnings.push_back("ceiling height taken from the dataset (" +
@@ -1153,7 +1168,7 @@ double Survey::ceilingHeight(const SurveyInputs& in, const std::vector<TraverseD
             " m: ignored (the survey measures it; [survey] "
             "use_dataset_ceiling_height = true uses it)");
     }
-    if (!options_.ceiling_estimate) {
+    if (rule == CeilingRule::Configured) {
         result.ceiling_source = "configured";
         result.ceiling.ceiling_height_m = result.ceiling.prior_m = options_.ceiling_height_m;
         return options_.ceiling_height_m;
