@@ -94,6 +94,39 @@ cv::Mat underOtherLight(const cv::Mat& image) {
     return out;
 }
 
+TEST(PlaceIndex, AReferenceOnAGradePlacesTheVehicleOnItsFloor) {
+    // The database's scene moved as a whole 5 m down onto an 8 deg grade (3-D surveyed
+    // references down a decline, the ceiling following the floor): the same images, so the
+    // same places, moved likewise. Taken as the horizontal plane z = h of the map, the ceiling
+    // lay 5 m further from the references than it is.
+    const auto dir = lookup::test::freshDir("lookup_localize_place_grade");
+    const auto scene = sceneWithDatabase(dir);
+    const auto db = database::ReferenceDatabase::load((dir / "db").string());
+    const auto index = place::PlaceIndex::load((dir / "db" / place::kPlaceIndexFile).string(), db,
+                                               place::PlaceIndexOptions());
+    const CPose3D grade(3.0, -2.0, -5.0, 0.4, mrpt::DEG2RAD(8.0), mrpt::DEG2RAD(0.5));
+    int right = 0, tried = 0;
+    for (double x = -6; x <= 6; x += 3.0) {
+        for (double yaw_deg : {0.0, 180.0}) {
+            const CPose3D vehicle(x, 0.3, 0, mrpt::DEG2RAD(yaw_deg), 0, 0);
+            const auto candidates = index.query(grey(*scene.image(vehicle, 0)));
+            ++tried;
+            if (candidates.empty()) continue;
+            const auto& c = candidates.front();
+            const auto& ref = db.reference(c.reference);
+            const auto pose = place::vehiclePose(
+                c, db.info().ceiling_camera, grade + ref.vehicle_pose, ref.ceiling_camera_mount,
+                {scene.camera, scene.mount}, db.info().ceiling_height_m);
+            const mrpt::poses::CPose2D expected(grade + vehicle);
+            if (pose && pose->distanceTo(expected) < 0.15 &&
+                std::abs(mrpt::math::wrapToPi(pose->phi() - expected.phi())) < mrpt::DEG2RAD(2)) {
+                ++right;
+            }
+        }
+    }
+    EXPECT_GE(right, tried * 9 / 10) << right << " of " << tried;
+}
+
 TEST(PlaceIndex, FindsThePlaceUnderOtherLightOnTheIlluminationFreeImage) {
     const auto dir = lookup::test::freshDir("lookup_localize_place_other_light");
     const auto scene = sceneWithDatabase(dir);

@@ -104,6 +104,60 @@ TEST(Refiner, QueryHeightAndTiltComeFromTheReferencesNotThePlanarHint) {
     EXPECT_LT(distanceXY(r.pose, truth), 0.004);
 }
 
+TEST(Refiner, ReferencesOnAGradeSeeTheirCeilingParallelToTheirFloor) {
+    // The scene of the other tests moved as a whole 5 m down and onto an 8 deg grade: 3-D
+    // surveyed references down a decline, the ceiling following the floor. The images are the
+    // same; the query's pose must be the same pose, moved likewise. With the ceiling taken as
+    // the horizontal plane z = h of the map the references' rays missed it by metres.
+    const Scene& s = scene();
+    const CPose3D grade(2.0, -1.0, -5.0, 0.3, mrpt::DEG2RAD(8.0), mrpt::DEG2RAD(0.5));
+    const CPose3D truth(0.25, 0.1, 0, 0.03, 0, 0), hint_on_floor(0.2, 0.05, 0, 0, 0, 0);
+    RefinerOptions o = optionsWithHeight(5.0);
+    o.estimator.ceiling_height_sigma_m = 1.0;
+    const Refiner refiner(o);
+    const CPose3D planar_hint(mrpt::poses::CPose2D(grade + hint_on_floor));  // z 0, level
+    std::vector<ReferenceImage> refs{s.reference(1, CPose3D()),
+                                     s.reference(2, CPose3D(0.5, 0.0, 0, 0.02, 0, 0))};
+    for (auto& ref : refs) ref.vehicle_in_map = grade + ref.vehicle_in_map;
+    const auto r =
+        refiner.refine(s.query(truth), s.camera, s.on_vehicle, hintAt(planar_hint), refs);
+    ASSERT_TRUE(r.accepted()) << r.reason;
+    const CPose3D expected = grade + truth;
+    EXPECT_LT(distanceXY(r.pose, expected), 0.005);
+    EXPECT_NEAR(mrpt::math::wrapToPi(r.pose.mean.phi() - expected.yaw()), 0.0, 0.002);
+    EXPECT_NEAR(r.estimate.vehicle_in_map.z(), expected.z(), 0.01);
+    EXPECT_NEAR(r.estimate.vehicle_in_map.pitch(), expected.pitch(), mrpt::DEG2RAD(0.3));
+    EXPECT_NEAR(r.estimate.ceiling_height_m, 5.3, 0.053);  // above the floor, not the map's z = 0
+}
+
+TEST(FloorFrame, OnAGradeTheCeilingHomographyIsTheLevelOnes) {
+    // Two cameras on vehicles 0.6 m apart on an 8 deg grade, 5 m down: in their floor's frame
+    // the homography the ceiling induces is the one of the same vehicles on the level; a planar
+    // pose (a coarse or tracked one: z 0, level) is put on that floor first.
+    const Scene& s = scene();
+    Pinhole cam;
+    ASSERT_TRUE(pinholeFrom(s.camera, cam, nullptr));
+    const CPose3D a(0, 0, 0, 0.1, 0, 0), b(0.6, 0.1, 0, 0.15, 0, 0);
+    const CPose3D grade(2.0, -1.0, -5.0, 0.3, mrpt::DEG2RAD(8.0), mrpt::DEG2RAD(0.5));
+    EXPECT_FALSE(floorFrame({a, b}).has_value());
+    const auto floor = floorFrame({grade + a, grade + b});
+    ASSERT_TRUE(floor.has_value());
+    const auto level = ceilingHomography(cam, a + s.on_vehicle, cam, b + s.on_vehicle, 5.3);
+    const auto local = [&](const CPose3D& p) { return inFloorFrame(p, *floor) + s.on_vehicle; };
+    const auto graded = ceilingHomography(cam, local(grade + a), cam, local(grade + b), 5.3);
+    const auto planar_b = CPose3D(mrpt::poses::CPose2D(grade + b));
+    const auto planar = ceilingHomography(cam, local(grade + a), cam, local(planar_b), 5.3);
+    for (const cv::Point2d p :
+         {cv::Point2d(20, 20), cv::Point2d(160, 120), cv::Point2d(300, 220)}) {
+        cv::Point2d q_level, q_graded, q_planar;
+        ASSERT_TRUE(applyHomography(level, p, q_level));
+        ASSERT_TRUE(applyHomography(graded, p, q_graded));
+        ASSERT_TRUE(applyHomography(planar, p, q_planar));
+        EXPECT_LT(cv::norm(q_graded - q_level), 0.01);
+        EXPECT_LT(cv::norm(q_planar - q_level), 1.0);  // its heading turned onto the grade
+    }
+}
+
 TEST(Refiner, AProbeThatPassesChangesNothingAndOneThatFailsStopsEarly) {
     const Scene& s = scene();
     const CPose3D truth(0.35, 0.2, 0, 0.03, 0, 0);

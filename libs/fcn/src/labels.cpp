@@ -157,6 +157,20 @@ void toRawReference(std::vector<refine::PointMatch>& matches, std::vector<double
     residual_px.resize(kept);
 }
 
+/// The ceiling homography the poses predict from the reference into the query; on a grade
+/// (3-D poses) with the ceiling parallel to their floor.
+cv::Matx33d priorHomography(const database::Reference& ref, const refine::Pinhole& ref_camera,
+                            const QueryFrame& f, const refine::Pinhole& query_camera, double h) {
+    const auto floor = refine::floorFrame({ref.vehicle_pose, f.vehicle_in_map});
+    if (!floor) {
+        return refine::ceilingHomography(ref_camera, ref.ceiling_camera_pose, query_camera,
+                                         f.vehicle_in_map + f.obs->cameraPose, h);
+    }
+    return refine::ceilingHomography(
+        ref_camera, refine::inFloorFrame(ref.vehicle_pose, *floor) + ref.ceiling_camera_mount,
+        query_camera, refine::inFloorFrame(f.vehicle_in_map, *floor) + f.obs->cameraPose, h);
+}
+
 }  // namespace
 
 mrpt::img::TCamera labelCamera(const PairCameras& cameras) {
@@ -275,7 +289,6 @@ LabelSet generateLabels(const database::ReferenceDatabase& db,
                 !bad.empty()) {
                 throw std::runtime_error(where + ": camera parameters: " + bad);
             }
-            const mrpt::poses::CPose3D query_camera_in_map = f.vehicle_in_map + f.obs->cameraPose;
             for (const auto& n : chosen) {
                 const auto& ref = db.reference(n.index);
                 const cv::Mat ref_image = db.ceilingImage(n.index);
@@ -289,8 +302,7 @@ LabelSet generateLabels(const database::ReferenceDatabase& db,
                 const PairCameras cameras{ref.ceiling_camera, f.obs->cameraParams};
                 refine::Pinhole query_camera;
                 refine::pinholeFrom(labelCamera(cameras), query_camera, &why);
-                const cv::Matx33d H = refine::ceilingHomography(
-                    ref_camera, ref.ceiling_camera_pose, query_camera, query_camera_in_map, h);
+                const cv::Matx33d H = priorHomography(ref, ref_camera, f, query_camera, h);
                 const auto labels = labelPair(ref_image, query, options,
                                               options.use_pose_prior ? &H : nullptr, &cameras);
                 const auto& fit = labels.fit;

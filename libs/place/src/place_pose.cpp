@@ -9,11 +9,13 @@
 
 namespace lookup::place {
 
-std::optional<mrpt::poses::CPose2D> vehiclePose(const PlaceCandidate& candidate,
-                                                const mrpt::img::TCamera& reference_camera,
-                                                const mrpt::poses::CPose3D& reference_vehicle,
-                                                const mrpt::poses::CPose3D& reference_mount,
-                                                const QueryCamera& query, double h) {
+namespace {
+
+std::optional<mrpt::poses::CPose2D> onLevelFloor(const PlaceCandidate& candidate,
+                                                 const mrpt::img::TCamera& reference_camera,
+                                                 const mrpt::poses::CPose3D& reference_vehicle,
+                                                 const mrpt::poses::CPose3D& reference_mount,
+                                                 const QueryCamera& query, double h) {
     refine::Pinhole ref_cam, query_cam;
     if (!refine::pinholeFrom(reference_camera, ref_cam, nullptr) ||
         !refine::pinholeFrom(query.intrinsics, query_cam, nullptr)) {
@@ -57,6 +59,26 @@ std::optional<mrpt::poses::CPose2D> vehiclePose(const PlaceCandidate& candidate,
     const double x = cb.x - (c * ca.x - s * ca.y), y = cb.y - (s * ca.x + c * ca.y);
     if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(yaw)) return std::nullopt;
     return mrpt::poses::CPose2D(x, y, yaw);
+}
+
+}  // namespace
+
+std::optional<mrpt::poses::CPose2D> vehiclePose(const PlaceCandidate& candidate,
+                                                const mrpt::img::TCamera& reference_camera,
+                                                const mrpt::poses::CPose3D& reference_vehicle,
+                                                const mrpt::poses::CPose3D& reference_mount,
+                                                const QueryCamera& query, double h) {
+    // A reference with a 3-D pose on a grade sees its ceiling parallel to its floor.
+    const auto floor = refine::floorFrame({reference_vehicle});
+    if (!floor) {
+        return onLevelFloor(candidate, reference_camera, reference_vehicle, reference_mount, query,
+                            h);
+    }
+    const auto local =
+        onLevelFloor(candidate, reference_camera, refine::inFloorFrame(reference_vehicle, *floor),
+                     reference_mount, query, h);
+    if (!local) return std::nullopt;
+    return mrpt::poses::CPose2D(*floor + mrpt::poses::CPose3D(*local));
 }
 
 std::optional<mrpt::poses::CPose2D> vehiclePose(const PlaceCandidate& candidate,

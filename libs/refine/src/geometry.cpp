@@ -2,6 +2,8 @@
 
 #include "lookup/refine/rolling_shutter.h"
 
+#include <Eigen/Dense>
+
 #include <cmath>
 #include <opencv2/calib3d.hpp>
 
@@ -92,6 +94,44 @@ std::optional<cv::Point2d> projectToImage(const Pinhole& c,
     camera_in_map.inverseComposePoint(p.x, p.y, p.z, lx, ly, lz);
     if (!(lz > 1e-9)) return std::nullopt;
     return cv::Point2d(c.fx * lx / lz + c.cx, c.fy * ly / lz + c.cy);
+}
+
+namespace {
+bool planar(const mrpt::poses::CPose3D& p) {
+    return p.z() == 0.0 && p.pitch() == 0.0 && p.roll() == 0.0;
+}
+}  // namespace
+
+std::optional<mrpt::poses::CPose3D> floorFrame(const std::vector<mrpt::poses::CPose3D>& vehicles) {
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero(), up = Eigen::Vector3d::Zero();
+    const mrpt::poses::CPose3D* first = nullptr;
+    int n = 0;
+    for (const auto& p : vehicles) {
+        if (planar(p)) continue;
+        first = first ? first : &p;
+        mean += Eigen::Vector3d(p.x(), p.y(), p.z());
+        up += p.getRotationMatrix().asEigen().col(2);
+        ++n;
+    }
+    if (n == 0) return std::nullopt;
+    mean /= double(n);
+    up.normalize();
+    Eigen::Vector3d x(std::cos(first->yaw()), std::sin(first->yaw()), 0.0);
+    x = (x - x.dot(up) * up).normalized();
+    mrpt::math::CMatrixDouble33 R;
+    R.asEigen() << x, up.cross(x), up;
+    return mrpt::poses::CPose3D::FromRotationAndTranslation(R, mean);
+}
+
+mrpt::poses::CPose3D inFloorFrame(const mrpt::poses::CPose3D& pose,
+                                  const mrpt::poses::CPose3D& floor) {
+    if (!planar(pose)) return pose - floor;
+    const Eigen::Vector3d up = floor.getRotationMatrix().asEigen().col(2);
+    const double z =
+        floor.z() - (up.x() * (pose.x() - floor.x()) + up.y() * (pose.y() - floor.y())) / up.z();
+    const mrpt::poses::CPose3D local =
+        mrpt::poses::CPose3D(pose.x(), pose.y(), z, pose.yaw(), 0, 0) - floor;
+    return mrpt::poses::CPose3D(local.x(), local.y(), 0.0, local.yaw(), 0.0, 0.0);
 }
 
 cv::Matx33d ceilingHomography(const Pinhole& a, const mrpt::poses::CPose3D& a_in_map,

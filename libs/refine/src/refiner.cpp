@@ -1,6 +1,8 @@
 #include "lookup/refine/refiner.h"
 
 #include <mrpt/img/CImage.h>
+#include <mrpt/math/ops_matrices.h>
+#include <Eigen/Dense>
 
 #include <algorithm>
 #include <chrono>
@@ -480,10 +482,61 @@ RefineResult Refiner::refine(const mrpt::obs::CObservationImage& query, const Co
     return refine(image, query.cameraParams, query.cameraPose, hint, references, query_pyramid);
 }
 
+namespace {
+
+/// A planar pose and covariance from the floor's frame back into the map: the covariance turned
+/// by the frame's heading (its shortening along a grade, cos of the slope, left out).
+mrpt::poses::CPosePDFGaussian toMap(const mrpt::poses::CPosePDFGaussian& local,
+                                    const mrpt::poses::CPose3D& floor) {
+    const mrpt::poses::CPose3D in_map = floor + mrpt::poses::CPose3D(local.mean);
+    const auto R = floor.getRotationMatrix();
+    const double turn = std::atan2(R(1, 0), R(0, 0));
+    mrpt::math::CMatrixDouble33 J;
+    J.setIdentity();
+    J(0, 0) = J(1, 1) = std::cos(turn);
+    J(0, 1) = -std::sin(turn);
+    J(1, 0) = std::sin(turn);
+    return mrpt::poses::CPosePDFGaussian(mrpt::poses::CPose2D(in_map),
+                                         mrpt::math::multiply_HCHt(J, local.cov));
+}
+
+}  // namespace
+
 RefineResult Refiner::refine(const cv::Mat& query_image, const mrpt::img::TCamera& query_camera,
                              const mrpt::poses::CPose3D& camera_on_vehicle, const CoarseHint& hint,
                              const std::vector<ReferenceImage>& references,
                              const std::shared_ptr<const ImagePyramid>& query_pyramid) const {
+    const auto usable = usableReferences(references, hint, options_.sampler).refs;
+    std::vector<mrpt::poses::CPose3D> vehicles;
+    for (const ReferenceImage* r : usable) vehicles.push_back(r->vehicle_in_map);
+    const auto floor = floorFrame(vehicles);
+    if (!floor) {
+        return refineOnLevelFloor(query_image, query_camera, camera_on_vehicle, hint, references,
+                                  query_pyramid);
+    }
+    std::vector<ReferenceImage> local = references;
+    for (auto& r : local) r.vehicle_in_map = inFloorFrame(r.vehicle_in_map, *floor);
+    CoarseHint local_hint = hint;
+    if (hint.vehicle_pose) local_hint.vehicle_pose = inFloorFrame(*hint.vehicle_pose, *floor);
+    RefineResult res = refineOnLevelFloor(query_image, query_camera, camera_on_vehicle, local_hint,
+                                          local, query_pyramid);
+    res.estimate.vehicle_in_map = *floor + res.estimate.vehicle_in_map;
+    res.estimate.pose = toMap(res.estimate.pose, *floor);
+    if (res.source == PoseSource::Refined) {
+        res.pose = res.estimate.pose;
+    } else if (res.source == PoseSource::Coarse) {
+        res.pose = acceptance_.fallback(mrpt::poses::CPose2D(*hint.vehicle_pose));
+    } else if (res.source == PoseSource::Reference) {
+        res.pose = acceptance_.fallback(mrpt::poses::CPose2D(usable.front()->vehicle_in_map));
+    }
+    return res;
+}
+
+RefineResult Refiner::refineOnLevelFloor(
+    const cv::Mat& query_image, const mrpt::img::TCamera& query_camera,
+    const mrpt::poses::CPose3D& camera_on_vehicle, const CoarseHint& hint,
+    const std::vector<ReferenceImage>& references,
+    const std::shared_ptr<const ImagePyramid>& query_pyramid) const {
     const auto t_start = Clock::now();
     RefineResult res;
     const UsableReferences usable = usableReferences(references, hint, options_.sampler);

@@ -24,8 +24,9 @@ struct QueryCamera {
 /// The vehicle pose the candidate implies: a few query pixels map through the transform into
 /// the reference image; both sets are back-projected onto the ceiling plane z = h (the
 /// reference camera where the survey put it, the query camera on a vehicle at the origin), and
-/// the planar rigid motion between the two point sets is the query vehicle's pose. Empty when
-/// the rays miss the plane or the intrinsics are unusable.
+/// the planar rigid motion between the two point sets is the query vehicle's pose; a reference
+/// with a 3-D pose (a grade) in its floor's frame (refine::floorFrame), the plane h above its
+/// floor. Empty when the rays miss the plane or the intrinsics are unusable.
 std::optional<mrpt::poses::CPose2D> vehiclePose(const PlaceCandidate& candidate,
                                                 const mrpt::img::TCamera& reference_camera,
                                                 const mrpt::poses::CPose3D& reference_vehicle,

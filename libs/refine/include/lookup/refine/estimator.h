@@ -1,7 +1,8 @@
 #pragma once
 // Joint pose-and-scale estimate (paper Sec. III-D, done as one least-squares problem here):
 // every inlier reference pixel is back-projected through its surveyed camera onto the ceiling
-// plane z = h and projected into the query camera; Ceres minimises the pixel residuals over
+// plane z = h (poses in the references' floor frame: the Refiner turns a grade into it) and
+// projected into the query camera; Ceres minimises the pixel residuals over
 // the query vehicle pose (x, y, yaw, small pitch and roll; z held at `vehicle_z`) and h, with
 // a Huber loss, a prior on h (so one reference suffices) and a prior on pitch/roll. With two
 // or more references at different surveyed positions h is observable from the images.

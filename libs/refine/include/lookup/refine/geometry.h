@@ -1,6 +1,7 @@
 #pragma once
-// Ceiling-plane geometry (DESIGN.md, Geometry): the ceiling is the plane z = h of the map
-// frame; cameras follow MRPT (+Z optical axis, +X image right, +Y image down), pinhole with
+// Ceiling-plane geometry (DESIGN.md, Geometry): the ceiling is the plane z = h of the floor's
+// frame, which is the map's on level ground and the references' own on a grade (floorFrame);
+// cameras follow MRPT (+Z optical axis, +X image right, +Y image down), pinhole with
 // intrinsics fx, fy, cx, cy on rectified pixels.
 
 #include <mrpt/img/TCamera.h>
@@ -46,6 +47,18 @@ std::optional<cv::Point2d> projectToImage(const Pinhole& camera,
 
 /// `out` = H * p (homogeneous); false when the point maps to infinity or to a non-finite pixel.
 bool applyHomography(const cv::Matx33d& H, const cv::Point2d& p, cv::Point2d& out);
+
+/// The floor under vehicles with 3-D poses as a frame: origin at their mean position, z along
+/// the mean of their up axes, x along the first one's heading. On a grade the ceiling runs
+/// parallel to the floor, so the plane z = h above it holds in this frame, not in the map's.
+/// Planar poses (z 0, level: laser-derived, coarse, tracked) carry no height and are left out;
+/// none when every pose is planar (the map's frame is then the floor's).
+std::optional<mrpt::poses::CPose3D> floorFrame(const std::vector<mrpt::poses::CPose3D>& vehicles);
+
+/// `pose` in the floor's frame; a planar pose is first put on the floor plane under its x, y
+/// (z 0 and level in that frame).
+mrpt::poses::CPose3D inFloorFrame(const mrpt::poses::CPose3D& pose,
+                                  const mrpt::poses::CPose3D& floor);
 
 /// Homography from pixels of camera A to pixels of camera B induced by the plane z = h.
 cv::Matx33d ceilingHomography(const Pinhole& a, const mrpt::poses::CPose3D& a_in_map,
