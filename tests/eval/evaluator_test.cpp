@@ -168,6 +168,37 @@ TEST(RunIo, RoundTripAndMalformedRowNamesFileAndLine) {
     }
 }
 
+TEST(RunIo, HeightsAreScoredAgainstTheTruthsZAndRunsWithoutTheColumnHaveNone) {
+    // Down a 1:10 grade: the truth's z falls 0.1 m per metre; the last frame's height 0.3 m off.
+    GroundTruth gt = straightTruth();
+    for (auto& p : gt.track) p.pose.z(-0.1 * p.pose.x());
+    auto run = runWithOffsets({0, 0, 0, 0}, 0.5);
+    for (size_t i = 0; i < run.frames.size(); ++i) {
+        run.frames[i].has_z = true;
+        run.frames[i].z = -0.1 * (1.0 + i) + (i == 3 ? 0.3 : 0.0);
+    }
+    const auto dir = lookup::test::freshDir("lookup_eval_heights");
+    writeFramesCsv((dir / "frames.csv").string(), run.frames);
+    std::ofstream(dir / "run.ini") << "[run]\nmethod = lookup-grid24\n";
+    std::ofstream(dir / "timing.json") << R"({"frames_per_s": 100, "frames": 4})";
+    const auto row = evaluate({gt}, {loadRun(dir.string())}, {}).rows[1];
+    EXPECT_EQ(row.height.count, 4u);
+    EXPECT_NEAR(row.height.mean_m, 0.3 / 4, 1e-4);
+    EXPECT_NEAR(row.height.max_m, 0.3, 1e-4);
+    EXPECT_EQ(methodResultFromJson(toJson(row)).height.count, 4u);
+
+    // frames.csv as written before the column: read, scored, no heights.
+    std::ifstream in(dir / "frames.csv");
+    std::string text, line;
+    while (std::getline(in, line)) text += line.substr(0, line.rfind(',')) + "\n";
+    in.close();
+    std::ofstream(dir / "frames.csv") << text;
+    const auto old = loadRun(dir.string());
+    ASSERT_EQ(old.frames.size(), 4u);
+    for (const auto& f : old.frames) EXPECT_FALSE(f.has_z);
+    EXPECT_EQ(evaluate({gt}, {old}, {}).rows[1].height.count, 0u);
+}
+
 TEST(Report, WritesMarkdownJsonAndChart) {
     const auto dir = fs::temp_directory_path() / "lookup_eval_report";
     fs::remove_all(dir);

@@ -87,9 +87,12 @@ struct SurveyCamera {
     std::optional<double> time_offset_sigma_s;  ///< db.ini's ceiling_time_offset_sigma_s
 };
 
+// `grade`: every reference stored as if the scene lay on it (3-D survey poses down a decline,
+// the ceiling following the floor); the images as the scene's.
 inline void writeDatabase(const Scene& scene, const std::string& dir,
                           const std::vector<SurveyTraverse>& traverses,
-                          const SurveyCamera& survey_camera = {}) {
+                          const SurveyCamera& survey_camera = {},
+                          const mrpt::poses::CPose3D& grade = {}) {
     database::DatabaseWriter writer(dir);
     for (const auto& tr : traverses) {
         for (int k = 0; k < tr.references; ++k) {
@@ -105,6 +108,7 @@ inline void writeDatabase(const Scene& scene, const std::string& dir,
                                                        survey_camera.timing),
                     mrpt::img::DEEP_COPY);
             }
+            in.vehicle_pose = grade + in.vehicle_pose;
             if (tr.forward_seed > 0) {
                 in.forward = forwardView(tr.forward_seed, k, tr.t0 + 0.1 * k);
                 in.forward_vehicle_pose = in.vehicle_pose;
@@ -149,24 +153,28 @@ struct PlanarDrive {
     mrpt::poses::CPose3D coarse_error{0.6, -0.4, 0, -0.05, 0, 0};
     mrpt::poses::CPose3D camera_ahead;
     SurveyCamera survey_camera;
+    /// The scene on a grade (writeDatabase): the odometry and coarse poses in its plan view.
+    mrpt::poses::CPose3D grade;
 };
 
 inline localize::LocalizeRequest planarRun(const fs::path& dir, const Spoiler& spoil,
                                            int frames = 20, const PlanarDrive& drive = {}) {
     Scene scene;
     scene.mount = drive.camera_ahead + scene.mount;
-    writeDatabase(scene, (dir / "db").string(), {{"survey", 65, 100.0}}, drive.survey_camera);
+    writeDatabase(scene, (dir / "db").string(), {{"survey", 65, 100.0}}, drive.survey_camera,
+                  drive.grade);
     common::PoseTrack coarse;
     common::RawlogWriter rawlog((dir / "query.rawlog").string());
     for (int i = 0; i < frames; ++i) {
         const double t = kT0 + 0.1 * i;
         const mrpt::poses::CPose3D vehicle = drive.vehicle(i);
-        coarse.push_back({t, vehicle + drive.coarse_error});
+        const mrpt::poses::CPose2D in_plan(drive.grade + vehicle);
+        coarse.push_back({t, mrpt::poses::CPose3D(in_plan) + drive.coarse_error});
         auto img = scene.image(vehicle, t);
         mrpt::obs::CObservationOdometry odo;
         odo.sensorLabel = "ODOMETRY";
         odo.timestamp = img->timestamp;
-        odo.odometry = mrpt::poses::CPose2D(vehicle.x(), vehicle.y(), vehicle.yaw());
+        odo.odometry = in_plan;
         spoil(i, *img, odo);
         rawlog.write(odo);
         if (!img->image.isEmpty()) {

@@ -236,6 +236,33 @@ TEST(Localize, RefinesCoarsePosesToCentimetresOnASyntheticCeiling) {
     }
 }
 
+TEST(Localize, OnADeclineSurveyedIn3DThePoseCarriesTheFloorsHeight) {
+    // The scene 5 m down on an 8 deg grade, its references surveyed with 3-D poses: every frame
+    // refines to the same plan pose as on the level, and its height is the floor's under it.
+    // Over the level scene's planar references no frame has a height.
+    PlanarDrive drive;
+    drive.grade = mrpt::poses::CPose3D(2.0, -1.0, -5.0, 0.3, mrpt::DEG2RAD(8.0), 0.0);
+    const auto none = [](int, mrpt::obs::CObservationImage&, mrpt::obs::CObservationOdometry&) {};
+    const int frames = 12;
+    const auto dir = lookup::test::freshDir("lookup_localize_decline_3d");
+    auto req = planarRun(dir, none, frames, drive);
+    localize::runLocalization(req);
+    const auto run = eval::loadRun(req.out_dir);
+    ASSERT_EQ(run.frames.size(), std::size_t(frames));
+    for (int i = 0; i < frames; ++i) {
+        const auto& f = run.frames[i];
+        const mrpt::poses::CPose3D truth = drive.grade + drive.vehicle(i);
+        ASSERT_EQ(f.status, "refined") << i << ": " << f.reason;
+        EXPECT_LT(std::hypot(f.x - truth.x(), f.y - truth.y()), 0.02) << i;
+        ASSERT_TRUE(f.has_z) << i;
+        EXPECT_NEAR(f.z, truth.z(), 0.01) << i;
+    }
+    const auto level_dir = lookup::test::freshDir("lookup_localize_decline_level");
+    auto level = planarRun(level_dir, none, 3);
+    localize::runLocalization(level);
+    for (const auto& f : eval::loadRun(level.out_dir).frames) EXPECT_FALSE(f.has_z);
+}
+
 TEST(Localize, AnOdometryDropoutIsBridgedAtTheLastVelocityWithAGrowingEllipse) {
     const auto dir = lookup::test::freshDir("lookup_localize_odometry_dropout");
     // Frames 8-15 (0.8 s at 3 m/s): no odometry (its readings are not finite, so skipped) and

@@ -89,7 +89,7 @@ double mahalanobis2(const FrameRow& f, double ex, double ey) {
 
 /// Per-run tallies while walking its frames against the truth.
 struct Tally {
-    std::vector<double> errors, coarse_errors, yaw_errors, frame_ms;
+    std::vector<double> errors, coarse_errors, yaw_errors, height_errors, frame_ms;
     size_t refined = 0, refined_inside = 0, coarse_frames = 0;
     size_t evaluated_after_fix = 0, refined_after_fix = 0;
     double driven_m = 0;
@@ -127,6 +127,7 @@ void scoreAccuracy(const FrameRow& f, const mrpt::poses::CPose3D& truth, bool af
     const double ex = f.x - truth.x(), ey = f.y - truth.y();
     t.errors.push_back(std::hypot(ex, ey));
     t.yaw_errors.push_back(std::abs(mrpt::math::wrapToPi(f.yaw - truth.yaw())));
+    if (f.has_z) t.height_errors.push_back(std::abs(f.z - truth.z()));
     if (f.status != "refined") return;
     ++t.refined;
     t.refined_after_fix += after_fix;
@@ -136,6 +137,7 @@ void scoreAccuracy(const FrameRow& f, const mrpt::poses::CPose3D& truth, bool af
 void finishRow(Tally& t, MethodResult& m) {
     const size_t evaluated = m.frames - m.excluded;
     m.error = summarize(t.errors);
+    m.height = summarize(t.height_errors);
     m.acceptance_share = evaluated ? static_cast<double>(t.refined) / evaluated : 0;
     m.inside_95_share = t.refined ? static_cast<double>(t.refined_inside) / t.refined : 0;
     m.refined_after_first_fix_share =

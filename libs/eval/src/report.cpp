@@ -62,6 +62,13 @@ void writeMarkdown(const Report& r, const std::string& path) {
             << " | " << (coarse || m.frame_ms_p99 <= 0 ? "" : fmt("%.1f", m.frame_ms_p99)) << " | "
             << m.flagged << " |\n";
     }
+    for (const auto& m : r.rows) {
+        if (m.height.count == 0) continue;
+        out << "\nHeight of " << m.traverse << " / " << m.method
+            << " (frames.csv `z` against the ground truth's z, " << m.height.count
+            << " frames): mean " << fmt("%.3f", m.height.mean_m) << " m, p95 "
+            << fmt("%.3f", m.height.p95_m) << " m, max " << fmt("%.3f", m.height.max_m) << " m.\n";
+    }
     for (const auto& w : r.warnings) out << "\nWarning: " << w << "\n";
     common::writeFileAtomically(path, out.str());
 }
@@ -150,7 +157,12 @@ nlohmann::json toJson(const MethodResult& m) {
             {"refined_after_first_fix_share", m.refined_after_first_fix_share},
             {"confident_wrong", m.confident_wrong},
             {"frame_ms_p99", m.frame_ms_p99},
-            {"flagged", m.flagged}};
+            {"flagged", m.flagged},
+            {"height_error",
+             {{"count", m.height.count},
+              {"mean_m", m.height.mean_m},
+              {"p95_m", m.height.p95_m},
+              {"max_m", m.height.max_m}}}};
 }
 
 MethodResult methodResultFromJson(const nlohmann::json& j) {
@@ -179,6 +191,13 @@ MethodResult methodResultFromJson(const nlohmann::json& j) {
     j.at("confident_wrong").get_to(m.confident_wrong);
     j.at("frame_ms_p99").get_to(m.frame_ms_p99);
     j.at("flagged").get_to(m.flagged);
+    if (j.contains("height_error")) {  // reports written before heights have none
+        const auto& h = j.at("height_error");
+        h.at("count").get_to(m.height.count);
+        h.at("mean_m").get_to(m.height.mean_m);
+        h.at("p95_m").get_to(m.height.p95_m);
+        h.at("max_m").get_to(m.height.max_m);
+    }
     return m;
 }
 

@@ -26,6 +26,9 @@ const char* const kColumns[] = {"time_s",     "status",       "reason",     "x",
                                 "cov_yy",     "cov_tt",       "coarse_x",   "coarse_y",
                                 "coarse_yaw", "inlier_share", "references", "ms"};
 
+// Optional: frames.csv files written before it lack it.
+const char* const kHeightColumn = "z";
+
 std::vector<std::string> splitCsv(const std::string& line) {
     std::vector<std::string> out;
     std::string cell;
@@ -142,6 +145,10 @@ void readFrames(const std::string& csv, Run& run) {
         r.references =
             row.cell("references").empty() ? 0 : static_cast<int>(row.number("references"));
         r.ms = row.numberOrZero("ms");
+        if (col.count(kHeightColumn) && !row.cell(kHeightColumn).empty() && r.has_pose) {
+            r.z = row.number(kHeightColumn);
+            r.has_z = std::isfinite(r.z);
+        }
         run.frames.push_back(std::move(r));
     }
 }
@@ -181,7 +188,7 @@ std::string runProblem(const Run& run) {
 std::string framesCsvHeader() {
     std::string out;
     for (const char* name : kColumns) out += std::string(out.empty() ? "" : ",") + name;
-    return out;
+    return out + "," + kHeightColumn;
 }
 
 namespace {
@@ -224,7 +231,7 @@ std::string formatFramesCsvRow(const FrameRow& r) {
         out += ",,,";
     }
     return out + cell("%.4f", r.inlier_share) + "," + std::to_string(r.references) + "," +
-           cell("%.3f", r.ms);
+           cell("%.3f", r.ms) + "," + (r.has_pose && r.has_z ? cell("%.4f", r.z) : "");
 }
 
 void writeFramesCsv(const std::string& path, const std::vector<FrameRow>& frames) {

@@ -1374,7 +1374,20 @@ void Localizer::finishFrame(FrameResult& out) {
     if (out.has_pose) {
         out.pose.cov +=
             imageTimeCovariance(out.time_s, out.pose.mean.phi(), uncalibrated_clock_sigma_s_);
+        out.height_m = floorHeightUnder(out.pose.mean);
     }
+}
+
+std::optional<double> Localizer::floorHeightUnder(const mrpt::poses::CPose2D& pose) const {
+    // A few references span about a metre of floor: its grade, not one reference's bump.
+    constexpr std::size_t kFloorReferences = 3;
+    std::vector<mrpt::poses::CPose3D> vehicles;
+    for (const auto& n : db_.nearest(mrpt::math::TPoint2D(pose.x(), pose.y()), kFloorReferences)) {
+        vehicles.push_back(db_.reference(n.index).vehicle_pose);
+    }
+    const auto floor = refine::floorFrame(vehicles);
+    if (!floor) return std::nullopt;
+    return refine::floorHeightAt(*floor, pose.x(), pose.y());
 }
 
 }  // namespace lookup::localize

@@ -4,6 +4,7 @@
 #include <mrpt/obs/CObservationRobotPose.h>
 #include <mrpt/poses/CPose3DPDFGaussian.h>
 
+#include <cstdio>
 #include <filesystem>
 #include <iostream>
 #include <nlohmann/json.hpp>
@@ -20,9 +21,11 @@ namespace fs = std::filesystem;
 
 namespace {
 
-void writeTumRow(common::OutputFile& f, double t, const mrpt::poses::CPose2D& p) {
-    // Planar pose: rotation about z only.
-    f.printf("%.6f %.5f %.5f 0 0 0 %.9f %.9f\n", t, p.x(), p.y(), std::sin(p.phi() / 2),
+void writeTumRow(common::OutputFile& f, double t, const mrpt::poses::CPose2D& p, double z = 0) {
+    // Planar pose (rotation about z only) at the floor's height where one is known.
+    char height[32] = "0";
+    if (z != 0) std::snprintf(height, sizeof height, "%.4f", z);
+    f.printf("%.6f %.5f %.5f %s 0 0 %.9f %.9f\n", t, p.x(), p.y(), height, std::sin(p.phi() / 2),
              std::cos(p.phi() / 2));
 }
 
@@ -140,7 +143,9 @@ void RunWriter::write(const FrameResult& frame, const mrpt::obs::CObservationIma
         const auto& c = frame.pose.cov;
         row.x = m.x(), row.y = m.y(), row.yaw = m.phi();
         row.cov_xx = c(0, 0), row.cov_xy = c(0, 1), row.cov_yy = c(1, 1), row.cov_tt = c(2, 2);
-        writeTumRow(*poses_tum_, frame.time_s, m);
+        row.has_z = frame.height_m.has_value();
+        row.z = frame.height_m.value_or(0.0);
+        writeTumRow(*poses_tum_, frame.time_s, m, row.z);
     }
     if (frame.coarse_pose) {
         row.has_coarse = true;
@@ -161,12 +166,14 @@ void RunWriter::write(const FrameResult& frame, const mrpt::obs::CObservationIma
         pose_obs.sensorLabel = "LOOKUP_POSE";
         pose_obs.timestamp = stamp;
         pose_obs.pose = mrpt::poses::CPose3DPDFGaussian(frame.pose);
+        pose_obs.pose.mean.z(frame.height_m.value_or(0.0));
         results_->write(pose_obs);
     }
     obs::CObservationLookupResult result;
     result.sensorLabel = "LOOKUP_RESULT";
     result.timestamp = stamp;
     result.pose = mrpt::poses::CPose3DPDFGaussian(frame.pose);
+    result.pose.mean.z(frame.height_m.value_or(0.0));
     result.status = toLookupStatus(frame.status);
     result.reason = frame.reason;
     result.processing_time_s = frame.times.total_ms / 1e3;

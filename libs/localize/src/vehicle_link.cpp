@@ -18,6 +18,7 @@ nlohmann::json poseMessage(const FrameResult& f, std::size_t index) {
         m["x"] = f.pose.mean.x();
         m["y"] = f.pose.mean.y();
         m["yaw"] = f.pose.mean.phi();
+        if (f.height_m) m["z"] = *f.height_m;
         const auto& c = f.pose.cov;
         m["cov"] = {c(0, 0), c(0, 1), c(0, 2), c(1, 0), c(1, 1),
                     c(1, 2), c(2, 0), c(2, 1), c(2, 2)};

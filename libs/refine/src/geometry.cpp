@@ -123,12 +123,15 @@ std::optional<mrpt::poses::CPose3D> floorFrame(const std::vector<mrpt::poses::CP
     return mrpt::poses::CPose3D::FromRotationAndTranslation(R, mean);
 }
 
+double floorHeightAt(const mrpt::poses::CPose3D& floor, double x, double y) {
+    const Eigen::Vector3d up = floor.getRotationMatrix().asEigen().col(2);
+    return floor.z() - (up.x() * (x - floor.x()) + up.y() * (y - floor.y())) / up.z();
+}
+
 mrpt::poses::CPose3D inFloorFrame(const mrpt::poses::CPose3D& pose,
                                   const mrpt::poses::CPose3D& floor) {
     if (!planar(pose)) return pose - floor;
-    const Eigen::Vector3d up = floor.getRotationMatrix().asEigen().col(2);
-    const double z =
-        floor.z() - (up.x() * (pose.x() - floor.x()) + up.y() * (pose.y() - floor.y())) / up.z();
+    const double z = floorHeightAt(floor, pose.x(), pose.y());
     const mrpt::poses::CPose3D local =
         mrpt::poses::CPose3D(pose.x(), pose.y(), z, pose.yaw(), 0, 0) - floor;
     return mrpt::poses::CPose3D(local.x(), local.y(), 0.0, local.yaw(), 0.0, 0.0);

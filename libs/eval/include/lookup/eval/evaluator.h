@@ -46,10 +46,13 @@ struct MethodResult {
     std::string traverse;
     std::string method;  ///< "coarse" for the coarse stage alone
     std::string run_directory;
-    size_t frames = 0;            ///< frames in the run that fall inside the ground truth
-    size_t excluded = 0;          ///< of those, excluded by the coarse-error rule
-    size_t without_pose = 0;      ///< lost or dropped (no pose emitted)
-    ErrorStats error;             ///< over evaluated frames that emitted a pose
+    size_t frames = 0;        ///< frames in the run that fall inside the ground truth
+    size_t excluded = 0;      ///< of those, excluded by the coarse-error rule
+    size_t without_pose = 0;  ///< lost or dropped (no pose emitted)
+    ErrorStats error;         ///< over evaluated frames that emitted a pose
+    /// |z - the truth's z| over the evaluated frames whose pose has a height (frames.csv `z`,
+    /// references with 3-D poses); count 0 without heights.
+    ErrorStats height;
     double acceptance_share = 0;  ///< refined / evaluated frames
     double inside_95_share = 0;   ///< refined frames whose error lies in the reported 95 % ellipse
     double yaw_error_mean_deg = 0;

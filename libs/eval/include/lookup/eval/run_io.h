@@ -26,6 +26,10 @@ struct FrameRow {
     double inlier_share = 0;
     int references = 0;
     double ms = 0;
+    /// The floor's height under the pose (m, column `z`), where the database's references carry
+    /// heights; runs written before the column have none.
+    bool has_z = false;
+    double z = 0;
 };
 
 /// A run folder: its method name (from run.ini), frames and throughput (from timing.json).

@@ -61,6 +61,9 @@ struct FrameResult {
     std::string reason;  ///< why not refined (empty when refined)
     bool has_pose = false;
     mrpt::poses::CPosePDFGaussian pose;  ///< emitted vehicle pose (x, y, yaw) with covariance
+    /// The floor's height under the pose [m], where the references nearest it carry heights
+    /// (3-D survey poses; refine::floorFrame); none over planar (laser-derived) references.
+    std::optional<double> height_m;
     std::optional<mrpt::poses::CPose2D> coarse_pose;  ///< the coarse stage's pose, if any
     std::string pose_source;                          ///< "refined", "prediction"
     double inlier_share = 0;                          ///< of the accepted / last refinement attempt
@@ -207,6 +210,7 @@ class Localizer {
     mrpt::math::CMatrixDouble33 imageTimeCovariance(double time_s, double yaw,
                                                     double sigma_s) const;
     void finishFrame(FrameResult& out);
+    std::optional<double> floorHeightUnder(const mrpt::poses::CPose2D& pose) const;
     void processForward(const mrpt::obs::CObservationImage& image);
     void processOdometry(const mrpt::obs::CObservation& odo);
     struct CoarseFix {

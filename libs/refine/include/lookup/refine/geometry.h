@@ -55,6 +55,9 @@ bool applyHomography(const cv::Matx33d& H, const cv::Point2d& p, cv::Point2d& ou
 /// none when every pose is planar (the map's frame is then the floor's).
 std::optional<mrpt::poses::CPose3D> floorFrame(const std::vector<mrpt::poses::CPose3D>& vehicles);
 
+/// The height of the floor plane of `floor` (a floorFrame) at the map position x, y.
+double floorHeightAt(const mrpt::poses::CPose3D& floor, double x, double y);
+
 /// `pose` in the floor's frame; a planar pose is first put on the floor plane under its x, y
 /// (z 0 and level in that frame).
 mrpt::poses::CPose3D inFloorFrame(const mrpt::poses::CPose3D& pose,
