@@ -500,26 +500,76 @@ mrpt::poses::CPosePDFGaussian toMap(const mrpt::poses::CPosePDFGaussian& local,
                                          mrpt::math::multiply_HCHt(J, local.cov));
 }
 
+/// The refinement against `usable` (of the `references` given) with every pose in a frame whose
+/// floor is level.
+RefineResult refineOnLevelFloor(const Refiner& refiner, const cv::Mat& query_image,
+                                const mrpt::img::TCamera& query_camera,
+                                const mrpt::poses::CPose3D& camera_on_vehicle,
+                                const CoarseHint& hint,
+                                const std::vector<ReferenceImage>& references,
+                                const UsableReferences& usable,
+                                const std::shared_ptr<const ImagePyramid>& query_pyramid) {
+    const RefinerOptions& o = refiner.options();
+    const AcceptancePolicy& acceptance = refiner.acceptance();
+    const auto t_start = Clock::now();
+    RefineResult res;
+    const auto fail = [&](RefineStatus status, std::string reason) {
+        return fallBack(std::move(res), status, std::move(reason), hint, usable.refs, acceptance,
+                        t_start);
+    };
+    QueryView q;
+    q.intrinsics = &query_camera;
+    q.on_vehicle = camera_on_vehicle;
+    if (auto why = unusableInput(query_image, references, usable, hint, o.estimator,
+                                 o.rolling_shutter, q)) {
+        return fail(why->first, why->second);
+    }
+    auto t0 = Clock::now();
+    q.pyramid = query_pyramid ? *query_pyramid : *refiner.queryPyramid(query_image);
+    res.times.prepare_ms += msSince(t0);
+
+    EstimatorInput input = estimatorInput(usable.refs, q);
+    std::string matcher_notes;  // why a baseline matcher (orb, ecc) found nothing
+    for (std::size_t k = 0; k < usable.refs.size(); ++k) {
+        ReferenceOutcome outcome;
+        if (auto why = matchReference(*usable.refs[k], usable.cameras[k], q, hint, o, outcome,
+                                      res.times, matcher_notes)) {
+            return fail(RefineStatus::TooFewMatches, *why);
+        }
+        addInliers(outcome, *usable.refs[k], usable.cameras[k], q, res, input);
+        res.references.push_back(std::move(outcome));
+    }
+    res.inlier_share = res.sample_points > 0 ? double(res.inliers) / res.sample_points : 0.0;
+    return estimateAndAccept(std::move(res), input, hint, usable.refs, matcher_notes, o, acceptance,
+                             t_start);
+}
+
 }  // namespace
 
 RefineResult Refiner::refine(const cv::Mat& query_image, const mrpt::img::TCamera& query_camera,
                              const mrpt::poses::CPose3D& camera_on_vehicle, const CoarseHint& hint,
                              const std::vector<ReferenceImage>& references,
                              const std::shared_ptr<const ImagePyramid>& query_pyramid) const {
-    const auto usable = usableReferences(references, hint, options_.sampler).refs;
+    const UsableReferences usable = usableReferences(references, hint, options_.sampler);
     std::vector<mrpt::poses::CPose3D> vehicles;
-    for (const ReferenceImage* r : usable) vehicles.push_back(r->vehicle_in_map);
+    for (const ReferenceImage* r : usable.refs) vehicles.push_back(r->vehicle_in_map);
     const auto floor = floorFrame(vehicles);
     if (!floor) {
-        return refineOnLevelFloor(query_image, query_camera, camera_on_vehicle, hint, references,
-                                  query_pyramid);
+        return refineOnLevelFloor(*this, query_image, query_camera, camera_on_vehicle, hint,
+                                  references, usable, query_pyramid);
     }
-    std::vector<ReferenceImage> local = references;
-    for (auto& r : local) r.vehicle_in_map = inFloorFrame(r.vehicle_in_map, *floor);
+    std::vector<ReferenceImage> local;
+    local.reserve(usable.refs.size());
+    UsableReferences local_usable = usable;
+    for (std::size_t k = 0; k < usable.refs.size(); ++k) {
+        local.push_back(*usable.refs[k]);
+        local.back().vehicle_in_map = inFloorFrame(local.back().vehicle_in_map, *floor);
+        local_usable.refs[k] = &local.back();
+    }
     CoarseHint local_hint = hint;
     if (hint.vehicle_pose) local_hint.vehicle_pose = inFloorFrame(*hint.vehicle_pose, *floor);
-    RefineResult res = refineOnLevelFloor(query_image, query_camera, camera_on_vehicle, local_hint,
-                                          local, query_pyramid);
+    RefineResult res = refineOnLevelFloor(*this, query_image, query_camera, camera_on_vehicle,
+                                          local_hint, references, local_usable, query_pyramid);
     res.estimate.vehicle_in_map = *floor + res.estimate.vehicle_in_map;
     res.estimate.pose = toMap(res.estimate.pose, *floor);
     if (res.source == PoseSource::Refined) {
@@ -527,48 +577,9 @@ RefineResult Refiner::refine(const cv::Mat& query_image, const mrpt::img::TCamer
     } else if (res.source == PoseSource::Coarse) {
         res.pose = acceptance_.fallback(mrpt::poses::CPose2D(*hint.vehicle_pose));
     } else if (res.source == PoseSource::Reference) {
-        res.pose = acceptance_.fallback(mrpt::poses::CPose2D(usable.front()->vehicle_in_map));
+        res.pose = acceptance_.fallback(mrpt::poses::CPose2D(usable.refs.front()->vehicle_in_map));
     }
     return res;
-}
-
-RefineResult Refiner::refineOnLevelFloor(
-    const cv::Mat& query_image, const mrpt::img::TCamera& query_camera,
-    const mrpt::poses::CPose3D& camera_on_vehicle, const CoarseHint& hint,
-    const std::vector<ReferenceImage>& references,
-    const std::shared_ptr<const ImagePyramid>& query_pyramid) const {
-    const auto t_start = Clock::now();
-    RefineResult res;
-    const UsableReferences usable = usableReferences(references, hint, options_.sampler);
-    const auto fail = [&](RefineStatus status, std::string reason) {
-        return fallBack(std::move(res), status, std::move(reason), hint, usable.refs, acceptance_,
-                        t_start);
-    };
-    QueryView q;
-    q.intrinsics = &query_camera;
-    q.on_vehicle = camera_on_vehicle;
-    if (auto why = unusableInput(query_image, references, usable, hint, options_.estimator,
-                                 options_.rolling_shutter, q)) {
-        return fail(why->first, why->second);
-    }
-    auto t0 = Clock::now();
-    q.pyramid = query_pyramid ? *query_pyramid : *queryPyramid(query_image);
-    res.times.prepare_ms += msSince(t0);
-
-    EstimatorInput input = estimatorInput(usable.refs, q);
-    std::string matcher_notes;  // why a baseline matcher (orb, ecc) found nothing
-    for (std::size_t k = 0; k < usable.refs.size(); ++k) {
-        ReferenceOutcome outcome;
-        if (auto why = matchReference(*usable.refs[k], usable.cameras[k], q, hint, options_,
-                                      outcome, res.times, matcher_notes)) {
-            return fail(RefineStatus::TooFewMatches, *why);
-        }
-        addInliers(outcome, *usable.refs[k], usable.cameras[k], q, res, input);
-        res.references.push_back(std::move(outcome));
-    }
-    res.inlier_share = res.sample_points > 0 ? double(res.inliers) / res.sample_points : 0.0;
-    return estimateAndAccept(std::move(res), input, hint, usable.refs, matcher_notes, options_,
-                             acceptance_, t_start);
 }
 
 }  // namespace lookup::refine

@@ -87,14 +87,6 @@ class Refiner {
     const AcceptancePolicy& acceptance() const { return acceptance_; }
 
   private:
-    /// refine() with every pose in a frame whose floor is level (the references' own).
-    RefineResult refineOnLevelFloor(const cv::Mat& query_image,
-                                    const mrpt::img::TCamera& query_camera,
-                                    const mrpt::poses::CPose3D& camera_on_vehicle,
-                                    const CoarseHint& hint,
-                                    const std::vector<ReferenceImage>& references,
-                                    const std::shared_ptr<const ImagePyramid>& query_pyramid) const;
-
     RefinerOptions options_;
     AcceptancePolicy acceptance_;
 };
