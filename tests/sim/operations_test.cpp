@@ -11,6 +11,7 @@
 #include <lookup/common/rawlog_io.h>
 #include <lookup/sim/camera_renderer.h>
 #include <lookup/sim/simulator.h>
+#include <mrpt/config/CConfigFile.h>
 #include <mrpt/core/Clock.h>
 #include <mrpt/math/wrap2pi.h>
 #include <mrpt/obs/CObservation2DRangeScan.h>
@@ -25,6 +26,7 @@
 #include <fstream>
 #include <iterator>
 #include <map>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -189,6 +191,47 @@ TEST(Operations, PlanDrivesStopsAndReverses) {
         }
     }
     EXPECT_LT(min_odo_v, -3.0);
+}
+
+// A survey drive that stops over surveyed marks: dataset.ini gives the operator's mark of each
+// stop between the first and last motion (not the rest before it starts, nor the end, which is
+// end_pose), at a time inside the stop, within a mark's error of the truth and never exactly it.
+TEST(Operations, TheSurveyVehicleStopsOverAMarkAtEveryStopOfItsPlan) {
+    ScenarioOptions sc = quickScenario();
+    sc.traverses[0].plan = "stop 1, drive 10, stop 2, drive 20, stop 1.5, drive 28, stop 1";
+    sc.traverses[0].marks_at_stops = true;
+    const fs::path dir = lookup::test::freshDir("lookup_sim_ops_marks");
+    runOk(sc, dir);
+    const Simulator sim(sc);
+    const auto interp = lookup::common::makeInterpolator(sim.groundTruth(0), 1.0);
+    mrpt::config::CConfigFile ini((dir / "dataset.ini").string());
+    std::istringstream list(ini.read_string("traverse_0", "marks", ""));
+    std::vector<double> xs;
+    for (std::string item; std::getline(list, item, ';');) {
+        std::istringstream in(item);
+        double t = 0, x = 0, y = 0, yaw_deg = 0;
+        ASSERT_TRUE(in >> t >> x >> y >> yaw_deg) << item;
+        const auto truth = lookup::common::poseAt(interp, t);
+        ASSERT_TRUE(truth.has_value()) << item;
+        const auto before = lookup::common::poseAt(interp, t - 0.5);
+        const auto after = lookup::common::poseAt(interp, t + 0.5);
+        ASSERT_TRUE(before && after) << item;
+        EXPECT_EQ(before->x(), after->x()) << "at rest around the mark's time: " << item;
+        const double d = std::hypot(x - truth->x(), y - truth->y());
+        EXPECT_GT(d, 0.01) << item;
+        EXPECT_LT(d, 0.06) << item;
+        EXPECT_LT(std::abs(yaw_deg - mrpt::RAD2DEG(truth->yaw())), 0.11) << item;
+        xs.push_back(truth->x() - sim.groundTruth(0).front().pose.x());
+    }
+    ASSERT_EQ(xs.size(), 2u);
+    EXPECT_NEAR(xs[0], 10, 0.5);
+    EXPECT_NEAR(xs[1], 20, 0.5);
+    // Without the key, no marks.
+    sc.traverses[0].marks_at_stops = false;
+    const fs::path plain = lookup::test::freshDir("lookup_sim_ops_no_marks");
+    runOk(sc, plain);
+    EXPECT_FALSE(mrpt::config::CConfigFile((plain / "dataset.ini").string())
+                     .keyExists("traverse_0", "marks"));
 }
 
 TEST(Operations, ReverseDirectionDrivesTheRouteBackwards) {

@@ -225,16 +225,18 @@ TEST(DatasetIni, WithoutCeilingHeightWorksAndAStatedOneIsIgnored) {
     }
 }
 
-TEST(DatasetIni, MalformedStartOrEndPoseRefusedNamingTheKey) {
+TEST(DatasetIni, MalformedStartOrEndPoseOrMarksRefusedNamingTheKey) {
     const auto dir = lookup::test::freshDir("lookup_nogt_badstart");
     const auto f = lookup::test::makeSurveyRawlog(dir.string(), "corridor", 2.0);
-    for (const std::string bad : {"start_pose = 1 2\n", "start_pose = 0 0 0\nend_pose = 2 0 x\n"}) {
+    for (const std::string bad : {"start_pose = 1 2\n", "start_pose = 0 0 0\nend_pose = 2 0 x\n",
+                                  "start_pose = 0 0 0\nmarks = 1700000001 1 0 5; 1 2\n"}) {
         {
             std::ofstream d(dir / "dataset.ini");
             d << "[dataset]\ntraverse_count = 1\n[traverse_0]\nrawlog = corridor.rawlog\n" << bad;
         }
-        const std::string key =
-            bad.find("end_pose") != std::string::npos ? "end_pose" : "start_pose";
+        const std::string key = bad.find("end_pose") != std::string::npos ? "end_pose"
+                                : bad.find("marks") != std::string::npos  ? "marks"
+                                                                          : "start_pose";
         const std::string ds = (dir / "dataset.ini").string(), out = (dir / "db").string();
         const char* argv[] = {"lookup-survey", "--dataset", ds.c_str(), "--out", out.c_str(), "-q"};
         SurveyApp app;

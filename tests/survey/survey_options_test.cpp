@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 #include <mrpt/config/CConfigFile.h>
 #include <mrpt/config/CConfigFileMemory.h>
+#include <mrpt/core/bits_math.h>
 
 #include "../common/round_trip.h"
 #include "lookup/common/config.h"
@@ -68,6 +69,31 @@ TEST(SurveyOptions, AMalformedOrZeroUncertainEndMarkIsRefusedByName) {
     }
 }
 
+// Marks along the drive: "t x y yaw_deg" groups separated by ';' (blank groups skipped); any
+// group that is not four finite numbers refuses the whole key, by name.
+TEST(SurveyOptions, MarksAlongTheDriveParseOrAreRefusedByName) {
+    const auto two = lookup::survey::parseMarks("100.5 1 2 90; 110 3 -4 -45.5;");
+    ASSERT_TRUE(two.has_value());
+    ASSERT_EQ(two->size(), 2u);
+    EXPECT_DOUBLE_EQ((*two)[0].time_s, 100.5);
+    EXPECT_DOUBLE_EQ((*two)[1].pose.y(), -4);
+    EXPECT_NEAR(mrpt::RAD2DEG((*two)[1].pose.phi()), -45.5, 1e-12);
+    EXPECT_TRUE(lookup::survey::parseMarks("")->empty());
+    for (const char* bad : {"100 1 2", "100 1 2 3 4", "100 1 2 x", "1 2 3 4; nan 1 2 3"}) {
+        EXPECT_FALSE(lookup::survey::parseMarks(bad).has_value()) << bad;
+    }
+    mrpt::config::CConfigFileMemory mem;
+    mem.write("survey", "marks", "100 1 2 3; 110 1 2");
+    SurveyOptions o;
+    try {
+        lookup::common::loadAndCheck(o, mem, "survey");
+        FAIL() << "a mark of three numbers accepted";
+    } catch (const lookup::common::ConfigError& e) {
+        EXPECT_NE(std::string(e.what()).find("marks"), std::string::npos) << e.what();
+    }
+    expectRefusedByName("marks_std_xy_m", 0.0);
+}
+
 TEST(SurveyOptions, RejectsBadFieldAndUnknownKey) {
     expectRefusedByName("keyframe_spacing_m", -1.0);
     SurveyOptions o;
@@ -82,6 +108,8 @@ TEST(SurveyOptions, SurveyAndPoseGraphRoundTrip) {
     s.start_pose = "1 2 90";
     s.end_pose = "61.5 -2 89.5";
     s.end_pose_std_xy_m = 0.02;
+    s.marks = "1700000004 10 1 90; 1700000008.5 20 1 90";
+    s.marks_std_yaw_deg = 0.3;
     s.ceiling_estimate = false;
     s.min_sharpness = 1.0 / 7.0;
     lookup::options_testing::expectRoundTrip(s, "survey");

@@ -268,6 +268,70 @@ TEST(SurveyRun, AnEndMarkTurnsTheMapBackOntoBothMarks) {
                 start_only.reference(last).vehicle_pose.y(), 1e-4);
 }
 
+// Marks along the drive tie the map like an end mark: a start mark's heading error is turned
+// back without one. A mark that disagrees with the others and the map is left out, said and
+// reported; one outside the drive's time is said and not used.
+TEST(SurveyRun, MarksAlongTheDriveTurnTheMapBackAndAWrongOneIsLeftOut) {
+    const auto dir = lookup::test::freshDir("lookup_survey_drive_marks");
+    const auto f = lookup::test::makeSurveyRawlog(dir.string(), "corridor", 12.0);
+    const auto run = [&](const std::string& marks, const std::string& name) {
+        auto o = shareOptions();
+        o.start_pose = "0 0 7.7106";  // the truth's heading is 5.7106 deg
+        o.start_pose_std_yaw_deg = 2.0;
+        o.marks = marks;
+        o.marks_std_xy_m = 0.3;  // the fixture's map is stretched along the corridor
+        o.marks_std_yaw_deg = 0.5;
+        auto result = Survey(o, shareIni()).run(inputsFor(f, dir / name));
+        EXPECT_TRUE(result.ok()) << result.reason;
+        return std::make_pair(result,
+                              lookup::database::ReferenceDatabase::load((dir / name).string()));
+    };
+    const auto headingError = [](const lookup::database::ReferenceDatabase& db) {
+        double sum = 0;
+        for (const auto& r : db.references()) {
+            const auto truth = lookup::test::truePoseAt(r.time_s - 1.7e9);
+            sum += std::abs(mrpt::math::wrapToPi(r.vehicle_pose.yaw() - truth.phi()));
+        }
+        return mrpt::RAD2DEG(sum / db.size());
+    };
+    const auto markAt = [](double t, double dy = 0) {
+        const auto p = lookup::test::truePoseAt(t);
+        return std::to_string(1.7e9 + t) + " " + std::to_string(p.x()) + " " +
+               std::to_string(p.y() + dy) + " " + std::to_string(mrpt::RAD2DEG(p.phi()));
+    };
+    const auto [none_result, none] = run("", "none");
+    const auto [good_result, good] = run(markAt(4) + "; " + markAt(8), "good");
+    const auto [wrong_result, wrong] =
+        run(markAt(4) + "; " + markAt(6, 2.5) + "; " + markAt(8) + "; " + markAt(40), "wrong");
+
+    EXPECT_TRUE(none_result.drive_marks.empty());
+    EXPECT_GT(headingError(none), 1.5);
+    ASSERT_EQ(good_result.drive_marks.size(), 2u);
+    EXPECT_TRUE(good_result.drive_marks[0].used && good_result.drive_marks[1].used);
+    EXPECT_FALSE(good_result.end_mark.given);
+    EXPECT_NEAR(mrpt::RAD2DEG(good_result.end_mark.correction.phi()), -2.0, 0.4);
+    EXPECT_LT(headingError(good), 0.3);
+    EXPECT_NE(good_result.toJson().find("\"marks\""), std::string::npos);
+
+    // The mark 2.5 m beside the drive is left out, the two good ones still turn the map back;
+    // the one at 40 s (the drive lasts 12) is said and not reported as a mark.
+    ASSERT_EQ(wrong_result.drive_marks.size(), 3u);
+    EXPECT_TRUE(wrong_result.drive_marks[0].used);
+    EXPECT_FALSE(wrong_result.drive_marks[1].used);
+    EXPECT_GT(wrong_result.drive_marks[1].disagreement_m, 2.0);
+    EXPECT_TRUE(wrong_result.drive_marks[2].used);
+    EXPECT_LT(headingError(wrong), 0.3);
+    const auto said = [&](const std::string& a, const std::string& b) {
+        return std::any_of(wrong_result.warnings.begin(), wrong_result.warnings.end(),
+                           [&](const std::string& w) {
+                               return w.find(a) != std::string::npos &&
+                                      w.find(b) != std::string::npos;
+                           });
+    };
+    EXPECT_TRUE(said("mark at time 1700000006.000", "not used"));
+    EXPECT_TRUE(said("mark at time 1700000040.000", "outside"));
+}
+
 TEST(SurveyRun, MissingLidarNamesLabelsPresent) {
     const auto dir = lookup::test::freshDir("lookup_survey_nolidar");
     const auto f = lookup::test::makeSurveyRawlog(dir.string(), "corridor", 2.0, false);

@@ -209,6 +209,7 @@ OptionsTable traverseKeys(TraverseOptions& tr) {
     t.add("end_m", tr.end_m);
     t.add("direction", tr.direction);
     t.add("plan", tr.plan);
+    t.add("marks_at_stops", tr.marks_at_stops);
     return t;
 }
 

@@ -368,6 +368,34 @@ std::string operatorEndPose(const ScenarioOptions& sc, const common::PoseTrack& 
                         markSeed(sc, 0xe4d5bu + uint32_t(index)));
 }
 
+// The operator's marks along the drive: the vehicle at rest over a surveyed mark at each stop
+// between its first and last motion, "t x y yaw_deg" at the stop's middle, each with an error
+// of its own.
+std::string operatorDriveMarks(const ScenarioOptions& sc, const common::PoseTrack& track,
+                               std::size_t index) {
+    std::string marks;
+    constexpr double kMinStop_s = 0.5;
+    const auto at_rest = [&](std::size_t a, std::size_t b) {
+        return (track[a].pose.translation() - track[b].pose.translation()).norm() < 1e-9;
+    };
+    for (std::size_t a = 1, count = 0; a + 1 < track.size(); ++a) {
+        if (!at_rest(a - 1, a)) continue;
+        std::size_t b = a;
+        while (b + 1 < track.size() && at_rest(b, b + 1)) ++b;
+        const bool interior = a > 1 && b + 1 < track.size();
+        if (interior && track[b].time_s - track[a - 1].time_s >= kMinStop_s) {
+            const double t = 0.5 * (track[a - 1].time_s + track[b].time_s);
+            char time[32];
+            std::snprintf(time, sizeof(time), "%.3f ", t);
+            marks += (marks.empty() ? "" : "; ") + std::string(time) +
+                     operatorMark(poseAt(track, t), markSeed(sc, 0x3a7c5u + 4096u * uint32_t(index) +
+                                                                  uint32_t(count++)));
+        }
+        a = b;
+    }
+    return marks;
+}
+
 /// A scan of `lidar`'s geometry with no ranges yet.
 mrpt::obs::CObservation2DRangeScan emptyScan(const LidarOptions& lidar) {
     mrpt::obs::CObservation2DRangeScan scan;
@@ -430,6 +458,7 @@ void writeDatasetIni(const std::string& path, const ScenarioOptions& sc,
         if (!start_written && t.roles.find("mapping") != std::string::npos) {
             f << "start_pose = " << operatorStartPose(sc, tracks[i], i) << "\n"
               << "end_pose = " << operatorEndPose(sc, tracks[i], i) << "\n";
+            if (t.marks_at_stops) f << "marks = " << operatorDriveMarks(sc, tracks[i], i) << "\n";
             start_written = true;
         }
     }

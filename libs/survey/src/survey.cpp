@@ -1,6 +1,7 @@
 #include "lookup/survey/survey.h"
 
 #include <mrpt/core/format.h>
+#include <mrpt/math/distributions.h>
 #include <mrpt/obs/CObservationImage.h>
 #include <mrpt/system/CTicTac.h>
 #include <mrpt/system/progress.h>
@@ -460,11 +461,9 @@ struct GridMap {
     mrpt::poses::CPose2D origin;                   ///< the grid frame's pose in the map frame
     common::PoseTrack mapping_track;               ///< where the other traverses' starts are sought
     std::optional<common::PoseTrack> graph_track;  ///< the mapping traverse's pose-graph track
-    std::vector<mrpt::math::CMatrixDouble33> graph_covs;  ///< its covariances, when final
-    /// The mapping traverse's last pose (grid frame) and the graph's covariance of it relative
-    /// to the start (zero where none was computed): where the end mark is compared.
-    mrpt::poses::CPose2D end;
-    Eigen::Matrix3d end_cov = Eigen::Matrix3d::Zero();
+    /// The graph's covariances relative to the start along mapping_track, when final (else
+    /// none: zero where the marks are compared).
+    std::vector<mrpt::math::CMatrixDouble33> graph_covs;
 };
 
 /// The mapping traverse's own pose graph over its ICP-SLAM track, and the grid rebuilt from it.
@@ -511,8 +510,6 @@ GridMap buildMap(const SurveyInputs& in, std::size_t mapping, SurveyData& survey
         map.grid = std::move(icp.grid);
     }
     map.mapping_track = map.graph_track ? *map.graph_track : icp.icp_track.poses;
-    if (!map.mapping_track.empty()) map.end = mrpt::poses::CPose2D(map.mapping_track.back().pose);
-    if (!map.graph_covs.empty()) map.end_cov = map.graph_covs.back().asEigen();
     result.mapping_time_s = timer.Tac();
     return map;
 }
@@ -571,8 +568,11 @@ void jointGraph(const SurveyInputs& in, const SurveyData& survey, std::size_t ma
         covs.resize(members.size());  // none when the graph had no keyframes
         member_covs = std::move(covs);
         map.grid = gridFromTracks(graph, member_tracks, config);
-        if (!member_tracks[0].empty()) map.end = mrpt::poses::CPose2D(member_tracks[0].back().pose);
-        if (!member_covs[0].empty()) map.end_cov = member_covs[0].back().asEigen();
+        // Where the marks are compared: the mapping traverse as the joint graph placed it.
+        if (!member_tracks[0].empty()) {
+            map.mapping_track = member_tracks[0];
+            map.graph_covs = member_covs[0];
+        }
         result.mapping_time_s += timer.Tac();
     }
     const mrpt::math::CMatrixDouble33 floor = mapErrorCovariance(o);
@@ -608,54 +608,141 @@ Eigen::Matrix3d markCovariance(double std_xy_m, double std_yaw_deg) {
     return Eigen::Vector3d(xy * xy, xy * xy, yaw * yaw).asDiagonal();
 }
 
-/// The two marks against the map (map frame): the start lies on its mark by construction, the
-/// end where the graph put the last pose. Weighted least squares over a small rigid correction
-/// about the start: the laser map's shape is kept (over a survey's length it is far more
-/// precise than a mark), and the end's weight includes the graph's uncertainty of the end
-/// relative to the start.
-/// A 3-dof chi-square beyond 99.9 % means the end mark, or the map, is wrong: it is not used.
-FrameTie tieToEndMark(const mrpt::poses::CPose2D& start, const mrpt::poses::CPose2D& map_end,
-                      const mrpt::poses::CPose2D& end_mark, const Eigen::Matrix3d& end_graph_cov,
-                      const SurveyOptions& o, EndMarkReport& report) {
-    const Eigen::Matrix3d w_start =
-        markCovariance(o.start_pose_std_xy_m, o.start_pose_std_yaw_deg).inverse();
-    const Eigen::Matrix3d w_end =
-        (markCovariance(o.end_pose_std_xy_m, o.end_pose_std_yaw_deg) + end_graph_cov).inverse();
-    const Eigen::Matrix3d a = leverJacobian(start, map_end.x(), map_end.y());
-    const Eigen::Vector3d b(end_mark.x() - map_end.x(), end_mark.y() - map_end.y(),
-                            mrpt::math::wrapToPi(end_mark.phi() - map_end.phi()));
-    const Eigen::Matrix3d h = w_start + a.transpose() * w_end * a;
+/// A mark besides the start's against the mapping traverse's pose at its time (map frame).
+struct MarkTie {
+    mrpt::poses::CPose2D map_pose, mark;
+    Eigen::Matrix3d weight;  ///< inverse of the mark's and the graph's covariance together
+    bool used = true;
+
+    /// The mark minus the map's pose, and d(map pose)/d(correction about `start`).
+    Eigen::Vector3d disagreement() const {
+        return {mark.x() - map_pose.x(), mark.y() - map_pose.y(),
+                mrpt::math::wrapToPi(mark.phi() - map_pose.phi())};
+    }
+    Eigen::Vector3d residual(const mrpt::poses::CPose2D& start, const Eigen::Vector3d& d) const {
+        return disagreement() - leverJacobian(start, map_pose.x(), map_pose.y()) * d;
+    }
+    double chi2(const mrpt::poses::CPose2D& start, const Eigen::Vector3d& d) const {
+        const Eigen::Vector3d r = residual(start, d);
+        return r.dot(weight * r);
+    }
+};
+
+/// Weighted least squares over a small rigid correction about the start: the start lies on
+/// its mark by construction, every other mark where the map put the vehicle at its time. The
+/// laser map's shape is kept (over a survey's length it is far more precise than a mark); each
+/// mark's weight includes the graph's uncertainty there relative to the start.
+FrameTie fitToMarks(const mrpt::poses::CPose2D& start, const Eigen::Matrix3d& w_start,
+                    const std::vector<MarkTie>& marks) {
+    Eigen::Matrix3d h = w_start;
+    Eigen::Vector3d g = Eigen::Vector3d::Zero();
+    for (const auto& m : marks) {
+        if (!m.used) continue;
+        const Eigen::Matrix3d a = leverJacobian(start, m.map_pose.x(), m.map_pose.y());
+        h += a.transpose() * m.weight * a;
+        g += a.transpose() * m.weight * m.disagreement();
+    }
     FrameTie tie;
     tie.cov = h.inverse();
-    tie.delta = tie.cov * (a.transpose() * w_end * b);
-    const Eigen::Vector3d r_end = b - a * tie.delta;
-    report.given = true;
-    report.disagreement_m = std::hypot(b.x(), b.y());
-    report.disagreement_deg = mrpt::RAD2DEG(b.z());
-    report.chi2 = tie.delta.dot(w_start * tie.delta) + r_end.dot(w_end * r_end);
-    constexpr double kChi2Dof3At999 = 16.27;
-    report.used = report.chi2 <= kChi2Dof3At999;
-    if (!report.used) return {Eigen::Vector3d::Zero(), w_start.inverse()};
+    tie.delta = tie.cov * g;
     return tie;
 }
 
-/// The operator's marks define the map frame, and their errors are a rigid error of the whole
-/// map: an offset everywhere, a heading error times the distance from the start. With an end
-/// mark the map is moved by the correction both marks agree on; every laser pose's covariance
-/// (the graph's is relative to the fixed start) carries what is left of that rigid error.
-void tieMapToMarks(const mrpt::poses::CPose2D& origin, const GridMap& map, const SurveyInputs& in,
-                   const SurveyOptions& o, VehiclePoses& poses, SurveyResult& result) {
-    FrameTie tie{Eigen::Vector3d::Zero(),
-                 markCovariance(o.start_pose_std_xy_m, o.start_pose_std_yaw_deg)};
-    const std::string& end_text = o.end_pose.empty() ? in.end_pose : o.end_pose;
-    if (auto end_mark = parseStartPose(end_text)) {
-        const mrpt::poses::CPose2D map_end = origin + map.end;
-        // The graph's covariance is in the grid frame: turned into the map frame.
+/// The fit to every mark, leaving out the worst one while the fit's chi-square lies beyond
+/// 99.9 % for its degrees of freedom (3 per mark besides the start's): a wrong mark, or a map
+/// that drifted. Returns the chi-square of the last fit.
+FrameTie tieToMarks(const mrpt::poses::CPose2D& start, const SurveyOptions& o,
+                    std::vector<MarkTie>& marks, double& chi2) {
+    const Eigen::Matrix3d w_start =
+        markCovariance(o.start_pose_std_xy_m, o.start_pose_std_yaw_deg).inverse();
+    for (;;) {
+        const FrameTie tie = fitToMarks(start, w_start, marks);
+        chi2 = tie.delta.dot(w_start * tie.delta);
+        std::size_t used = 0, worst = marks.size();
+        for (std::size_t k = 0; k < marks.size(); ++k) {
+            if (!marks[k].used) continue;
+            ++used;
+            chi2 += marks[k].chi2(start, tie.delta);
+            if (worst == marks.size() ||
+                marks[k].chi2(start, tie.delta) > marks[worst].chi2(start, tie.delta)) {
+                worst = k;
+            }
+        }
+        if (used == 0 || chi2 <= mrpt::math::chi2inv(0.999, 3 * used)) return tie;
+        marks[worst].used = false;
+    }
+}
+
+/// A mark at the mapping traverse's time `t`: its pose there (map frame), nullopt outside the
+/// track.
+std::optional<MarkTie> markAgainstMap(const mrpt::poses::CPose2D& origin, const GridMap& map,
+                                      double t, const mrpt::poses::CPose2D& mark,
+                                      const Eigen::Matrix3d& mark_cov, const SurveyOptions& o) {
+    const auto& track = map.mapping_track;
+    if (track.empty() || t < track.front().time_s - 1e-6 || t > track.back().time_s + 1e-6) {
+        return std::nullopt;
+    }
+    const auto pose = common::poseAt(common::makeInterpolator(track, o.max_pose_gap_s),
+                                     std::clamp(t, track.front().time_s, track.back().time_s));
+    if (!pose) return std::nullopt;
+    // The graph's covariance is in the grid frame: turned into the map frame.
+    Eigen::Matrix3d graph_cov = Eigen::Matrix3d::Zero();
+    if (map.graph_covs.size() == track.size()) {
+        const auto it = std::lower_bound(track.begin(), track.end(), t,
+                                         [](const auto& p, double v) { return p.time_s < v; });
+        const auto k = static_cast<std::size_t>(std::min<std::ptrdiff_t>(
+            it - track.begin(), static_cast<std::ptrdiff_t>(track.size()) - 1));
         const Eigen::Matrix3d turn =
             Eigen::AngleAxisd(origin.phi(), Eigen::Vector3d::UnitZ()).toRotationMatrix();
-        const Eigen::Matrix3d end_cov = turn * map.end_cov * turn.transpose();
-        tie = tieToEndMark(origin, map_end, *end_mark, end_cov, o, result.end_mark);
-        if (!result.end_mark.used) {
+        graph_cov = turn * map.graph_covs[k].asEigen() * turn.transpose();
+    }
+    return MarkTie{origin + mrpt::poses::CPose2D(*pose), mark, (mark_cov + graph_cov).inverse()};
+}
+
+/// The end mark (at the mapping traverse's last pose) and the marks along the drive against
+/// the map; a mark outside the drive's time is said and left out.
+std::vector<MarkTie> marksAgainstMap(const mrpt::poses::CPose2D& origin, const GridMap& map,
+                                     const SurveyInputs& in, const SurveyOptions& o,
+                                     SurveyResult& result) {
+    std::vector<MarkTie> ties;
+    const std::string& end_text = o.end_pose.empty() ? in.end_pose : o.end_pose;
+    const auto end_mark = parseStartPose(end_text);
+    if (end_mark && !map.mapping_track.empty()) {
+        const auto tie =
+            markAgainstMap(origin, map, map.mapping_track.back().time_s, *end_mark,
+                           markCovariance(o.end_pose_std_xy_m, o.end_pose_std_yaw_deg), o);
+        if (tie) ties.push_back(*tie);
+        result.end_mark.given = tie.has_value();
+    }
+    const std::string& marks_text = o.marks.empty() ? in.marks : o.marks;
+    for (const TimedMark& m : parseMarks(marks_text).value_or(std::vector<TimedMark>{})) {
+        const auto tie = markAgainstMap(origin, map, m.time_s, m.pose,
+                                        markCovariance(o.marks_std_xy_m, o.marks_std_yaw_deg), o);
+        if (!tie) {
+            result.warnings.push_back(mrpt::format(
+                "marks: the mark at time %.3f lies outside the mapping traverse's laser poses: "
+                "not used",
+                m.time_s));
+            continue;
+        }
+        ties.push_back(*tie);
+        result.drive_marks.push_back({m.time_s});
+    }
+    return ties;
+}
+
+/// What each mark's fit says, into the report; a mark left out is warned about.
+void reportMarks(const std::vector<MarkTie>& ties, const mrpt::poses::CPose2D& origin,
+                 const FrameTie& tie, double chi2, const std::string& end_text,
+                 SurveyResult& result) {
+    std::size_t k = 0;
+    if (result.end_mark.given) {
+        const MarkTie& end = ties[k++];
+        result.end_mark.used = end.used;
+        result.end_mark.disagreement_m = std::hypot(end.disagreement().x(), end.disagreement().y());
+        result.end_mark.disagreement_deg = mrpt::RAD2DEG(end.disagreement().z());
+        result.end_mark.chi2 = chi2;
+        if (!end.used) {
             result.warnings.push_back(
                 "end_pose '" + end_text + "' is " + std::to_string(result.end_mark.disagreement_m) +
                 " m and " + std::to_string(result.end_mark.disagreement_deg) +
@@ -663,10 +750,38 @@ void tieMapToMarks(const mrpt::poses::CPose2D& origin, const GridMap& map, const
                 "map's uncertainty allow: not used (a wrong mark, or a map that drifted)");
         }
     }
+    for (auto& r : result.drive_marks) {
+        const MarkTie& m = ties[k++];
+        const Eigen::Vector3d before = m.disagreement(), after = m.residual(origin, tie.delta);
+        r.used = m.used;
+        r.disagreement_m = std::hypot(before.x(), before.y());
+        r.disagreement_deg = mrpt::RAD2DEG(before.z());
+        r.residual_m = std::hypot(after.x(), after.y());
+        if (!m.used) {
+            result.warnings.push_back(mrpt::format(
+                "marks: the mark at time %.3f is %.3f m and %.3f deg from the mapping traverse's "
+                "laser pose then, more than the marks' and the map's uncertainty allow: not used "
+                "(a wrong mark, or a map that drifted)",
+                r.time_s, r.disagreement_m, r.disagreement_deg));
+        }
+    }
+}
+
+/// The operator's marks define the map frame, and their errors are a rigid error of the whole
+/// map: an offset everywhere, a heading error times the distance from the start. With an end
+/// mark or marks along the drive the map is moved by the correction the marks agree on; every
+/// laser pose's covariance (the graph's is relative to the fixed start) carries what is left of
+/// that rigid error.
+void tieMapToMarks(const mrpt::poses::CPose2D& origin, const GridMap& map, const SurveyInputs& in,
+                   const SurveyOptions& o, VehiclePoses& poses, SurveyResult& result) {
+    std::vector<MarkTie> ties = marksAgainstMap(origin, map, in, o, result);
+    double chi2 = 0;
+    const FrameTie tie = tieToMarks(origin, o, ties, chi2);
+    reportMarks(ties, origin, tie, chi2, o.end_pose.empty() ? in.end_pose : o.end_pose, result);
     result.end_mark.correction = mrpt::poses::CPose2D(tie.delta.x(), tie.delta.y(), tie.delta.z());
     result.end_mark.std_xy_m = std::sqrt(0.5 * (tie.cov(0, 0) + tie.cov(1, 1)));
     result.end_mark.std_yaw_deg = mrpt::RAD2DEG(std::sqrt(tie.cov(2, 2)));
-    if (result.end_mark.used) {
+    if (std::any_of(ties.begin(), ties.end(), [](const MarkTie& m) { return m.used; })) {
         // Turned by the correction's heading about the start, then shifted by its offset.
         const mrpt::poses::CPose2D correction =
             mrpt::poses::CPose2D(origin.x() + tie.delta.x(), origin.y() + tie.delta.y(),
@@ -1117,8 +1232,9 @@ std::string SurveyResult::toJson() const {
     if (time_offset_across.tried) {
         j["time_offset_across_traverses"] = timeOffsetJson(time_offset_across);
     }
-    if (end_mark.given) {
-        j["end_mark"] = {{"used", end_mark.used},
+    if (end_mark.given || !drive_marks.empty()) {
+        j["end_mark"] = {{"given", end_mark.given},
+                         {"used", end_mark.used},
                          {"disagreement_m", end_mark.disagreement_m},
                          {"disagreement_deg", end_mark.disagreement_deg},
                          {"chi2", end_mark.chi2},
@@ -1128,6 +1244,16 @@ std::string SurveyResult::toJson() const {
                            {"yaw_deg", mrpt::RAD2DEG(end_mark.correction.phi())}}},
                          {"frame_std_xy_m", end_mark.std_xy_m},
                          {"frame_std_yaw_deg", end_mark.std_yaw_deg}};
+    }
+    if (!drive_marks.empty()) {
+        j["marks"] = ordered_json::array();
+        for (const auto& m : drive_marks) {
+            j["marks"].push_back({{"time_s", m.time_s},
+                                  {"used", m.used},
+                                  {"disagreement_m", m.disagreement_m},
+                                  {"disagreement_deg", m.disagreement_deg},
+                                  {"residual_m", m.residual_m}});
+        }
     }
     j["pose_audit"] = poseAuditJson(pose_audit);
     j["traverses"] = ordered_json::array();

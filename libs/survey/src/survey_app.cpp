@@ -87,6 +87,12 @@ void readDataset(const std::string& path, SurveyInputs& inputs, SurveyOptions& o
         };
         mark("start_pose", inputs.start_pose);
         mark("end_pose", inputs.end_pose);
+        const std::string marks = t.getString("marks", "");
+        if (!parseMarks(marks)) {
+            throw common::ConfigError(t.where("marks") +
+                                      "expected \"t x y yaw_deg\" groups separated by ';'");
+        }
+        if (spec.mapping && inputs.marks.empty()) inputs.marks = marks;
         if (spec.mapping || spec.reference) inputs.traverses.push_back(spec);
     }
 }

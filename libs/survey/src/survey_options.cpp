@@ -18,6 +18,27 @@ std::optional<mrpt::poses::CPose2D> parseStartPose(const std::string& text) {
     return mrpt::poses::CPose2D(x, y, mrpt::DEG2RAD(yaw_deg));
 }
 
+std::optional<std::vector<TimedMark>> parseMarks(const std::string& text) {
+    std::vector<TimedMark> marks;
+    std::istringstream list(text);
+    std::string item;
+    while (std::getline(list, item, ';')) {
+        std::istringstream in(item);
+        TimedMark m;
+        std::string pose, word;
+        if (!(in >> m.time_s) || !std::isfinite(m.time_s)) {
+            if (item.find_first_not_of(" \t") == std::string::npos) continue;  // "a;;b", "a;"
+            return std::nullopt;
+        }
+        while (in >> word) pose += word + " ";
+        const auto p = parseStartPose(pose);
+        if (!p) return std::nullopt;
+        m.pose = *p;
+        marks.push_back(m);
+    }
+    return marks;
+}
+
 void SurveyOptions::declareKeys(common::OptionsTable& t) {
     t.add("ceiling_camera_label", ceiling_camera_label);
     t.add("forward_camera_label", forward_camera_label);
@@ -68,6 +89,9 @@ void SurveyOptions::declareKeys(common::OptionsTable& t) {
     t.add("end_pose", end_pose);
     t.add("end_pose_std_xy_m", end_pose_std_xy_m, common::kPositive);
     t.add("end_pose_std_yaw_deg", end_pose_std_yaw_deg, common::kPositive, 180.0);
+    t.add("marks", marks);
+    t.add("marks_std_xy_m", marks_std_xy_m, common::kPositive);
+    t.add("marks_std_yaw_deg", marks_std_yaw_deg, common::kPositive, 180.0);
     t.add("start_search_spacing_m", start_search_spacing_m, common::kPositive);
     t.add("start_match_travel_m", start_match_travel_m, 0.0);
     t.add("start_min_goodness", start_min_goodness, 0.0, 1.0);
@@ -102,6 +126,8 @@ void SurveyOptions::check() const {
               "three numbers: x y yaw_deg");
     c.require(end_pose.empty() || parseStartPose(end_pose).has_value(), "end_pose",
               "three numbers: x y yaw_deg");
+    c.require(parseMarks(marks).has_value(), "marks",
+              "\"t x y yaw_deg\" groups of four numbers separated by ';'");
     c.require(icp_max_range_m >= 0, "icp_max_range_m", ">= 0 (0 = no limit)");
     c.throwIfFailed();
 }

@@ -220,6 +220,9 @@ struct TraverseOptions {
     /// position S [m], facing the way of travel), "reverse S" (backing up to S), "stop T"
     /// (stand still T [s]). The vehicle cannot turn round: all motion keeps one facing.
     std::string plan;
+    /// The mapping traverse stops over a surveyed mark at every stop of its plan: dataset.ini
+    /// gets the operator's mark of each (`marks`), with a mark's error (docs/sim.md).
+    bool marks_at_stops = false;
     /// Per-traverse overrides ([traverse_i.SECTION]); empty = the scenario's section. The world
     /// override changes appearance keys only (the mine's geometry is one for all traverses).
     std::optional<WorldOptions> world;

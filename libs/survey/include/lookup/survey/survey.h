@@ -49,6 +49,8 @@ struct SurveyInputs {
     std::string start_pose;
     /// ... and its end pose ("" = none); SurveyOptions::end_pose overrides it.
     std::string end_pose;
+    /// ... and its marks along the drive ("" = none); SurveyOptions::marks overrides them.
+    std::string marks;
     bool show_progress = false;  ///< progress bar on stderr
 };
 
@@ -104,9 +106,18 @@ struct EndMarkReport {
     bool used = false;                     ///< ... and agreed with the map within its uncertainty
     double disagreement_m = 0;             ///< end mark against the map's last pose, before [m]
     double disagreement_deg = 0;           ///< ... in heading [deg]
-    double chi2 = 0;                       ///< of the two marks' residuals after the fit (3 dof)
+    double chi2 = 0;                       ///< of every used mark's residual after the fit
     mrpt::poses::CPose2D correction;       ///< rigid correction applied about the start [m, rad]
     double std_xy_m = 0, std_yaw_deg = 0;  ///< the map frame's uncertainty at the start after it
+};
+
+/// A surveyed mark along the mapping drive (SurveyOptions::marks) against the map.
+struct DriveMarkReport {
+    double time_s = 0;
+    bool used = false;  ///< agreed with the map and the other marks within their uncertainty
+    double disagreement_m = 0;    ///< against the map's pose at its time, before the fit [m]
+    double disagreement_deg = 0;  ///< ... in heading [deg]
+    double residual_m = 0;        ///< after the fit [m]
 };
 
 enum class SurveyStatus { Ok, Failed };
@@ -132,7 +143,8 @@ struct SurveyResult {
     /// The ceiling camera's offset from the audit's fixes across traverses (tried when the
     /// image motion did not pin it down; applied, and copied into time_offsets, if estimated).
     TimeOffsetEstimate time_offset_across;
-    EndMarkReport end_mark;  ///< the map frame tied to the end mark
+    EndMarkReport end_mark;  ///< the map frame tied to the end mark (and the drive's marks)
+    std::vector<DriveMarkReport> drive_marks;  ///< the marks along the drive, when given
     /// Refused or skipped input, one line each (file, record, reason, count); lookup-survey
     /// prints them on stderr.
     std::vector<std::string> warnings;
