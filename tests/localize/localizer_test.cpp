@@ -744,6 +744,49 @@ TEST(Localize, AnUncalibratedCameraAgainstAKnownSurveyClockWidensThePoseAlongThe
     }
 }
 
+// Against a database whose survey camera clock is unknown (sigma 0.05 s, past
+// survey_clock_max_sigma_s) the references' lateness is taken as the vehicle's: driving as they
+// were driven (2.5 m/s along x) at 3 m/s leaves (0.5 m/s x 0.05 s)^2 along the motion; driving
+// against them (-3 m/s) leaves (5.5 m/s x 0.05 s)^2, which no ellipse may leave out.
+TEST(Localize, AgainstAnUnknownSurveyClockTheUnsharedLatenessWidensThePose) {
+    const auto run = [&](const std::string& name, std::optional<double> survey_sigma_s,
+                         bool against) {
+        const auto dir = lookup::test::freshDir("lookup_localize_unshared_" + name);
+        PlanarDrive drive;
+        drive.survey_camera.time_offset_sigma_s = survey_sigma_s;
+        if (against) {
+            drive.vehicle = [](int i) {
+                return mrpt::poses::CPose3D(3 - 0.3 * i, 0.3, 0, M_PI + 0.05, 0, 0);
+            };
+            drive.coarse_error = mrpt::poses::CPose3D(0.3, -0.2, 0, -0.03, 0, 0);
+            drive.camera_ahead = mrpt::poses::CPose3D(3.0, 0, 0, 0, 0, 0);
+        }
+        auto req = planarRun(
+            dir, [](int, mrpt::obs::CObservationImage&, mrpt::obs::CObservationOdometry&) {}, 8,
+            drive);
+        localize::runLocalization(req);
+        return eval::loadRun(req.out_dir);
+    };
+    for (const bool against : {false, true}) {
+        const std::string way = against ? "against" : "along";
+        const auto none = run(way + "_none", std::nullopt, against);
+        const auto unknown = run(way + "_unknown", 0.05, against);
+        const auto known = run(way + "_known", 0.004, against);
+        const double w = against ? 5.5 : 0.5;
+        for (int i = 3; i < 8; ++i) {
+            ASSERT_EQ(unknown.frames[i].status, "refined") << way << unknown.frames[i].reason;
+            const double along = unknown.frames[i].cov_xx - none.frames[i].cov_xx;
+            EXPECT_NEAR(along, std::pow(w * 0.05, 2), 0.15 * std::pow(w * 0.05, 2)) << way << i;
+            EXPECT_NEAR(unknown.frames[i].cov_yy - none.frames[i].cov_yy, 0.0, 0.002) << way << i;
+            EXPECT_EQ(unknown.frames[i].x, none.frames[i].x) << way << i;
+            // A known survey clock has the vehicle's own uncalibrated lateness instead.
+            EXPECT_NEAR(known.frames[i].cov_xx - none.frames[i].cov_xx, std::pow(3 * 0.015, 2),
+                        0.0005)
+                << way << i;
+        }
+    }
+}
+
 TEST(Localize, PastTheTrackingGapOdometryFromTheLastFixStaysTheFallback) {
     const auto dir = lookup::test::freshDir("lookup_localize_dead_reckoning");
     // From frame 5 on (1.5 s, past the 1 s tracking gap) a ceiling too flat to match, as in a

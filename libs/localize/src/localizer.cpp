@@ -217,6 +217,9 @@ Localizer::Localizer(database::ReferenceDatabase& db, const LocalizerOptions& op
       camera_clock_(cameraClockOptions(options, db.info())),
       uncalibrated_clock_sigma_s_(
           surveyClockKnown(options, db.info()) ? options.uncalibrated_image_time_sigma_s : 0.0),
+      survey_clock_sigma_s_(surveyClockKnown(options, db.info())
+                                ? 0.0
+                                : db.info().ceiling_time_offset_sigma_s.value_or(0.0)),
       ceiling_refiner_(gridSampling(refiner_options)) {
     options_.check();
 }
@@ -1339,6 +1342,50 @@ mrpt::math::CMatrixDouble33 Localizer::imageTimeCovariance(double time_s, double
     return cov;
 }
 
+std::optional<Eigen::Vector3d> Localizer::referenceVelocity(std::size_t i) const {
+    const auto& ref = db_.reference(i);
+    if (ref.source != "survey") return std::nullopt;  // placed by a drive's own fixes
+    const auto neighbour = [&](std::size_t j) {
+        return j < db_.size() && db_.reference(j).traverse == ref.traverse &&
+               db_.reference(j).source == ref.source;
+    };
+    const std::size_t a = i > 0 && neighbour(i - 1) ? i - 1 : i;
+    const std::size_t b = neighbour(i + 1) ? i + 1 : i;
+    const auto &ra = db_.reference(a), &rb = db_.reference(b);
+    const double dt = rb.time_s - ra.time_s;
+    if (!(dt > 0)) return std::nullopt;
+    return Eigen::Vector3d(
+        (rb.vehicle_pose.x() - ra.vehicle_pose.x()) / dt,
+        (rb.vehicle_pose.y() - ra.vehicle_pose.y()) / dt,
+        mrpt::math::wrapToPi(rb.vehicle_pose.yaw() - ra.vehicle_pose.yaw()) / dt);
+}
+
+mrpt::math::CMatrixDouble33 Localizer::unsharedLatencyCovariance(double time_s,
+                                                                 double yaw) const {
+    // An unknown survey camera clock is taken as late as the vehicle's camera, which holds
+    // where the vehicle drives as the references' traverse did: the two shifts cancel. At
+    // another speed, or against the survey's direction, what is left is the difference of the
+    // two velocities times the lateness, of the survey clock's sigma.
+    mrpt::math::CMatrixDouble33 cov;
+    cov.setZero();
+    if (!(survey_clock_sigma_s_ > 0) || fix_references_.empty()) return cov;
+    const auto v = velocityAt(time_s);
+    if (!v) return cov;
+    const double c = std::cos(yaw), s = std::sin(yaw);
+    const Eigen::Vector3d vehicle(c * v->vx_mps - s * v->vy_mps, s * v->vx_mps + c * v->vy_mps,
+                                  v->yaw_rate_radps);
+    std::size_t n = 0;
+    for (std::size_t i : fix_references_) {
+        const auto reference = referenceVelocity(i);
+        if (!reference) continue;
+        const Eigen::Vector3d w = vehicle - *reference;
+        cov.asEigen() += w * w.transpose();
+        ++n;
+    }
+    if (n > 0) cov.asEigen() *= survey_clock_sigma_s_ * survey_clock_sigma_s_ / double(n);
+    return cov;
+}
+
 void Localizer::finishFrame(FrameResult& out) {
     if (out.coarse_pose &&
         !std::isfinite(out.coarse_pose->x() + out.coarse_pose->y() + out.coarse_pose->phi())) {
@@ -1362,10 +1409,12 @@ void Localizer::finishFrame(FrameResult& out) {
     if (out.status == FrameStatus::Ambiguous || !out.has_pose) {
         last_fix_.reset();
         fix_headings_.clear();
+        fix_references_.clear();
     }
     if (out.status == FrameStatus::Refined) {
         last_fix_ = Fix{out.time_s, out.pose.mean, out.pose.cov};
         keepFixHeading(out.time_s, out.pose.mean.phi());
+        fix_references_ = out.reference_indices;
     }
     fine_tracking_ = out.status == FrameStatus::Refined;
     if (fine_tracking_) open_places_.clear();
@@ -1374,6 +1423,7 @@ void Localizer::finishFrame(FrameResult& out) {
     if (out.has_pose) {
         out.pose.cov +=
             imageTimeCovariance(out.time_s, out.pose.mean.phi(), uncalibrated_clock_sigma_s_);
+        out.pose.cov += unsharedLatencyCovariance(out.time_s, out.pose.mean.phi());
         out.height_m = floorHeightUnder(out.pose.mean);
     }
 }

@@ -8,6 +8,7 @@
 // Observations are fed in time order as they arrive; nothing here reads files, so the same
 // class runs on a rawlog replay and on live sensors.
 
+#include <Eigen/Core>
 #include <mrpt/obs/CObservation.h>
 #include <mrpt/obs/CObservationImage.h>
 #include <mrpt/poses/CPose2D.h>
@@ -209,6 +210,12 @@ class Localizer {
     /// What an image time uncertain by `sigma_s` adds to the pose at `time_s` [s].
     mrpt::math::CMatrixDouble33 imageTimeCovariance(double time_s, double yaw,
                                                     double sigma_s) const;
+    /// The lateness the references do not share with the vehicle (survey clock unknown): what
+    /// it adds to the pose at `time_s` against the last fix's references.
+    mrpt::math::CMatrixDouble33 unsharedLatencyCovariance(double time_s, double yaw) const;
+    /// Reference `i`'s velocity in the map frame (x, y [m/s], yaw rate [rad/s]) from its
+    /// neighbours in its survey traverse; nullopt where it has none.
+    std::optional<Eigen::Vector3d> referenceVelocity(std::size_t i) const;
     void finishFrame(FrameResult& out);
     std::optional<double> floorHeightUnder(const mrpt::poses::CPose2D& pose) const;
     void processForward(const mrpt::obs::CObservationImage& image);
@@ -346,6 +353,11 @@ class Localizer {
     CameraClock camera_clock_;
     /// LocalizerOptions::uncalibrated_image_time_sigma_s where it applies, else 0 [s].
     double uncalibrated_clock_sigma_s_ = 0;
+    /// The survey camera clock's sigma where it is not known well enough to correct the
+    /// vehicle's against (surveyClockKnown false), else 0 [s].
+    double survey_clock_sigma_s_ = 0;
+    /// The references of the last fix (unsharedLatencyCovariance); cleared with the track.
+    std::vector<std::size_t> fix_references_;
     double travelled_since_forward_ = 0;
     bool forward_had_odometry_ = false;  ///< the previous forward frame had live odometry
 
