@@ -614,7 +614,7 @@ struct MarkTie {
     Eigen::Matrix3d weight;  ///< inverse of the mark's and the graph's covariance together
     bool used = true;
 
-    /// The mark minus the map's pose, and d(map pose)/d(correction about `start`).
+    /// The mark minus the map's pose, before and after a correction `d` about `start`.
     Eigen::Vector3d disagreement() const {
         return {mark.x() - map_pose.x(), mark.y() - map_pose.y(),
                 mrpt::math::wrapToPi(mark.phi() - map_pose.phi())};
@@ -658,15 +658,14 @@ FrameTie tieToMarks(const mrpt::poses::CPose2D& start, const SurveyOptions& o,
     for (;;) {
         const FrameTie tie = fitToMarks(start, w_start, marks);
         chi2 = tie.delta.dot(w_start * tie.delta);
-        std::size_t used = 0, worst = marks.size();
+        std::size_t used = 0, worst = 0;
+        double worst_chi2 = -1;
         for (std::size_t k = 0; k < marks.size(); ++k) {
             if (!marks[k].used) continue;
             ++used;
-            chi2 += marks[k].chi2(start, tie.delta);
-            if (worst == marks.size() ||
-                marks[k].chi2(start, tie.delta) > marks[worst].chi2(start, tie.delta)) {
-                worst = k;
-            }
+            const double c = marks[k].chi2(start, tie.delta);
+            chi2 += c;
+            if (c > worst_chi2) worst = k, worst_chi2 = c;
         }
         if (used == 0 || chi2 <= mrpt::math::chi2inv(0.999, 3 * used)) return tie;
         marks[worst].used = false;
