@@ -176,8 +176,9 @@ plan = drive 15, stop 1, reverse 5
 )";
 
 /// FNV-1a 64 over every file under `root` in path order (path, NUL, bytes, NUL), without
-/// scenario.ini's `threads` line (the machine's), dataset.ini's `end_pose` line (written since
-/// the grades; Simulator.WritesTheDatasetLayout checks it) and the camera images: those go through
+/// scenario.ini's `threads` line (the machine's) and `marks_at_stops` lines (a key added since),
+/// dataset.ini's `end_pose` line (written since the grades; Simulator.WritesTheDatasetLayout
+/// checks it) and the camera images: those go through
 /// OpenCV kernels that pick their SIMD code at run time, so another CPU may round a pixel
 /// differently; rawlogs, ground truth, odometry, lidar and the map are plain double arithmetic.
 uint64_t datasetHash(const fs::path& root) {
@@ -190,12 +191,12 @@ uint64_t datasetHash(const fs::path& root) {
         std::ifstream f(e.path(), std::ios::binary);
         std::string bytes((std::istreambuf_iterator<char>(f)), {});
         const auto drop = [&bytes](const char* key, bool with_newline) {
-            const auto at = bytes.find(key);
-            if (at != std::string::npos) {
+            for (auto at = bytes.find(key); at != std::string::npos; at = bytes.find(key, at)) {
                 bytes.erase(at, bytes.find('\n', at) - at + (with_newline ? 1 : 0));
             }
         };
         if (e.path().filename() == "scenario.ini") drop("threads", false);
+        if (e.path().filename() == "scenario.ini") drop("marks_at_stops", true);
         if (e.path().filename() == "dataset.ini") drop("end_pose", true);
         files[fs::relative(e.path(), root).string()] = bytes;
     }

@@ -198,7 +198,7 @@ TEST(Operations, PlanDrivesStopsAndReverses) {
 // end_pose), at a time inside the stop, within a mark's error of the truth and never exactly it.
 TEST(Operations, TheSurveyVehicleStopsOverAMarkAtEveryStopOfItsPlan) {
     ScenarioOptions sc = quickScenario();
-    sc.traverses[0].plan = "stop 1, drive 10, stop 2, drive 20, stop 1.5, drive 28, stop 1";
+    sc.traverses[0].plan = "stop 1, drive 10, stop 2, drive 20, stop 1.5, drive end, stop 1";
     sc.traverses[0].marks_at_stops = true;
     const fs::path dir = lookup::test::freshDir("lookup_sim_ops_marks");
     runOk(sc, dir);
@@ -226,6 +226,9 @@ TEST(Operations, TheSurveyVehicleStopsOverAMarkAtEveryStopOfItsPlan) {
     ASSERT_EQ(xs.size(), 2u);
     EXPECT_NEAR(xs[0], 10, 0.5);
     EXPECT_NEAR(xs[1], 20, 0.5);
+    // "drive end" went to the route's end, whatever its length came out as.
+    EXPECT_NEAR(sim.groundTruth(0).back().pose.x() - sim.groundTruth(0).front().pose.x(),
+                sim.world().routeLength(), 0.5);
     // Without the key, no marks.
     sc.traverses[0].marks_at_stops = false;
     const fs::path plain = lookup::test::freshDir("lookup_sim_ops_no_marks");
@@ -280,7 +283,8 @@ TEST(Operations, BadPlansAreRefusedNamingTheLeg) {
         EXPECT_NE(std::string(e.what()).find("traverse_0.plan leg 3"), std::string::npos)
             << e.what();
     }
-    for (const char* bad : {"drive 10, drive 2", "drive 10, stop -1", "drive ten", "fly 3"}) {
+    for (const char* bad :
+         {"drive 10, drive 2", "drive 10, stop -1", "drive ten", "fly 3", "stop end", "drive 5x"}) {
         sc.traverses[0].plan = bad;
         EXPECT_THROW(sc.check(), ConfigError) << bad;
     }

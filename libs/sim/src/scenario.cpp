@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <filesystem>
 #include <functional>
 #include <iomanip>
@@ -344,8 +345,9 @@ void checkPlan(common::OptionsCheck& c, const TraverseOptions& t, const std::str
             const PlanLeg& leg = legs[k];
             const std::string what = p + ".plan leg " + std::to_string(k + 1);
             if (leg.kind == PlanLeg::Kind::Stop) continue;
-            c.require(leg.value >= 0 && (t.end_m < 0 || leg.value <= t.end_m), what,
-                      "a target on the route (in [0, end_m])");
+            c.require(std::isinf(leg.value) ||
+                          (leg.value >= 0 && (t.end_m < 0 || leg.value <= t.end_m)),
+                      what, "a target on the route (in [0, end_m], or end)");
             if (leg.value == s) continue;
             const int travel = leg.value > s ? 1 : -1;
             const int face = leg.kind == PlanLeg::Kind::Drive ? travel : -travel;
@@ -556,10 +558,23 @@ std::vector<PlanLeg> parsePlan(const std::string& plan) {
     std::string item;
     while (std::getline(list, item, ',')) {
         std::istringstream words(item);
-        std::string kind, rest;
-        double value = 0;
+        std::string kind, target, rest;
         const std::string n = std::to_string(legs.size() + 1);
-        if (!(words >> kind >> value) || (words >> rest)) {
+        std::size_t used = 0;
+        double value = 0;
+        if (words >> kind >> target && !(words >> rest)) {
+            if (target == "end" && kind != "stop") {
+                value = std::numeric_limits<double>::infinity();  // the traverse's end
+                used = target.size();
+            } else {
+                try {
+                    value = std::stod(target, &used);
+                } catch (const std::exception&) {
+                    used = 0;
+                }
+            }
+        }
+        if (target.empty() || used != target.size()) {
             throw std::invalid_argument("leg " + n + " '" + item +
                                         "' is not 'drive S', 'reverse S' or 'stop T'");
         }

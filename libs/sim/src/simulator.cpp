@@ -615,6 +615,9 @@ common::PoseTrack vehicleTrack(const TunnelWorld& world, const TraverseOptions& 
         legs.push_back({PlanLeg::Kind::Drive, s_begin});
     } else {
         legs = parsePlan(tr.plan);
+        for (auto& leg : legs) {
+            if (std::isinf(leg.value)) leg.value = s_end;
+        }
     }
     drivePlan(legs, s, length, start_time_s, poseAtS, legSpeed, &track);
     return track;
@@ -692,7 +695,10 @@ void Simulator::checkPlansOnRoute() const {
         if (t.plan.empty()) continue;
         const std::vector<PlanLeg> legs = parsePlan(t.plan);
         for (std::size_t k = 0; k < legs.size(); ++k) {
-            if (legs[k].kind == PlanLeg::Kind::Stop || legs[k].value <= length) continue;
+            if (legs[k].kind == PlanLeg::Kind::Stop || legs[k].value <= length ||
+                std::isinf(legs[k].value)) {
+                continue;
+            }
             std::ostringstream os;
             os << scenario_.source_name << " [traverse_" << i << "] plan: leg " << k + 1 << " ("
                << (legs[k].kind == PlanLeg::Kind::Drive ? "drive " : "reverse ") << legs[k].value

@@ -218,7 +218,8 @@ struct TraverseOptions {
     std::string direction = "forward";
     /// Duty cycle, replacing start-to-end: comma list of legs from start_m, "drive S" (to route
     /// position S [m], facing the way of travel), "reverse S" (backing up to S), "stop T"
-    /// (stand still T [s]). The vehicle cannot turn round: all motion keeps one facing.
+    /// (stand still T [s]); "drive end" goes to the traverse's end (end_m, else the route's).
+    /// The vehicle cannot turn round: all motion keeps one facing.
     std::string plan;
     /// The mapping traverse stops over a surveyed mark at every stop of its plan: dataset.ini
     /// gets the operator's mark of each (`marks`), with a mark's error (docs/sim.md).
@@ -236,7 +237,9 @@ struct TraverseOptions {
 /// One leg of a traverse plan.
 struct PlanLeg {
     enum class Kind { Drive, Reverse, Stop } kind = Kind::Drive;
-    double value = 0;  ///< target route position [m] (Drive, Reverse) or dwell [s] (Stop)
+    /// Target route position [m] (Drive, Reverse; infinity: "end", the traverse's end) or
+    /// dwell [s] (Stop).
+    double value = 0;
 };
 
 /// Parses TraverseOptions::plan; throws std::invalid_argument saying which leg is malformed.
