@@ -322,11 +322,10 @@ TEST(SurveyRun, MarksAlongTheDriveTurnTheMapBackAndAWrongOneIsLeftOut) {
     EXPECT_TRUE(wrong_result.drive_marks[2].used);
     EXPECT_LT(headingError(wrong), 0.3);
     const auto said = [&](const std::string& a, const std::string& b) {
-        return std::any_of(wrong_result.warnings.begin(), wrong_result.warnings.end(),
-                           [&](const std::string& w) {
-                               return w.find(a) != std::string::npos &&
-                                      w.find(b) != std::string::npos;
-                           });
+        return std::any_of(
+            wrong_result.warnings.begin(), wrong_result.warnings.end(), [&](const std::string& w) {
+                return w.find(a) != std::string::npos && w.find(b) != std::string::npos;
+            });
     };
     EXPECT_TRUE(said("mark at time 1700000006.000", "not used"));
     EXPECT_TRUE(said("mark at time 1700000040.000", "outside"));

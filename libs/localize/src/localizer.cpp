@@ -1360,8 +1360,7 @@ std::optional<Eigen::Vector3d> Localizer::referenceVelocity(std::size_t i) const
         mrpt::math::wrapToPi(rb.vehicle_pose.yaw() - ra.vehicle_pose.yaw()) / dt);
 }
 
-mrpt::math::CMatrixDouble33 Localizer::unsharedLatencyCovariance(double time_s,
-                                                                 double yaw) const {
+mrpt::math::CMatrixDouble33 Localizer::unsharedLatencyCovariance(double time_s, double yaw) const {
     // An unknown survey camera clock is taken as late as the vehicle's camera, which holds
     // where the vehicle drives as the references' traverse did: the two shifts cancel. At
     // another speed, or against the survey's direction, what is left is the difference of the

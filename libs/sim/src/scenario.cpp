@@ -8,10 +8,10 @@
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
 #include <filesystem>
 #include <functional>
 #include <iomanip>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 #include <type_traits>
@@ -345,9 +345,9 @@ void checkPlan(common::OptionsCheck& c, const TraverseOptions& t, const std::str
             const PlanLeg& leg = legs[k];
             const std::string what = p + ".plan leg " + std::to_string(k + 1);
             if (leg.kind == PlanLeg::Kind::Stop) continue;
-            c.require(std::isinf(leg.value) ||
-                          (leg.value >= 0 && (t.end_m < 0 || leg.value <= t.end_m)),
-                      what, "a target on the route (in [0, end_m], or end)");
+            c.require(
+                std::isinf(leg.value) || (leg.value >= 0 && (t.end_m < 0 || leg.value <= t.end_m)),
+                what, "a target on the route (in [0, end_m], or end)");
             if (leg.value == s) continue;
             const int travel = leg.value > s ? 1 : -1;
             const int face = leg.kind == PlanLeg::Kind::Drive ? travel : -travel;

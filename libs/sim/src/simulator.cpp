@@ -387,9 +387,10 @@ std::string operatorDriveMarks(const ScenarioOptions& sc, const common::PoseTrac
             const double t = 0.5 * (track[a - 1].time_s + track[b].time_s);
             char time[32];
             std::snprintf(time, sizeof(time), "%.3f ", t);
-            marks += (marks.empty() ? "" : "; ") + std::string(time) +
-                     operatorMark(poseAt(track, t), markSeed(sc, 0x3a7c5u + 4096u * uint32_t(index) +
-                                                                  uint32_t(count++)));
+            marks +=
+                (marks.empty() ? "" : "; ") + std::string(time) +
+                operatorMark(poseAt(track, t),
+                             markSeed(sc, 0x3a7c5u + 4096u * uint32_t(index) + uint32_t(count++)));
         }
         a = b;
     }

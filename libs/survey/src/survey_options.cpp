@@ -25,12 +25,12 @@ std::optional<std::vector<TimedMark>> parseMarks(const std::string& text) {
     while (std::getline(list, item, ';')) {
         std::istringstream in(item);
         TimedMark m;
-        std::string pose, word;
         if (!(in >> m.time_s) || !std::isfinite(m.time_s)) {
             if (item.find_first_not_of(" \t") == std::string::npos) continue;  // "a;;b", "a;"
             return std::nullopt;
         }
-        while (in >> word) pose += word + " ";
+        std::string pose;
+        std::getline(in, pose);
         const auto p = parseStartPose(pose);
         if (!p) return std::nullopt;
         m.pose = *p;

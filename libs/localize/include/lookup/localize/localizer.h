@@ -8,11 +8,11 @@
 // Observations are fed in time order as they arrive; nothing here reads files, so the same
 // class runs on a rawlog replay and on live sensors.
 
-#include <Eigen/Core>
 #include <mrpt/obs/CObservation.h>
 #include <mrpt/obs/CObservationImage.h>
 #include <mrpt/poses/CPose2D.h>
 #include <mrpt/poses/CPosePDFGaussian.h>
+#include <Eigen/Core>
 
 #include <deque>
 #include <limits>

@@ -136,15 +136,15 @@ struct SurveyOptions : public common::TableOptions<SurveyOptions> {
     /// mark at its last lidar scan, "x y yaw_deg" ("" = the dataset's `end_pose`, else none).
     /// The map is turned and moved rigidly to agree with both marks (docs/survey.md).
     std::string end_pose;
-    double end_pose_std_xy_m = 0.05;      ///< its standard deviation [m]
-    double end_pose_std_yaw_deg = 0.1;    ///< ... in heading [deg]
+    double end_pose_std_xy_m = 0.05;    ///< its standard deviation [m]
+    double end_pose_std_yaw_deg = 0.1;  ///< ... in heading [deg]
     /// Operator's marks along the mapping traverse: the vehicle at rest over a surveyed mark at
     /// rawlog time t, "t x y yaw_deg; t x y yaw_deg; ..." ("" = the dataset's `marks`, else
     /// none). Fitted with the start and end marks; one that disagrees with the others and the
     /// map is left out, with a warning (docs/survey.md).
     std::string marks;
-    double marks_std_xy_m = 0.05;    ///< each one's standard deviation [m]
-    double marks_std_yaw_deg = 0.1;  ///< ... in heading [deg]
+    double marks_std_xy_m = 0.05;         ///< each one's standard deviation [m]
+    double marks_std_yaw_deg = 0.1;       ///< ... in heading [deg]
     double start_search_spacing_m = 1.0;  ///< spacing of the start guesses along the map [m]
     double start_match_travel_m = 4.0;    ///< scans of the first metres matched together [m]
     double start_min_goodness = 0.5;      ///< a start with a lower ICP goodness is an error
