@@ -1327,18 +1327,23 @@ mrpt::math::CMatrixDouble33 Localizer::surveyCovariance(
     return cov;
 }
 
+std::optional<Eigen::Vector3d> Localizer::mapVelocityAt(double time_s, double yaw) const {
+    const auto v = velocityAt(time_s);  // in the vehicle's frame
+    if (!v) return std::nullopt;
+    const double c = std::cos(yaw), s = std::sin(yaw);
+    return Eigen::Vector3d(c * v->vx_mps - s * v->vy_mps, s * v->vx_mps + c * v->vy_mps,
+                           v->yaw_rate_radps);
+}
+
 mrpt::math::CMatrixDouble33 Localizer::imageTimeCovariance(double time_s, double yaw,
                                                            double sigma_s) const {
-    // The vehicle moves and turns over the image time's uncertainty; velocity in its frame.
+    // The vehicle moves and turns over the image time's uncertainty.
     mrpt::math::CMatrixDouble33 cov;
     cov.setZero();
     if (!(sigma_s > 0)) return cov;
-    const auto v = velocityAt(time_s);
-    if (!v) return cov;
-    const double c = std::cos(yaw), s = std::sin(yaw);
-    const Eigen::Vector3d rate(c * v->vx_mps - s * v->vy_mps, s * v->vx_mps + c * v->vy_mps,
-                               v->yaw_rate_radps);
-    cov.asEigen() = sigma_s * sigma_s * rate * rate.transpose();
+    const auto rate = mapVelocityAt(time_s, yaw);
+    if (!rate) return cov;
+    cov.asEigen() = sigma_s * sigma_s * *rate * rate->transpose();
     return cov;
 }
 
@@ -1368,16 +1373,13 @@ mrpt::math::CMatrixDouble33 Localizer::unsharedLatencyCovariance(double time_s, 
     mrpt::math::CMatrixDouble33 cov;
     cov.setZero();
     if (!(survey_clock_sigma_s_ > 0) || fix_references_.empty()) return cov;
-    const auto v = velocityAt(time_s);
-    if (!v) return cov;
-    const double c = std::cos(yaw), s = std::sin(yaw);
-    const Eigen::Vector3d vehicle(c * v->vx_mps - s * v->vy_mps, s * v->vx_mps + c * v->vy_mps,
-                                  v->yaw_rate_radps);
+    const auto vehicle = mapVelocityAt(time_s, yaw);
+    if (!vehicle) return cov;
     std::size_t n = 0;
     for (std::size_t i : fix_references_) {
         const auto reference = referenceVelocity(i);
         if (!reference) continue;
-        const Eigen::Vector3d w = vehicle - *reference;
+        const Eigen::Vector3d w = *vehicle - *reference;
         cov.asEigen() += w * w.transpose();
         ++n;
     }

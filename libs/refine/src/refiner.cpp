@@ -1,8 +1,6 @@
 #include "lookup/refine/refiner.h"
 
 #include <mrpt/img/CImage.h>
-#include <mrpt/math/ops_matrices.h>
-#include <Eigen/Dense>
 
 #include <algorithm>
 #include <chrono>
@@ -488,16 +486,10 @@ namespace {
 /// by the frame's heading (its shortening along a grade, cos of the slope, left out).
 mrpt::poses::CPosePDFGaussian toMap(const mrpt::poses::CPosePDFGaussian& local,
                                     const mrpt::poses::CPose3D& floor) {
-    const mrpt::poses::CPose3D in_map = floor + mrpt::poses::CPose3D(local.mean);
-    const auto R = floor.getRotationMatrix();
-    const double turn = std::atan2(R(1, 0), R(0, 0));
-    mrpt::math::CMatrixDouble33 J;
-    J.setIdentity();
-    J(0, 0) = J(1, 1) = std::cos(turn);
-    J(0, 1) = -std::sin(turn);
-    J(1, 0) = std::sin(turn);
-    return mrpt::poses::CPosePDFGaussian(mrpt::poses::CPose2D(in_map),
-                                         mrpt::math::multiply_HCHt(J, local.cov));
+    mrpt::poses::CPosePDFGaussian in_map(
+        mrpt::poses::CPose2D(floor + mrpt::poses::CPose3D(local.mean)), local.cov);
+    in_map.rotateCov(floor.yaw());
+    return in_map;
 }
 
 /// The refinement against `usable` (of the `references` given) with every pose in a frame whose

@@ -672,51 +672,46 @@ FrameTie tieToMarks(const mrpt::poses::CPose2D& start, const SurveyOptions& o,
     }
 }
 
-/// A mark at the mapping traverse's time `t`: its pose there (map frame), nullopt outside the
-/// track.
-std::optional<MarkTie> markAgainstMap(const mrpt::poses::CPose2D& origin, const GridMap& map,
-                                      double t, const mrpt::poses::CPose2D& mark,
-                                      const Eigen::Matrix3d& mark_cov, const SurveyOptions& o) {
-    const auto& track = map.mapping_track;
-    if (track.empty() || t < track.front().time_s - 1e-6 || t > track.back().time_s + 1e-6) {
-        return std::nullopt;
-    }
-    const auto pose = common::poseAt(common::makeInterpolator(track, o.max_pose_gap_s),
-                                     std::clamp(t, track.front().time_s, track.back().time_s));
-    if (!pose) return std::nullopt;
-    // The graph's covariance is in the grid frame: turned into the map frame.
-    Eigen::Matrix3d graph_cov = Eigen::Matrix3d::Zero();
-    if (map.graph_covs.size() == track.size()) {
-        const auto it = std::lower_bound(track.begin(), track.end(), t,
-                                         [](const auto& p, double v) { return p.time_s < v; });
-        const auto k = static_cast<std::size_t>(std::min<std::ptrdiff_t>(
-            it - track.begin(), static_cast<std::ptrdiff_t>(track.size()) - 1));
-        const Eigen::Matrix3d turn =
-            Eigen::AngleAxisd(origin.phi(), Eigen::Vector3d::UnitZ()).toRotationMatrix();
-        graph_cov = turn * map.graph_covs[k].asEigen() * turn.transpose();
-    }
-    return MarkTie{origin + mrpt::poses::CPose2D(*pose), mark, (mark_cov + graph_cov).inverse()};
-}
-
-/// The end mark (at the mapping traverse's last pose) and the marks along the drive against
-/// the map; a mark outside the drive's time is said and left out.
+/// The end mark (at the mapping traverse's last pose) and the marks along the drive, each
+/// against the map's pose at its time (map frame) with the graph's covariance there; a mark
+/// outside the drive's time is said and left out.
 std::vector<MarkTie> marksAgainstMap(const mrpt::poses::CPose2D& origin, const GridMap& map,
                                      const SurveyInputs& in, const SurveyOptions& o,
                                      SurveyResult& result) {
+    const auto& track = map.mapping_track;
+    std::vector<double> times;
+    for (const auto& p : track) times.push_back(p.time_s);
+    const auto interp = common::makeInterpolator(track, o.max_pose_gap_s);
+    // The graph's covariance is in the grid frame: turned into the map frame.
+    const Eigen::Matrix3d turn =
+        Eigen::AngleAxisd(origin.phi(), Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    const auto against = [&](double t, const mrpt::poses::CPose2D& mark,
+                             const Eigen::Matrix3d& mark_cov) -> std::optional<MarkTie> {
+        if (times.empty() || t < times.front() - 1e-6 || t > times.back() + 1e-6) {
+            return std::nullopt;
+        }
+        const auto pose = common::poseAt(interp, std::clamp(t, times.front(), times.back()));
+        if (!pose) return std::nullopt;
+        Eigen::Matrix3d graph_cov = Eigen::Matrix3d::Zero();
+        if (map.graph_covs.size() == track.size()) {
+            graph_cov = turn * map.graph_covs[nearestIndex(times, t)].asEigen() * turn.transpose();
+        }
+        return MarkTie{origin + mrpt::poses::CPose2D(*pose), mark,
+                       (mark_cov + graph_cov).inverse()};
+    };
     std::vector<MarkTie> ties;
     const std::string& end_text = o.end_pose.empty() ? in.end_pose : o.end_pose;
     const auto end_mark = parseStartPose(end_text);
-    if (end_mark && !map.mapping_track.empty()) {
-        const auto tie =
-            markAgainstMap(origin, map, map.mapping_track.back().time_s, *end_mark,
-                           markCovariance(o.end_pose_std_xy_m, o.end_pose_std_yaw_deg), o);
+    if (end_mark && !times.empty()) {
+        const auto tie = against(times.back(), *end_mark,
+                                 markCovariance(o.end_pose_std_xy_m, o.end_pose_std_yaw_deg));
         if (tie) ties.push_back(*tie);
         result.end_mark.given = tie.has_value();
     }
     const std::string& marks_text = o.marks.empty() ? in.marks : o.marks;
     for (const TimedMark& m : parseMarks(marks_text).value_or(std::vector<TimedMark>{})) {
-        const auto tie = markAgainstMap(origin, map, m.time_s, m.pose,
-                                        markCovariance(o.marks_std_xy_m, o.marks_std_yaw_deg), o);
+        const auto tie =
+            against(m.time_s, m.pose, markCovariance(o.marks_std_xy_m, o.marks_std_yaw_deg));
         if (!tie) {
             result.warnings.push_back(mrpt::format(
                 "marks: the mark at time %.3f lies outside the mapping traverse's laser poses: "

@@ -207,6 +207,9 @@ class Localizer {
     void emit(const Attempt& a, const std::optional<Prediction>& prediction,
               FrameResult& out) const;
     mrpt::math::CMatrixDouble33 surveyCovariance(const std::vector<std::size_t>& references) const;
+    /// The odometry's velocity at `time_s` in the map frame of a vehicle heading `yaw` (x, y
+    /// [m/s], yaw rate [rad/s]).
+    std::optional<Eigen::Vector3d> mapVelocityAt(double time_s, double yaw) const;
     /// What an image time uncertain by `sigma_s` adds to the pose at `time_s` [s].
     mrpt::math::CMatrixDouble33 imageTimeCovariance(double time_s, double yaw,
                                                     double sigma_s) const;
