@@ -28,8 +28,10 @@ lookup::localize::CameraClockOptions applying() {
 }
 
 /// `carried`: the estimate earlier runs left (CameraClock::carry), if any.
+/// `contamination_s`: the survey camera's unknown lateness (CameraClockOptions).
 CameraClock drive(double weave_rad, double late_s, unsigned seed = 7, bool apply = true,
-                  std::optional<CameraClock::Estimate> carried = std::nullopt) {
+                  std::optional<CameraClock::Estimate> carried = std::nullopt,
+                  double contamination_s = 0) {
     const auto yaw = [weave_rad](double t) {
         return weave_rad * std::sin(2 * M_PI * (t - kT0) / 5.0);
     };
@@ -38,6 +40,7 @@ CameraClock drive(double weave_rad, double late_s, unsigned seed = 7, bool apply
     OdometryTrack odometry;
     auto options = applying();
     options.apply = apply;
+    options.contamination_s = contamination_s;
     CameraClock clock(options);
     if (carried) clock.carry(*carried);
     double odo_walk = 0, next_frame = kT0 + 0.5;
@@ -70,6 +73,34 @@ TEST(CameraClock, ALateCameraIsFoundFromAWeaveAndApplied) {
     EXPECT_DOUBLE_EQ(reported.estimate()->offset_s, clock.estimate()->offset_s);
     EXPECT_FALSE(reported.isApplied());
     EXPECT_EQ(reported.applied(), 0.0);
+}
+
+TEST(CameraClock, ACameraSeveralFramesLateIsMeasuredAroundItsOwnEstimate) {
+    // 300 ms is a fifth of the weave's yaw-rate swing: read at the stamps, the odometry's
+    // heading would follow the weave's curve, not its slope; read at the estimate, the rest is
+    // small and the slope holds.
+    const CameraClock clock = drive(0.19, 0.300);
+    ASSERT_TRUE(clock.estimate());
+    EXPECT_NEAR(clock.estimate()->offset_s, -0.300, 0.003);
+    EXPECT_TRUE(clock.isApplied());
+    EXPECT_NEAR(clock.applied(), -0.300, 0.003);
+}
+
+TEST(CameraClock, AgainstAnUnknownSurveyClockOnlyALatenessBeyondItIsApplied) {
+    // The survey camera's unknown lateness (50 ms) may be in the estimate: 300 ms stands out of
+    // it and is applied with it in its sigma; 100 ms does not, and stays in every pose's
+    // covariance instead; a camera on time leaves nothing.
+    const CameraClock late = drive(0.19, 0.300, 7, true, std::nullopt, 0.05);
+    EXPECT_TRUE(late.isApplied());
+    EXPECT_NEAR(late.applied(), -0.300, 0.003);
+    EXPECT_GE(late.appliedSigma(), 0.05);
+    EXPECT_EQ(late.unappliedOffset(), 0.0);
+    const CameraClock less = drive(0.19, 0.100, 7, true, std::nullopt, 0.05);
+    EXPECT_FALSE(less.isApplied());
+    EXPECT_NEAR(less.unappliedOffset(), 0.100, 0.003);
+    const CameraClock on_time = drive(0.19, 0.0, 7, true, std::nullopt, 0.05);
+    EXPECT_FALSE(on_time.isApplied());
+    EXPECT_EQ(on_time.unappliedOffset(), 0.0);
 }
 
 TEST(CameraClock, ACameraOnTimeIsLeftAlone) {

@@ -144,6 +144,33 @@ TEST(TimeOffset, ARefusedFitBoundsTheConfiguredOffsetByTwiceItsDeviation) {
     EXPECT_LT(e.applied_sigma_s, 0.005);
 }
 
+TEST(TimeOffset, AFitFarFromTheConfiguredOffsetWidensItsDeviationToCoverIt) {
+    // The camera is 40 ms late; configured +150 ms (a wrong calibration) with a 50 ms sigma and
+    // the fit refused for a (made) strict precision: 190 ms apart contradicts the configured
+    // offset, which stays but with the fit's distance as its deviation, and the warning says so.
+    // 60 ms apart (configured -100 ms) is within what the fit's bias allows: the sigma stays.
+    SurveyOptions o;
+    o.time_offset_max_sigma_s = 1e-5;
+    for (const double configured : {0.150, -0.100}) {
+        Drive d = makeDrive(true, 0.040, true);
+        o.ceiling_time_offset_s = configured;
+        shiftStamps(d.images, configured);
+        const auto e = estimate(d, o);
+        EXPECT_EQ(e.source, "configured");
+        EXPECT_DOUBLE_EQ(e.offset_s, configured);
+        EXPECT_NEAR(e.fitted_s, -0.040, 0.004);
+        const bool contradicted = configured > 0;
+        EXPECT_EQ(e.warning.find("contradicts it") != std::string::npos, contradicted) << e.warning;
+        if (contradicted) {
+            EXPECT_NEAR(e.applied_sigma_s, std::hypot(e.fitted_s - configured, 2 * e.sigma_s),
+                        1e-12);
+            EXPECT_GT(e.applied_sigma_s, 0.18);
+        } else {
+            EXPECT_DOUBLE_EQ(e.applied_sigma_s, o.ceiling_time_offset_sigma_s);
+        }
+    }
+}
+
 TEST(TimeOffset, ConstantSpeedWarnsAndKeepsTheConfiguredOffset) {
     const Drive d = makeDrive(false, 0.040, true);
     SurveyOptions o;

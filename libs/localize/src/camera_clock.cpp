@@ -15,6 +15,9 @@ constexpr double kRateHalfSpan_s = 0.5 * common::OdometryTrack::kVelocitySpanS;
 constexpr double kMaxReadingGap_s = 0.1;
 constexpr int kRobustIterations = 5;
 constexpr double kInlierMads = 3.0;
+// A lateness widens the poses' covariance as soon as a few pairs show it significant; it is
+// applied only once min_pairs pairs rest on it.
+constexpr std::size_t kMinPairsToWiden = 10;
 }  // namespace
 
 void CameraClock::addFix(double stamp_s, double yaw) {
@@ -28,23 +31,31 @@ void CameraClock::addFix(double stamp_s, double yaw) {
 }
 
 std::optional<CameraClock::Sample> CameraClock::sampleAt(
-    double t, double yaw, const common::OdometryTrack& odometry) const {
-    const auto at = odometry.at(t), before = odometry.at(t - kRateHalfSpan_s),
-               after = odometry.at(t + kRateHalfSpan_s);
+    double t, double yaw, double shift, const common::OdometryTrack& odometry) const {
+    const double at_t = t + shift;
+    const auto at = odometry.at(at_t), before = odometry.at(at_t - kRateHalfSpan_s),
+               after = odometry.at(at_t + kRateHalfSpan_s);
     for (const auto& p : {at, before, after}) {
         if (!p || p->extrapolated_s > 0 || p->gap_s > kMaxReadingGap_s) return std::nullopt;
     }
     const double turned = mrpt::math::wrapToPi(after->pose.phi() - before->pose.phi());
-    return Sample{t, yaw, at->pose.phi(), turned / (2 * kRateHalfSpan_s)};
+    return Sample{t, yaw, at->pose.phi(), turned / (2 * kRateHalfSpan_s), shift};
+}
+
+double CameraClock::shift() const {
+    if (!estimate_ || estimate_->pairs < options_.min_pairs) return 0.0;
+    return std::clamp(estimate_->offset_s, -options_.max_offset_s, options_.max_offset_s);
 }
 
 void CameraClock::update(const common::OdometryTrack& odometry) {
     if (odometry.empty()) return;
     bool added = false;
-    while (!pending_.empty() && pending_.front().first + kRateHalfSpan_s <= odometry.lastTime()) {
+    const double shift = this->shift();
+    while (!pending_.empty() &&
+           pending_.front().first + shift + kRateHalfSpan_s <= odometry.lastTime()) {
         const auto [t, yaw] = pending_.front();
         pending_.pop_front();
-        if (const auto s = sampleAt(t, yaw, odometry)) {
+        if (const auto s = sampleAt(t, yaw, shift, odometry)) {
             addPair(*s);
             added = true;
         }
@@ -62,7 +73,10 @@ void CameraClock::addPair(const Sample& s) {
         if (dt < options_.min_pair_s) continue;
         const double fix_turn = mrpt::math::wrapToPi(s.yaw - it->yaw);
         const double odo_turn = mrpt::math::wrapToPi(s.odo_yaw - it->odo_yaw);
-        pairs_.push_back({fix_turn - odo_turn, -(s.odo_rate - it->odo_rate), dt});
+        // Read at t + shift, a fix's heading less the odometry's is (offset - shift) x the yaw
+        // rate: adding shift x rate brings every pair back to the offset itself.
+        const double shifted = s.shift * s.odo_rate - it->shift * it->odo_rate;
+        pairs_.push_back({fix_turn - odo_turn + shifted, -(s.odo_rate - it->odo_rate), dt});
         if (pairs_.size() > options_.max_pairs) pairs_.pop_front();
         break;
     }
@@ -70,7 +84,7 @@ void CameraClock::addPair(const Sample& s) {
 }
 
 void CameraClock::fit() {
-    if (pairs_.size() < options_.min_pairs) return;
+    if (pairs_.size() < std::min(options_.min_pairs, kMinPairsToWiden)) return;
     // residual = tau x rate_change + drift x dt, by least squares, outliers dropped by MAD.
     std::vector<double> w(pairs_.size(), 1.0), res(pairs_.size());
     double tau = 0, det = 0, s11 = 0, mad = 0;
@@ -99,7 +113,7 @@ void CameraClock::fit() {
         for (std::size_t k = 0; k < pairs_.size(); ++k) w[k] = res[k] < kInlierMads * mad ? 1 : 0;
     }
     estimate_ = withCarried({-tau, mad * std::sqrt(s11 / det), pairs_.size()});
-    consider(*estimate_);
+    if (pairs_.size() >= options_.min_pairs) consider(*estimate_);
 }
 
 void CameraClock::carry(const Estimate& earlier) {
@@ -126,12 +140,21 @@ CameraClock::Estimate CameraClock::withCarried(const Estimate& fitted) {
 }
 
 void CameraClock::consider(const Estimate& e) {
-    const bool precise =
-        e.sigma_s <= options_.max_sigma_s && std::abs(e.offset_s) <= options_.max_offset_s;
+    // Against a contaminated estimate (an uncalibrated survey's lateness in it) the estimate
+    // must stand out of the contamination, whose size its sigma then carries.
+    const double sigma = std::hypot(e.sigma_s, options_.contamination_s);
+    const bool precise = e.sigma_s <= std::max(options_.max_sigma_s, options_.contamination_s) &&
+                         std::abs(e.offset_s) <= options_.max_offset_s;
     if (options_.apply && precise &&
-        (applied_ || std::abs(e.offset_s) >= options_.significance * e.sigma_s)) {
-        applied_ = e;
+        (applied_ || std::abs(e.offset_s) >= options_.significance * sigma)) {
+        applied_ = Estimate{e.offset_s, sigma, e.pairs};
     }
+}
+
+double CameraClock::unappliedOffset() const {
+    if (applied_ || !estimate_) return 0.0;
+    const Estimate& e = *estimate_;
+    return std::abs(e.offset_s) >= options_.significance * e.sigma_s ? std::abs(e.offset_s) : 0.0;
 }
 
 }  // namespace lookup::localize

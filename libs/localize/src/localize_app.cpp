@@ -514,6 +514,10 @@ class Session {
         timing_.camera_time_offset["sigma_s"] = e.sigma_s;
         timing_.camera_time_offset["pairs"] = double(e.pairs);
         timing_.camera_time_offset["applied_s"] = clock.applied();
+        if (clock.unappliedOffset() > 0) {
+            timing_.camera_time_offset["unapplied_s"] = clock.unappliedOffset();
+        }
+        const double survey_ms = 1e3 * clock.contamination();
         std::cerr << "lookup-localize: ceiling camera's time offset against the odometry: "
                   << offsetText(e) << (clock.carried() ? " (carried ones included); " : "; ")
                   << (clock.carriedDropped() ? "the carried estimate dropped (this drive's "
@@ -521,8 +525,13 @@ class Session {
                                              : "")
                   << (!clock.applies()    ? "reported only (apply_camera_time_offset)"
                       : clock.isApplied() ? "applied"
-                                          : "not applied (not precise and significant)")
-                  << "\n";
+                                          : "not applied (not precise and significant)");
+        if (survey_ms > 0 && clock.applies()) {
+            std::cerr << " beside the survey camera's unknown lateness (+- " << survey_ms
+                      << " ms, db.ini)";
+        }
+        if (clock.unappliedOffset() > 0) std::cerr << "; every pose's covariance carries it";
+        std::cerr << "\n";
     }
 
     /// Writes the estimate for the vehicle's next run (camera_clock_file); a failure is said,

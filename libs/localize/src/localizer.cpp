@@ -148,11 +148,16 @@ refine::RefinerOptions gridSampling(refine::RefinerOptions o) {
 }
 
 // The camera clock's estimate is applied where the survey's own camera clock is known (or the
-// options force it either way).
+// options force it either way). Against a survey whose clock is known only to a larger sigma,
+// the references' lateness may be in the estimate: it is applied where it stands out of that.
 CameraClockOptions cameraClockOptions(const LocalizerOptions& o, const database::DatabaseInfo& db) {
     CameraClockOptions c = o.camera_clock;
+    const bool automatic = o.apply_camera_time_offset == CameraClockApply::Auto;
     c.apply = o.apply_camera_time_offset == CameraClockApply::Always ||
-              (o.apply_camera_time_offset == CameraClockApply::Auto && surveyClockKnown(o, db));
+              (automatic && db.ceiling_time_offset_sigma_s);
+    if (automatic && !surveyClockKnown(o, db)) {
+        c.contamination_s = db.ceiling_time_offset_sigma_s.value_or(0.0);
+    }
     return c;
 }
 
@@ -970,12 +975,22 @@ std::optional<std::string> Localizer::trackDisagreesWithOdometry(
 
 FrameResult Localizer::processCeilingOnClock(const mrpt::obs::CObservationImage& image) {
     const double stamp_s = mrpt::Clock::toDouble(image.timestamp);
+    const double applied_before = camera_clock_.applied();
     camera_clock_.update(odometry_);
+    retimeFixes(camera_clock_.applied() - applied_before);
     mrpt::obs::CObservationImage query = rectifier_.rectify(image);
     query.timestamp = mrpt::Clock::fromDouble(stamp_s + camera_clock_.applied());
     FrameResult out = processCeiling(query);
     if (out.status == FrameStatus::Refined) camera_clock_.addFix(stamp_s, out.pose.mean.phi());
     return out;
+}
+
+void Localizer::retimeFixes(double moved_s) {
+    // The fixes were taken when their images were, which a newly applied offset now says: the
+    // track's prediction runs the odometry from there.
+    if (moved_s == 0) return;
+    if (last_fix_) last_fix_->time_s += moved_s;
+    for (auto& [time_s, yaw] : fix_headings_) time_s += moved_s;
 }
 
 // Per ceiling frame: coarse -> locate (track, hypothesis, the ceiling's places, around the
@@ -1419,11 +1434,13 @@ void Localizer::finishFrame(FrameResult& out) {
     }
     fine_tracking_ = out.status == FrameStatus::Refined;
     if (fine_tracking_) open_places_.clear();
-    // The vehicle's unknown lateness moves its fixes and predictions alike: the track keeps its
-    // own covariance, the emitted pose carries it.
+    // The vehicle's unknown lateness, or one its camera clock measured but did not apply, moves
+    // its fixes and predictions alike: the track keeps its own covariance, the emitted pose
+    // carries it.
     if (out.has_pose) {
-        out.pose.cov +=
-            imageTimeCovariance(out.time_s, out.pose.mean.phi(), uncalibrated_clock_sigma_s_);
+        out.pose.cov += imageTimeCovariance(
+            out.time_s, out.pose.mean.phi(),
+            std::hypot(uncalibrated_clock_sigma_s_, camera_clock_.unappliedOffset()));
         out.pose.cov += unsharedLatencyCovariance(out.time_s, out.pose.mean.phi());
         out.height_m = floorHeightUnder(out.pose.mean);
     }

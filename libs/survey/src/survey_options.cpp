@@ -72,6 +72,7 @@ void SurveyOptions::declareKeys(common::OptionsTable& t) {
     t.add("ceiling_stamp_row", ceiling_stamp_row, common::stampRowNames());
     t.add("time_offset_estimate", time_offset_estimate);
     t.add("time_offset_max_s", time_offset_max_s, common::kPositive, 1.0);
+    t.add("time_offset_contradiction_s", time_offset_contradiction_s, common::kPositive);
     t.add("time_offset_baseline_m", time_offset_baseline_m, common::kPositive, 5.0);
     t.add("time_offset_max_pairs", time_offset_max_pairs, 1, 1000000);
     t.add("time_offset_min_pairs", time_offset_min_pairs, 1, 1000000);

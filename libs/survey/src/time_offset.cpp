@@ -362,12 +362,28 @@ std::string notEstimated(const TimeOffsetEstimate& e, const std::string& why) {
 // the distance between them, give or take twice the fit's deviation. Once is too tight where
 // the traverses start and stop over the same floor: its bumps pitch every one of them alike
 // there, an error the per-traverse consistency check cannot see.
-double appliedSigma(const TimeOffsetEstimate& e, const SurveyOptions& o) {
+double boundFromFit(const TimeOffsetEstimate& e) {
     constexpr double kBoundSigmas = 2.0;
+    return std::hypot(e.fitted_s - e.configured_s, kBoundSigmas * e.sigma_s);
+}
+
+// Whether a fit not trusted as the offset still contradicts the configured one: farther from
+// it than the fit's bias on a relief-rich ceiling and than the two deviations allow.
+bool contradicts(const TimeOffsetEstimate& e, const SurveyOptions& o) {
+    constexpr double kSigmas = 3.0;
+    if (e.pairs_used == 0 || !std::isfinite(e.sigma_s)) return false;
+    const double apart = std::abs(e.fitted_s - e.configured_s);
+    return apart > o.time_offset_contradiction_s &&
+           apart > kSigmas * std::hypot(e.sigma_s, o.ceiling_time_offset_sigma_s);
+}
+
+// The fit's deviation once estimated; else the configured one's, tightened to what the fit
+// allows of it, or widened to it where the fit contradicts the configured offset.
+double appliedSigma(const TimeOffsetEstimate& e, const SurveyOptions& o) {
     if (e.source == "estimated") return e.sigma_s;
     if (e.pairs_used == 0 || !std::isfinite(e.sigma_s)) return o.ceiling_time_offset_sigma_s;
-    return std::min(o.ceiling_time_offset_sigma_s,
-                    std::hypot(e.fitted_s - e.configured_s, kBoundSigmas * e.sigma_s));
+    if (contradicts(e, o)) return boundFromFit(e);
+    return std::min(o.ceiling_time_offset_sigma_s, boundFromFit(e));
 }
 
 // The image motion of a pair is that of the rows' mean exposure, the middle row's; with a
@@ -385,6 +401,14 @@ void decide(TimeOffsetEstimate& e, const std::string& refusal, const SurveyOptio
         e.warning = notEstimated(e, refusal);
     }
     e.applied_sigma_s = appliedSigma(e, o);
+    if (e.source != "estimated" && contradicts(e, o)) {
+        char buf[200];
+        std::snprintf(buf, sizeof(buf),
+                      "; the fit contradicts it (more than time_offset_contradiction_s = %.3f s "
+                      "and 3 sigmas away): its sigma widened to %.4f s",
+                      o.time_offset_contradiction_s, e.applied_sigma_s);
+        e.warning += buf;
+    }
 }
 
 }  // namespace

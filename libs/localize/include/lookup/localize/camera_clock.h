@@ -32,7 +32,11 @@ struct CameraClockOptions {
     std::size_t max_pairs = 1000;  ///< the newest kept (the offset is the vehicle's, fixed)
     double max_sigma_s = 0.005;    ///< an estimate more uncertain is not applied [s]
     double significance = 3.0;     ///< nor one within this many sigmas of zero
-    double max_offset_s = 0.2;     ///< nor one larger (a broken clock, not an offset) [s]
+    double max_offset_s = 1.0;     ///< nor one larger (a broken clock, not an offset) [s]
+    /// A lateness the estimate may hold that is not the camera's own: an uncalibrated survey
+    /// camera's, which its references' headings carry through every bend [s]. An estimate is
+    /// then applied only when it stands `significance` sigmas out of it, with it in its sigma.
+    double contamination_s = 0;
 };
 
 class CameraClock {
@@ -60,12 +64,17 @@ class CameraClock {
     /// precise and significant, or follows it once applied.
     void update(const common::OdometryTrack& odometry);
 
-    /// The latest fit (at least min_pairs pairs).
+    /// The latest fit (from a few pairs on; applied from min_pairs on).
     const std::optional<Estimate>& estimate() const { return estimate_; }
     /// The offset the localiser adds to the camera's stamps now (0 until one is applied) [s].
     double applied() const { return applied_ ? applied_->offset_s : 0.0; }
     double appliedSigma() const { return applied_ ? applied_->sigma_s : 0.0; }
     bool isApplied() const { return applied_.has_value(); }
+    /// A significant estimate that is not applied (0 if none or applied): the lateness left in
+    /// the stamps, which every pose's covariance must then carry [s].
+    double unappliedOffset() const;
+    /// The lateness the estimate may hold that is not the camera's own (options) [s].
+    double contamination() const { return options_.contamination_s; }
     /// Whether an estimate will be applied once precise and significant.
     bool applies() const { return options_.enabled && options_.apply; }
 
@@ -73,13 +82,17 @@ class CameraClock {
     /// A fix with the odometry's heading and yaw rate at its stamp.
     struct Sample {
         double t = 0, yaw = 0, odo_yaw = 0, odo_rate = 0;
+        double shift = 0;  ///< the odometry read at t + shift (the estimate then)
     };
     /// Fixes' heading change minus the odometry's, against minus the change of yaw rate.
     struct Pair {
         double residual = 0, rate_change = 0, dt = 0;
     };
-    std::optional<Sample> sampleAt(double t, double yaw,
+    std::optional<Sample> sampleAt(double t, double yaw, double shift,
                                    const common::OdometryTrack& odometry) const;
+    /// Where the odometry is read for a fix: at its stamp plus the latest estimate, so that a
+    /// large offset is measured as a small one around it.
+    double shift() const;
     void addPair(const Sample& s);
     void fit();
     /// This run's fit weighed with the carried estimate (or alone once that is dropped).

@@ -235,6 +235,8 @@ class Localizer {
     /// reported poses.
     std::vector<CoarseFix> startupSeeds() const;
     std::optional<CoarseFix> fixFromMatch(const coarse::CoarseResult& match) const;
+    /// Moves the fixes' times by a change of the applied camera time offset [s].
+    void retimeFixes(double moved_s);
     /// Keeps a fix's heading (fix_headings_).
     void keepFixHeading(double time_s, double yaw_rad);
     /// The last fix where the dead reckoning starts from (odometry `at_fix` there): its place,

@@ -91,8 +91,12 @@ struct SurveyOptions : public common::TableOptions<SurveyOptions> {
     /// the survey vehicle's poses at their times.
     double ceiling_readout_ms = 0;
     common::StampRow ceiling_stamp_row = common::StampRow::First;
-    bool time_offset_estimate = true;     ///< estimate the ceiling camera's offset from the images
-    double time_offset_max_s = 0.2;       ///< search range around the configured offset [s]
+    bool time_offset_estimate = true;  ///< estimate the ceiling camera's offset from the images
+    double time_offset_max_s = 0.2;    ///< search range around the configured offset [s]
+    /// A fit not trusted as the offset that lies farther than this (and 3 sigmas) from the
+    /// configured offset contradicts it: the configured offset's sigma is widened to cover the
+    /// fit [s]. Above the fit's bias on a ceiling with relief.
+    double time_offset_contradiction_s = 0.15;
     double time_offset_baseline_m = 0.5;  ///< travel between the two images of a pair [m]
     int time_offset_max_pairs = 300;      ///< image pairs measured, at most
     int time_offset_min_pairs = 20;       ///< fewer usable pairs = warning, configured offset used
