@@ -936,9 +936,11 @@ TEST(Localize, AcquisitionCandidatesCoverEveryNearbyTraverse) {
     EXPECT_NEAR(db.reference(candidates.front()).vehicle_pose.y(), 0.0, 1e-9);
 }
 
-TEST(Localize, TheCameraClockIsAppliedWhereTheSurveysOwnClockIsKnown) {
-    // The references carry the survey camera's lateness: the vehicle's is corrected alone only
-    // against a database whose survey clock was known (db.ini), unless forced either way.
+TEST(Localize, TheCameraClockIsAppliedWhereItStandsOutOfTheSurveysOwnClock) {
+    // The references carry the survey camera's lateness: against a database whose survey clock
+    // is known (db.ini) the vehicle's estimate is applied as it is; against one known only to a
+    // larger sigma, that sigma is what the estimate must stand out of; without one, not at all,
+    // unless forced either way.
     const Scene scene;
     const auto dir = lookup::test::freshDir("lookup_localize_camera_clock");
     using Apply = localize::CameraClockApply;
@@ -946,11 +948,12 @@ TEST(Localize, TheCameraClockIsAppliedWhereTheSurveysOwnClockIsKnown) {
         std::optional<double> survey_sigma_s;
         Apply apply;
         bool applies;
+        double contamination_s;
     };
     for (const Case& c :
-         {Case{0.004, Apply::Auto, true}, Case{0.012, Apply::Auto, false},
-          Case{std::nullopt, Apply::Auto, false}, Case{std::nullopt, Apply::Always, true},
-          Case{0.004, Apply::Never, false}}) {
+         {Case{0.004, Apply::Auto, true, 0.0}, Case{0.012, Apply::Auto, true, 0.012},
+          Case{std::nullopt, Apply::Auto, false, 0.0}, Case{std::nullopt, Apply::Always, true, 0.0},
+          Case{0.004, Apply::Never, false, 0.0}}) {
         const std::string db_dir = (dir / "db").string();
         fs::remove_all(db_dir);
         SurveyCamera survey;
@@ -962,6 +965,7 @@ TEST(Localize, TheCameraClockIsAppliedWhereTheSurveysOwnClockIsKnown) {
         const localize::Localizer localizer(db, options, refine::RefinerOptions{}, nullptr, false);
         EXPECT_EQ(localizer.cameraClock().applies(), c.applies)
             << "survey sigma " << c.survey_sigma_s.value_or(-1) << ", mode " << int(c.apply);
+        EXPECT_DOUBLE_EQ(localizer.cameraClock().contamination(), c.contamination_s);
     }
 }
 
