@@ -101,6 +101,11 @@ TEST(CameraClock, AgainstAnUnknownSurveyClockOnlyALatenessBeyondItIsApplied) {
     const CameraClock on_time = drive(0.19, 0.0, 7, true, std::nullopt, 0.05);
     EXPECT_FALSE(on_time.isApplied());
     EXPECT_EQ(on_time.unappliedOffset(), 0.0);
+    // A survey clock known to 10 ms: 60 ms would stand out of it, but below
+    // min_contaminated_offset_s the estimate's own strays rule it out.
+    const CameraClock tight = drive(0.19, 0.060, 7, true, std::nullopt, 0.01);
+    EXPECT_FALSE(tight.isApplied());
+    EXPECT_NEAR(tight.unappliedOffset(), 0.060, 0.003);
 }
 
 TEST(CameraClock, ACameraOnTimeIsLeftAlone) {

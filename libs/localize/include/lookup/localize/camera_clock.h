@@ -37,6 +37,10 @@ struct CameraClockOptions {
     /// camera's, which its references' headings carry through every bend [s]. An estimate is
     /// then applied only when it stands `significance` sigmas out of it, with it in its sigma.
     double contamination_s = 0;
+    /// Nor, against such an estimate, one smaller than this: on straight and reversing drives
+    /// the estimate itself strays by tens of ms, where the partial cancellation of the two
+    /// lateness serves better; a camera buffering frames is later than this [s].
+    double min_contaminated_offset_s = 0.1;
 };
 
 class CameraClock {
