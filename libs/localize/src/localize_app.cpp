@@ -11,6 +11,7 @@
 #include <unistd.h>
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <exception>
 #include <filesystem>
@@ -517,7 +518,7 @@ class Session {
         if (clock.unappliedOffset() > 0) {
             timing_.camera_time_offset["unapplied_s"] = clock.unappliedOffset();
         }
-        const double survey_ms = 1e3 * clock.contamination();
+        const double survey_ms = std::round(1e4 * clock.contamination()) / 10;
         std::cerr << "lookup-localize: ceiling camera's time offset against the odometry: "
                   << offsetText(e) << (clock.carried() ? " (carried ones included); " : "; ")
                   << (clock.carriedDropped() ? "the carried estimate dropped (this drive's "
