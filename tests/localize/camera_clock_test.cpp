@@ -87,9 +87,9 @@ TEST(CameraClock, ACameraSeveralFramesLateIsMeasuredAroundItsOwnEstimate) {
 }
 
 TEST(CameraClock, AgainstAnUnknownSurveyClockOnlyALatenessBeyondItIsApplied) {
-    // The survey camera's unknown lateness (50 ms) may be in the estimate: 300 ms stands out of
-    // it and is applied with it in its sigma; 100 ms does not, and stays in every pose's
-    // covariance instead; a camera on time leaves nothing.
+    // The survey camera's unknown lateness (50 ms) may be in the estimate: a camera 300 ms late
+    // stands out of it and is applied with it in its sigma; 100 ms does not, and stays in every
+    // pose's covariance instead; a camera on time leaves nothing.
     const CameraClock late = drive(0.19, 0.300, 7, true, std::nullopt, 0.05);
     EXPECT_TRUE(late.isApplied());
     EXPECT_NEAR(late.applied(), -0.300, 0.003);
@@ -101,6 +101,11 @@ TEST(CameraClock, AgainstAnUnknownSurveyClockOnlyALatenessBeyondItIsApplied) {
     const CameraClock on_time = drive(0.19, 0.0, 7, true, std::nullopt, 0.05);
     EXPECT_FALSE(on_time.isApplied());
     EXPECT_EQ(on_time.unappliedOffset(), 0.0);
+    // An odometry later than the camera by 300 ms (or a camera stamped early): the camera's
+    // stamp does not carry the odometry's lateness, nothing is applied, the covariance says it.
+    const CameraClock early = drive(0.19, -0.300, 7, true, std::nullopt, 0.05);
+    EXPECT_FALSE(early.isApplied());
+    EXPECT_NEAR(early.unappliedOffset(), 0.300, 0.006);
     // A survey clock known to 10 ms: 60 ms would stand out of it, but below
     // min_contaminated_offset_s the estimate's own strays rule it out.
     const CameraClock tight = drive(0.19, 0.060, 7, true, std::nullopt, 0.01);
