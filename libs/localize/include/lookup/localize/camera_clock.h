@@ -37,9 +37,11 @@ struct CameraClockOptions {
     /// camera's, which its references' headings carry through every bend [s]. An estimate is
     /// then applied only when it stands `significance` sigmas out of it, with it in its sigma.
     double contamination_s = 0;
-    /// Nor, against such an estimate, one smaller than this: on straight and reversing drives
-    /// the estimate itself strays by tens of ms, where the partial cancellation of the two
-    /// lateness serves better; a camera buffering frames is later than this [s].
+    /// Nor, against such an estimate, one smaller than this, or one that says the camera is
+    /// earlier than the odometry (that is the odometry's own lateness, which the camera's stamp
+    /// does not carry): on straight and reversing drives the estimate itself strays by tens of
+    /// ms, where the partial cancellation of the two lateness serves better; a camera
+    /// buffering frames is later than this [s].
     double min_contaminated_offset_s = 0.1;
 };
 
