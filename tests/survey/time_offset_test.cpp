@@ -160,6 +160,7 @@ TEST(TimeOffset, AFitFarFromTheConfiguredOffsetWidensItsDeviationToCoverIt) {
         EXPECT_DOUBLE_EQ(e.offset_s, configured);
         EXPECT_NEAR(e.fitted_s, -0.040, 0.004);
         const bool contradicted = configured > 0;
+        EXPECT_EQ(e.contradicted, contradicted);
         EXPECT_EQ(e.warning.find("contradicts it") != std::string::npos, contradicted) << e.warning;
         if (contradicted) {
             EXPECT_NEAR(e.applied_sigma_s, std::hypot(e.fitted_s - configured, 2 * e.sigma_s),

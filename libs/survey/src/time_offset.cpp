@@ -401,7 +401,8 @@ void decide(TimeOffsetEstimate& e, const std::string& refusal, const SurveyOptio
         e.warning = notEstimated(e, refusal);
     }
     e.applied_sigma_s = appliedSigma(e, o);
-    if (e.source != "estimated" && contradicts(e, o)) {
+    e.contradicted = e.source != "estimated" && contradicts(e, o);
+    if (e.contradicted) {
         char buf[200];
         std::snprintf(buf, sizeof(buf),
                       "; the fit contradicts it (more than time_offset_contradiction_s = %.3f s "
@@ -645,6 +646,7 @@ nlohmann::ordered_json timeOffsetJson(const TimeOffsetEstimate& e) {
             {"fitted_s", fit(e.fitted_s)},
             {"sigma_s", fit(e.sigma_s)},
             {"applied_sigma_s", e.applied_sigma_s},
+            {"contradicted", e.contradicted},
             {"scale", fit(e.scale)},
             {"rms_m", fit(e.rms_m)},
             {"pairs_tried", e.pairs_tried},

@@ -42,7 +42,10 @@ struct TimeOffsetEstimate {
     std::size_t pairs_measured = 0;  ///< pairs with enough tracked ceiling points
     std::size_t pairs_used = 0;      ///< measured pairs inside the outlier gate
     std::string warning;             ///< why the configured offset is used ("" = estimated)
-    double time_s = 0;               ///< wall time [s]
+    /// The refused fit contradicts the configured offset (SurveyOptions::
+    /// time_offset_contradiction_s): applied_sigma_s was widened to cover the fit.
+    bool contradicted = false;
+    double time_s = 0;  ///< wall time [s]
 };
 
 /// Estimates the ceiling camera's offset from the traverses' images, whose stamps already carry
