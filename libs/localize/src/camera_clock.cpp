@@ -147,9 +147,10 @@ void CameraClock::consider(const Estimate& e) {
     // which the camera's stamp does not share (it stays in the covariance, unapplied).
     const double sigma = std::hypot(e.sigma_s, options_.contamination_s);
     const bool contaminated = options_.contamination_s > 0;
-    const bool precise = e.sigma_s <= std::max(options_.max_sigma_s, options_.contamination_s) &&
-                         std::abs(e.offset_s) <= options_.max_offset_s &&
-                         (!contaminated || -e.offset_s >= options_.min_contaminated_offset_s);
+    const bool precise =
+        e.sigma_s <= std::max(options_.max_sigma_s, options_.contamination_s) &&
+        std::abs(e.offset_s) <= options_.max_offset_s && !odometryLater(e) &&
+        (!contaminated || std::abs(e.offset_s) >= options_.min_contaminated_offset_s);
     if (options_.apply && precise &&
         (applied_ || std::abs(e.offset_s) >= options_.significance * sigma)) {
         applied_ = Estimate{e.offset_s, sigma, e.pairs};

@@ -526,7 +526,7 @@ class Session {
                                              : "")
                   << (!clock.applies()    ? "reported only (apply_camera_time_offset)"
                       : clock.isApplied() ? "applied"
-                      : survey_ms > 0 && e.offset_s > 0 && clock.unappliedOffset() > 0
+                      : clock.unappliedAsOdometryLateness()
                           ? "not applied (the odometry is the later: its own lateness)"
                           : "not applied (not precise and significant)");
         if (survey_ms > 0 && clock.applies()) {

@@ -382,7 +382,7 @@ bool contradicts(const TimeOffsetEstimate& e, const SurveyOptions& o) {
 double appliedSigma(const TimeOffsetEstimate& e, const SurveyOptions& o) {
     if (e.source == "estimated") return e.sigma_s;
     if (e.pairs_used == 0 || !std::isfinite(e.sigma_s)) return o.ceiling_time_offset_sigma_s;
-    if (contradicts(e, o)) return boundFromFit(e);
+    if (e.contradicted) return boundFromFit(e);
     return std::min(o.ceiling_time_offset_sigma_s, boundFromFit(e));
 }
 
@@ -400,8 +400,8 @@ void decide(TimeOffsetEstimate& e, const std::string& refusal, const SurveyOptio
     } else {
         e.warning = notEstimated(e, refusal);
     }
-    e.applied_sigma_s = appliedSigma(e, o);
     e.contradicted = e.source != "estimated" && contradicts(e, o);
+    e.applied_sigma_s = appliedSigma(e, o);
     if (e.contradicted) {
         char buf[200];
         std::snprintf(buf, sizeof(buf),

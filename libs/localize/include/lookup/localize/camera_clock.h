@@ -79,6 +79,11 @@ class CameraClock {
     /// A significant estimate that is not applied (0 if none or applied): the lateness left in
     /// the stamps, which every pose's covariance must then carry [s].
     double unappliedOffset() const;
+    /// Whether that unapplied estimate is held back for saying the odometry is the later (only
+    /// against a contaminated estimate: min_contaminated_offset_s).
+    bool unappliedAsOdometryLateness() const {
+        return unappliedOffset() > 0 && odometryLater(*estimate_);
+    }
     /// The lateness the estimate may hold that is not the camera's own (options) [s].
     double contamination() const { return options_.contamination_s; }
     /// Whether an estimate will be applied once precise and significant.
@@ -99,6 +104,11 @@ class CameraClock {
     /// Where the odometry is read for a fix: at its stamp plus the latest estimate, so that a
     /// large offset is measured as a small one around it.
     double shift() const;
+    /// Against a contaminated estimate, `e` says the odometry is later than the camera: the
+    /// odometry's own lateness, not corrected on the camera's stamps.
+    bool odometryLater(const Estimate& e) const {
+        return options_.contamination_s > 0 && e.offset_s > 0;
+    }
     void addPair(const Sample& s);
     void fit();
     /// This run's fit weighed with the carried estimate (or alone once that is dropped).
