@@ -415,13 +415,15 @@ TEST(Health, AClockJumpingBackIsReportedAndTheRunGoesOn) {
 }
 
 TEST(Health, RealTimeUnderLoadDropsFramesInsteadOfLaggingAndSaysHowMany) {
-    // 250 frames/s recorded: faster than a frame is localised, on any machine.
+    // 2000 frames/s recorded: faster than a frame is localised, on any machine (a machine
+    // that keeps up with 250 frames/s dropped none).
     QuerySpec q;
     q.count = 100;
-    q.period_s = 0.004;
+    q.period_s = 0.0005;
+    const double max_latency_s = 0.01;
     CoarseFileRun run("realtime_load", q);
     std::ofstream(run.dir / "rt.ini")
-        << "[localizer]\nmax_latency_s = 0.02\nhealth_interval_s = 0.02\n";
+        << "[localizer]\nmax_latency_s = " << max_latency_s << "\nhealth_interval_s = 0.02\n";
     run.req.ini_file = (run.dir / "rt.ini").string();
     run.req.realtime = 1;
     const int port = freePort(SOCK_DGRAM);
@@ -456,11 +458,11 @@ TEST(Health, RealTimeUnderLoadDropsFramesInsteadOfLaggingAndSaysHowMany) {
         if (m.at("status") == "dropped") continue;
         const double processing_ms = m.at("processing_ms").get<double>();
         longest_frame_s = std::max(longest_frame_s, processing_ms / 1e3);
-        EXPECT_LT(m.at("latency_ms").get<double>() - processing_ms, 20.0 + 30.0)
+        EXPECT_LT(m.at("latency_ms").get<double>() - processing_ms, 1e3 * max_latency_s + 30.0)
             << "frame " << m.at("frame");
     }
     close(rx);
-    EXPECT_LT(timing.wall_s, q.count * q.period_s + 0.02 + longest_frame_s + 0.1);
+    EXPECT_LT(timing.wall_s, q.count * q.period_s + max_latency_s + longest_frame_s + 0.1);
     EXPECT_EQ(last_health_dropped, timing.frames_dropped);  // the last health message says so
 }
 
