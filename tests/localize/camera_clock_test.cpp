@@ -50,7 +50,7 @@ CameraClock drive(double weave_rad, double late_s, unsigned seed = 7, bool apply
         if (t < next_frame) continue;
         clock.update(odometry);
         const double exposure = next_frame - late_s;
-        clock.addFix(next_frame, 0.3 + yaw(exposure) + fix_noise(rng));
+        clock.addFix(next_frame, mrpt::poses::CPose2D(0, 0, 0.3 + yaw(exposure) + fix_noise(rng)));
         next_frame += 1 / kCameraHz;
     }
     clock.update(odometry);
@@ -171,4 +171,46 @@ TEST(CameraClock, ACarriedEstimateThisDriveContradictsIsDropped) {
     ASSERT_TRUE(clock.estimate());
     EXPECT_NEAR(clock.estimate()->offset_s, 0.0, 0.006);
     EXPECT_NEAR(clock.applied(), 0.0, 0.006);
+}
+
+namespace {
+
+/// A straight drive from rest at 1.5 m/s2 for `duration_s`: the odometry reads `scale` times
+/// the travel, the fixes (1 cm, 0.1 deg of noise) are stamped `late_s` after their exposure.
+CameraClock accelerate(double late_s, double scale, double duration_s) {
+    const auto travel = [](double t) { return 0.75 * (t - kT0) * (t - kT0); };
+    std::mt19937 rng(11);
+    std::normal_distribution<double> place_noise(0, 0.01), heading_noise(0, 0.0015);
+    OdometryTrack odometry;
+    CameraClock clock(applying());
+    double next_frame = kT0 + 0.2;
+    for (double t = kT0; t < kT0 + duration_s; t += 1 / kOdometryHz) {
+        odometry.add(t, mrpt::poses::CPose2D(scale * travel(t), 0, 0));
+        if (t < next_frame) continue;
+        clock.update(odometry);
+        const double exposure = std::max(kT0, next_frame - late_s);
+        clock.addFix(next_frame, mrpt::poses::CPose2D(5 + travel(exposure) + place_noise(rng),
+                                                      2 + place_noise(rng), heading_noise(rng)));
+        next_frame += 1 / kCameraHz;
+    }
+    clock.update(odometry);
+    return clock;
+}
+
+}  // namespace
+
+TEST(CameraClock, ACameraFramesLateShowsAsTheVehicleSpeedsUpAndWidensThePosesAtOnce) {
+    // No bend yet: the heading shows nothing, the fixes lagging the odometry as the speed
+    // grows do. Within 2 s of the first fix the lateness is carried in every pose, not applied.
+    const CameraClock late = accelerate(0.300, 1.01, 2.2);
+    ASSERT_TRUE(late.speedEstimate());
+    EXPECT_NEAR(late.speedEstimate()->offset_s, -0.300, 0.03);
+    EXPECT_LT(late.speedEstimate()->sigma_s, 0.03);
+    EXPECT_NEAR(late.unappliedOffset(), 0.300, 0.03);
+    EXPECT_FALSE(late.isApplied());
+    // On time, with the odometry's scale 3 % off: nothing to carry.
+    const CameraClock on_time = accelerate(0.0, 1.03, 2.2);
+    ASSERT_TRUE(on_time.speedEstimate());
+    EXPECT_LT(std::abs(on_time.speedEstimate()->offset_s), 0.02);
+    EXPECT_EQ(on_time.unappliedOffset(), 0.0);
 }

@@ -18,20 +18,64 @@ constexpr double kInlierMads = 3.0;
 // A lateness widens the poses' covariance as soon as a few pairs show it significant; it is
 // applied only once min_pairs pairs rest on it.
 constexpr std::size_t kMinPairsToWiden = 10;
+// The speed changes' fit only widens: it may speak from fewer pairs, as a vehicle starting
+// from rest speeds up most in its first second.
+constexpr std::size_t kMinSpeedPairs = 6;
+
+struct LineFit {
+    double slope = 0, sigma = 0;
+};
+
+/// y = slope x + nuisance z over the pairs by least squares, those beyond kInlierMads robust
+/// deviations dropped and refitted; sigma from the inliers' scatter. None when x and z do not
+/// vary apart (nothing to see).
+template <class Pairs, class X, class Z, class Y>
+std::optional<LineFit> robustFit(const Pairs& pairs, X x, Z z, Y y) {
+    std::vector<double> w(pairs.size(), 1.0), res(pairs.size());
+    double slope = 0, det = 0, s11 = 0, mad = 0;
+    for (int it = 0; it < kRobustIterations; ++it) {
+        double sxx = 0, sx1 = 0, sxr = 0, s1r = 0;
+        s11 = 0;
+        for (std::size_t k = 0; k < pairs.size(); ++k) {
+            const auto& p = pairs[k];
+            sxx += w[k] * x(p) * x(p);
+            sx1 += w[k] * x(p) * z(p);
+            s11 += w[k] * z(p) * z(p);
+            sxr += w[k] * x(p) * y(p);
+            s1r += w[k] * z(p) * y(p);
+        }
+        det = sxx * s11 - sx1 * sx1;
+        if (!(det > 0)) return std::nullopt;
+        slope = (sxr * s11 - sx1 * s1r) / det;
+        const double nuisance = (sxx * s1r - sx1 * sxr) / det;
+        for (std::size_t k = 0; k < pairs.size(); ++k) {
+            res[k] = std::abs(y(pairs[k]) - slope * x(pairs[k]) - nuisance * z(pairs[k]));
+        }
+        std::vector<double> sorted = res;
+        std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+        mad = 1.4826 * sorted[sorted.size() / 2] + 1e-9;
+        for (std::size_t k = 0; k < pairs.size(); ++k) w[k] = res[k] < kInlierMads * mad ? 1 : 0;
+    }
+    return LineFit{slope, mad * std::sqrt(s11 / det)};
+}
 }  // namespace
 
-void CameraClock::addFix(double stamp_s, double yaw) {
-    if (!options_.enabled || !std::isfinite(stamp_s) || !std::isfinite(yaw)) return;
+void CameraClock::addFix(double stamp_s, const mrpt::poses::CPose2D& pose) {
+    if (!options_.enabled || !std::isfinite(stamp_s) ||
+        !std::isfinite(pose.x() + pose.y() + pose.phi())) {
+        return;
+    }
     // Without odometry (none recorded, a dropout) fixes would wait here for ever. One still
     // waiting a pair's span later lies in a gap of the readings, which sampleAt() refuses.
     while (!pending_.empty() && stamp_s - pending_.front().first > options_.max_pair_s) {
         pending_.pop_front();
     }
-    pending_.emplace_back(stamp_s, yaw);
+    pending_.emplace_back(stamp_s, pose);
 }
 
 std::optional<CameraClock::Sample> CameraClock::sampleAt(
-    double t, double yaw, double shift, const common::OdometryTrack& odometry) const {
+    double t, const mrpt::poses::CPose2D& fix, double shift,
+    const common::OdometryTrack& odometry) const {
     const double at_t = t + shift;
     const auto at = odometry.at(at_t), before = odometry.at(at_t - kRateHalfSpan_s),
                after = odometry.at(at_t + kRateHalfSpan_s);
@@ -39,7 +83,9 @@ std::optional<CameraClock::Sample> CameraClock::sampleAt(
         if (!p || p->extrapolated_s > 0 || p->gap_s > kMaxReadingGap_s) return std::nullopt;
     }
     const double turned = mrpt::math::wrapToPi(after->pose.phi() - before->pose.phi());
-    return Sample{t, yaw, at->pose.phi(), turned / (2 * kRateHalfSpan_s), shift};
+    const double ahead = (after->pose - before->pose).x();  // signed: reversing is negative
+    return Sample{
+        t, fix, at->pose, turned / (2 * kRateHalfSpan_s), ahead / (2 * kRateHalfSpan_s), shift};
 }
 
 double CameraClock::shift() const {
@@ -53,9 +99,9 @@ void CameraClock::update(const common::OdometryTrack& odometry) {
     const double shift = this->shift();
     while (!pending_.empty() &&
            pending_.front().first + shift + kRateHalfSpan_s <= odometry.lastTime()) {
-        const auto [t, yaw] = pending_.front();
+        const auto [t, fix] = pending_.front();
         pending_.pop_front();
-        if (const auto s = sampleAt(t, yaw, shift, odometry)) {
+        if (const auto s = sampleAt(t, fix, shift, odometry)) {
             addPair(*s);
             added = true;
         }
@@ -71,12 +117,18 @@ void CameraClock::addPair(const Sample& s) {
     for (auto it = samples_.rbegin(); it != samples_.rend(); ++it) {
         const double dt = s.t - it->t;
         if (dt < options_.min_pair_s) continue;
-        const double fix_turn = mrpt::math::wrapToPi(s.yaw - it->yaw);
-        const double odo_turn = mrpt::math::wrapToPi(s.odo_yaw - it->odo_yaw);
+        const double fix_turn = mrpt::math::wrapToPi(s.fix.phi() - it->fix.phi());
+        const double odo_turn = mrpt::math::wrapToPi(s.odo.phi() - it->odo.phi());
         // Read at t + shift, a fix's heading less the odometry's is (offset - shift) x the yaw
-        // rate: adding shift x rate brings every pair back to the offset itself.
+        // rate: adding shift x rate brings every pair back to the offset itself. Likewise its
+        // place, by (offset - shift) x the speed.
         const double shifted = s.shift * s.odo_rate - it->shift * it->odo_rate;
-        pairs_.push_back({fix_turn - odo_turn + shifted, -(s.odo_rate - it->odo_rate), dt});
+        // Both travels along the vehicle's heading at the earlier fix, each in its own frame.
+        const double fix_travel = (s.fix - it->fix).x(), odo_travel = (s.odo - it->odo).x();
+        const double shifted_travel = s.shift * s.odo_speed - it->shift * it->odo_speed;
+        pairs_.push_back({fix_turn - odo_turn + shifted, -(s.odo_rate - it->odo_rate), dt,
+                          fix_travel - odo_travel + shifted_travel, s.odo_speed - it->odo_speed,
+                          odo_travel});
         if (pairs_.size() > options_.max_pairs) pairs_.pop_front();
         break;
     }
@@ -84,36 +136,23 @@ void CameraClock::addPair(const Sample& s) {
 }
 
 void CameraClock::fit() {
+    if (pairs_.size() >= kMinSpeedPairs) fitSpeedChanges();
     if (pairs_.size() < std::min(options_.min_pairs, kMinPairsToWiden)) return;
-    // residual = tau x rate_change + drift x dt, by least squares, outliers dropped by MAD.
-    std::vector<double> w(pairs_.size(), 1.0), res(pairs_.size());
-    double tau = 0, det = 0, s11 = 0, mad = 0;
-    for (int it = 0; it < kRobustIterations; ++it) {
-        double sxx = 0, sx1 = 0, sxr = 0, s1r = 0;
-        s11 = 0;
-        for (std::size_t k = 0; k < pairs_.size(); ++k) {
-            const Pair& p = pairs_[k];
-            sxx += w[k] * p.rate_change * p.rate_change;
-            sx1 += w[k] * p.rate_change * p.dt;
-            s11 += w[k] * p.dt * p.dt;
-            sxr += w[k] * p.rate_change * p.residual;
-            s1r += w[k] * p.dt * p.residual;
-        }
-        det = sxx * s11 - sx1 * sx1;
-        if (!(det > 0)) return;  // the yaw rate never changed: nothing to see
-        tau = (sxr * s11 - sx1 * s1r) / det;
-        const double drift = (sxx * s1r - sx1 * sxr) / det;
-        for (std::size_t k = 0; k < pairs_.size(); ++k) {
-            res[k] =
-                std::abs(pairs_[k].residual - tau * pairs_[k].rate_change - drift * pairs_[k].dt);
-        }
-        std::vector<double> sorted = res;
-        std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
-        mad = 1.4826 * sorted[sorted.size() / 2] + 1e-9;
-        for (std::size_t k = 0; k < pairs_.size(); ++k) w[k] = res[k] < kInlierMads * mad ? 1 : 0;
-    }
-    estimate_ = withCarried({-tau, mad * std::sqrt(s11 / det), pairs_.size()});
+    // residual = tau x rate_change + drift x dt (the odometry's heading drift).
+    const auto tau = robustFit(
+        pairs_, [](const Pair& p) { return p.rate_change; }, [](const Pair& p) { return p.dt; },
+        [](const Pair& p) { return p.residual; });
+    if (!tau) return;  // the yaw rate never changed: nothing to see
+    estimate_ = withCarried({-tau->slope, tau->sigma, pairs_.size()});
     if (pairs_.size() >= options_.min_pairs) consider(*estimate_);
+}
+
+void CameraClock::fitSpeedChanges() {
+    // travel_residual = offset x speed_change + scale x travel (the odometry's scale error).
+    const auto offset = robustFit(
+        pairs_, [](const Pair& p) { return p.speed_change; },
+        [](const Pair& p) { return p.travel; }, [](const Pair& p) { return p.travel_residual; });
+    if (offset) speed_estimate_ = Estimate{offset->slope, offset->sigma, pairs_.size()};
 }
 
 void CameraClock::carry(const Estimate& earlier) {
@@ -158,9 +197,9 @@ void CameraClock::consider(const Estimate& e) {
 }
 
 double CameraClock::unappliedOffset() const {
-    if (applied_ || !estimate_) return 0.0;
-    const Estimate& e = *estimate_;
-    return std::abs(e.offset_s) >= options_.significance * e.sigma_s ? std::abs(e.offset_s) : 0.0;
+    if (applied_) return 0.0;
+    if (significant(estimate_)) return std::abs(estimate_->offset_s);
+    return significant(speed_estimate_) ? std::abs(speed_estimate_->offset_s) : 0.0;
 }
 
 }  // namespace lookup::localize

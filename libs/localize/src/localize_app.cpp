@@ -18,6 +18,7 @@
 #include <iostream>
 #include <map>
 #include <optional>
+#include <sstream>
 #include <thread>
 
 #include "lookup/coarse/camera_stream.h"
@@ -502,6 +503,12 @@ class Session {
         return text;
     }
 
+    static std::string millisecondsText(const CameraClock::Estimate& e) {
+        char text[64];
+        std::snprintf(text, sizeof text, "%+.1f +- %.1f ms", 1e3 * e.offset_s, 1e3 * e.sigma_s);
+        return text;
+    }
+
     void reportCameraClock() {
         const auto& clock = localizer_->cameraClock();
         if (const auto& c = clock.carried()) {
@@ -515,26 +522,41 @@ class Session {
         timing_.camera_time_offset["sigma_s"] = e.sigma_s;
         timing_.camera_time_offset["pairs"] = double(e.pairs);
         timing_.camera_time_offset["applied_s"] = clock.applied();
+        if (const auto& speed = clock.speedEstimate()) {
+            timing_.camera_time_offset["speed_changes_s"] = speed->offset_s;
+            timing_.camera_time_offset["speed_changes_sigma_s"] = speed->sigma_s;
+        }
         if (clock.unappliedOffset() > 0) {
             timing_.camera_time_offset["unapplied_s"] = clock.unappliedOffset();
         }
-        const double survey_ms = std::round(1e4 * clock.contamination()) / 10;
         std::cerr << "lookup-localize: ceiling camera's time offset against the odometry: "
                   << offsetText(e) << (clock.carried() ? " (carried ones included); " : "; ")
-                  << (clock.carriedDropped() ? "the carried estimate dropped (this drive's "
-                                               "disagrees); "
-                                             : "")
-                  << (!clock.applies()    ? "reported only (apply_camera_time_offset)"
-                      : clock.isApplied() ? "applied"
-                      : clock.unappliedAsOdometryLateness()
-                          ? "not applied (the odometry is the later: its own lateness)"
-                          : "not applied (not precise and significant)");
+                  << cameraClockOutcome(clock) << "\n";
+    }
+
+    /// What became of the estimate, for the run's last line about the camera clock.
+    static std::string cameraClockOutcome(const CameraClock& clock) {
+        std::ostringstream out;
+        if (clock.carriedDropped())
+            out << "the carried estimate dropped (this drive's disagrees); ";
+        out << (!clock.applies()    ? "reported only (apply_camera_time_offset)"
+                : clock.isApplied() ? "applied"
+                : clock.unappliedAsOdometryLateness()
+                    ? "not applied (the odometry is the later: its own lateness)"
+                    : "not applied (not precise and significant)");
+        const double survey_ms = std::round(1e4 * clock.contamination()) / 10;
         if (survey_ms > 0 && clock.applies()) {
-            std::cerr << " beside the survey camera's unknown lateness (+- " << survey_ms
-                      << " ms, db.ini)";
+            out << " beside the survey camera's unknown lateness (+- " << survey_ms
+                << " ms, db.ini)";
         }
-        if (clock.unappliedOffset() > 0) std::cerr << "; every pose's covariance carries it";
-        std::cerr << "\n";
+        if (const auto& speed = clock.speedEstimate()) {
+            out << "; from its speed changes " << millisecondsText(*speed);
+        }
+        if (clock.unappliedOffset() > 0) {
+            out << "; every pose's covariance carries "
+                << std::round(1e4 * clock.unappliedOffset()) / 10 << " ms";
+        }
+        return out.str();
     }
 
     /// Writes the estimate for the vehicle's next run (camera_clock_file); a failure is said,

@@ -981,7 +981,7 @@ FrameResult Localizer::processCeilingOnClock(const mrpt::obs::CObservationImage&
     mrpt::obs::CObservationImage query = rectifier_.rectify(image);
     query.timestamp = mrpt::Clock::fromDouble(stamp_s + camera_clock_.applied());
     FrameResult out = processCeiling(query);
-    if (out.status == FrameStatus::Refined) camera_clock_.addFix(stamp_s, out.pose.mean.phi());
+    if (out.status == FrameStatus::Refined) camera_clock_.addFix(stamp_s, out.pose.mean);
     return out;
 }
 

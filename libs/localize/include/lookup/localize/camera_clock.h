@@ -9,6 +9,12 @@
 // odometry's heading drifts slowly and the references' heading errors are nearly rigid, so
 // both cancel in the differences over a second.
 //
+// A speed change shows it too: between two fixes the fixes' travel less the odometry's is
+// -tau x the change of speed. Wheel slip and the odometry's scale error blur it, so it only
+// widens the poses' covariance where it stands significant and the heading's estimate does not
+// yet (a camera buffering frames while the vehicle accelerates from rest, before any bend);
+// it is never applied.
+//
 // Only the offset against the odometry is observable; a latency common to every sensor of the
 // vehicle is not (docs/vehicle.md, "Time offset"). Estimated on every run and reported;
 // applied to the stamps where LocalizerOptions::apply_camera_time_offset says. An estimate
@@ -63,8 +69,8 @@ class CameraClock {
     const std::optional<Estimate>& carried() const { return carried_; }
     bool carriedDropped() const { return carried_dropped_; }
 
-    /// A refined frame: its stamp as the camera gave it (before applied()) and its heading.
-    void addFix(double stamp_s, double yaw);
+    /// A refined frame: its stamp as the camera gave it (before applied()) and its pose.
+    void addFix(double stamp_s, const mrpt::poses::CPose2D& pose);
     /// Pairs the fixes the odometry now covers (it must reach a little past them for the yaw
     /// rate) and refits; then, with CameraClockOptions::apply, applies the fit when it is
     /// precise and significant, or follows it once applied.
@@ -72,17 +78,21 @@ class CameraClock {
 
     /// The latest fit (from a few pairs on; applied from min_pairs on).
     const std::optional<Estimate>& estimate() const { return estimate_; }
+    /// The latest fit of the fixes' travel against the odometry's over speed changes (never
+    /// applied; its sigma is the scatter's, which wheel slip widens).
+    const std::optional<Estimate>& speedEstimate() const { return speed_estimate_; }
     /// The offset the localiser adds to the camera's stamps now (0 until one is applied) [s].
     double applied() const { return applied_ ? applied_->offset_s : 0.0; }
     double appliedSigma() const { return applied_ ? applied_->sigma_s : 0.0; }
     bool isApplied() const { return applied_.has_value(); }
     /// A significant estimate that is not applied (0 if none or applied): the lateness left in
-    /// the stamps, which every pose's covariance must then carry [s].
+    /// the stamps, which every pose's covariance must then carry [s]. The heading's estimate,
+    /// or the speed changes' where the heading's is not significant.
     double unappliedOffset() const;
     /// Whether that unapplied estimate is held back for saying the odometry is the later (only
     /// against a contaminated estimate: min_contaminated_offset_s).
     bool unappliedAsOdometryLateness() const {
-        return unappliedOffset() > 0 && odometryLater(*estimate_);
+        return !applied_ && significant(estimate_) && odometryLater(*estimate_);
     }
     /// The lateness the estimate may hold that is not the camera's own (options) [s].
     double contamination() const { return options_.contamination_s; }
@@ -90,20 +100,30 @@ class CameraClock {
     bool applies() const { return options_.enabled && options_.apply; }
 
   private:
-    /// A fix with the odometry's heading and yaw rate at its stamp.
+    /// A fix with the odometry's pose, yaw rate and speed (signed, along its heading) at its
+    /// stamp.
     struct Sample {
-        double t = 0, yaw = 0, odo_yaw = 0, odo_rate = 0;
+        double t = 0;
+        mrpt::poses::CPose2D fix, odo;
+        double odo_rate = 0, odo_speed = 0;
         double shift = 0;  ///< the odometry read at t + shift (the estimate then)
     };
-    /// Fixes' heading change minus the odometry's, against minus the change of yaw rate.
+    /// Fixes' heading change minus the odometry's, against minus the change of yaw rate; and
+    /// the fixes' travel along the first fix's heading minus the odometry's, against the
+    /// change of speed and the odometry's travel (its scale error).
     struct Pair {
         double residual = 0, rate_change = 0, dt = 0;
+        double travel_residual = 0, speed_change = 0, travel = 0;
     };
-    std::optional<Sample> sampleAt(double t, double yaw, double shift,
+    std::optional<Sample> sampleAt(double t, const mrpt::poses::CPose2D& fix, double shift,
                                    const common::OdometryTrack& odometry) const;
     /// Where the odometry is read for a fix: at its stamp plus the latest estimate, so that a
     /// large offset is measured as a small one around it.
     double shift() const;
+    /// `e` exists and stands `significance` sigmas out of zero.
+    bool significant(const std::optional<Estimate>& e) const {
+        return e && std::abs(e->offset_s) >= options_.significance * e->sigma_s;
+    }
     /// Against a contaminated estimate, `e` says the odometry is later than the camera: the
     /// odometry's own lateness, not corrected on the camera's stamps.
     bool odometryLater(const Estimate& e) const {
@@ -111,17 +131,18 @@ class CameraClock {
     }
     void addPair(const Sample& s);
     void fit();
+    void fitSpeedChanges();
     /// This run's fit weighed with the carried estimate (or alone once that is dropped).
     Estimate withCarried(const Estimate& fitted);
     /// The latest estimate; applied when precise and significant, or followed once applied.
     void consider(const Estimate& e);
 
     CameraClockOptions options_;
-    /// Fixes awaiting odometry (stamp, yaw), the last max_pair_s of them.
-    std::deque<std::pair<double, double>> pending_;
+    /// Fixes awaiting odometry (stamp, pose), the last max_pair_s of them.
+    std::deque<std::pair<double, mrpt::poses::CPose2D>> pending_;
     std::deque<Sample> samples_;  ///< the last max_pair_s of fixes
     std::deque<Pair> pairs_;
-    std::optional<Estimate> estimate_, applied_, carried_;
+    std::optional<Estimate> estimate_, applied_, carried_, speed_estimate_;
     bool carried_dropped_ = false;
 };
 
