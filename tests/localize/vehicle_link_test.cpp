@@ -415,8 +415,7 @@ TEST(Health, AClockJumpingBackIsReportedAndTheRunGoesOn) {
 }
 
 TEST(Health, RealTimeUnderLoadDropsFramesInsteadOfLaggingAndSaysHowMany) {
-    // 2000 frames/s recorded: faster than a frame is localised, on any machine (a machine
-    // that keeps up with 250 frames/s dropped none).
+    // 2000 frames/s recorded: faster than a frame is localised, on any machine.
     QuerySpec q;
     q.count = 100;
     q.period_s = 0.0005;
