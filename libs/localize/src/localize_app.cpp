@@ -496,17 +496,14 @@ class Session {
                   << offsetText(saved->estimate) << "\n";
     }
 
-    static std::string offsetText(const CameraClock::Estimate& e) {
-        char text[96];
-        std::snprintf(text, sizeof text, "%+.1f +- %.1f ms from %zu pairs of fixes",
-                      1e3 * e.offset_s, 1e3 * e.sigma_s, e.pairs);
-        return text;
-    }
-
     static std::string millisecondsText(const CameraClock::Estimate& e) {
         char text[64];
         std::snprintf(text, sizeof text, "%+.1f +- %.1f ms", 1e3 * e.offset_s, 1e3 * e.sigma_s);
         return text;
+    }
+
+    static std::string offsetText(const CameraClock::Estimate& e) {
+        return millisecondsText(e) + " from " + std::to_string(e.pairs) + " pairs of fixes";
     }
 
     void reportCameraClock() {
