@@ -1362,6 +1362,70 @@ TEST(Localize, ARollingShutterQueryIsRefinedRowByRowWithTheOdometrysVelocity) {
     EXPECT_EQ(refused.timing.skipped.at("readout_exceeds_frame_period"), 19u);
 }
 
+namespace {
+
+// A drive along the vehicle's heading speeding up from 0.5 to 4 m/s and braking again, its
+// ceiling camera a rolling shutter of 60 ms stamped at the first row; localised with `ini`.
+// Returns the mean error of the last 15 frames and the run's timing.
+std::pair<double, localize::RunTiming> varyingSpeedRollingRun(const std::string& name,
+                                                              const std::string& ini) {
+    constexpr int kFrames = 40;
+    constexpr double kHeading = 0.05;
+    std::vector<double> speed, travelled{0.0};
+    for (int i = 0; i < kFrames; ++i) {
+        speed.push_back(0.5 + 3.5 * std::sin(M_PI * i / kFrames));
+        travelled.push_back(travelled.back() + 0.1 * speed.back());
+    }
+    const auto pose = [&](int i) {
+        return mrpt::poses::CPose3D(-5 + travelled[i] * std::cos(kHeading),
+                                    0.4 + travelled[i] * std::sin(kHeading), 0, kHeading, 0, 0);
+    };
+    const auto dir = lookup::test::freshDir("lookup_localize_" + name);
+    const Scene scene;
+    PlanarDrive drive;
+    drive.vehicle = pose;
+    auto req = planarRun(
+        dir,
+        [&](int i, mrpt::obs::CObservationImage& img, mrpt::obs::CObservationOdometry&) {
+            refine::RowTiming timing;
+            timing.readout_s = 0.060;
+            timing.velocity = {speed[i], 0.0, 0.0};
+            img.image = mrpt::img::CImage(
+                scene.ceiling.renderRollingShutter(scene.camera, scene.mount, pose(i), timing),
+                mrpt::img::DEEP_COPY);
+        },
+        kFrames, drive);
+    req.ini_file = (dir / "options.ini").string();
+    std::ofstream(req.ini_file) << ini;
+    const auto timing = localize::runLocalization(req);
+    double sum = 0;
+    int n = 0;
+    for (const auto& f : eval::loadRun(req.out_dir).frames) {
+        const int i = int(std::lround((f.time_s - kT0) / 0.1));
+        if (i < kFrames - 15 || f.status != "refined") continue;
+        sum += std::hypot(f.x - pose(i).x(), f.y - pose(i).y());
+        ++n;
+    }
+    EXPECT_GE(n, 12);
+    return {n > 0 ? sum / n : 1e9, timing};
+}
+
+}  // namespace
+
+TEST(Localize, AnUnconfiguredRollingShutterIsEstimatedFromTheRowsAndApplied) {
+    // Up to 4 m/s x 60 ms: the rows' mean exposure 0.12 m past the stamp's pose.
+    const auto [unmodelled_m, unmodelled] =
+        varyingSpeedRollingRun("rolling_unmodelled", "[localizer]\nestimate_readout = false\n");
+    const auto [estimated_m, estimated] = varyingSpeedRollingRun(
+        "rolling_estimated", "[localizer]\nreadout_min_frames = 20\nreadout_max_sigma_s = 0.005\n");
+    EXPECT_TRUE(unmodelled.readout.empty());
+    ASSERT_EQ(estimated.readout.count("query_applied_s"), 1u);
+    EXPECT_NEAR(estimated.readout.at("query_applied_s"), 0.060, 0.008);
+    EXPECT_NEAR(estimated.readout.at("survey_applied_s"), 0.0, 1e-12);  // a global shutter
+    EXPECT_GT(unmodelled_m, 0.05);
+    EXPECT_LT(estimated_m, 0.02);
+}
+
 TEST(Localize, RollingShutterReferencesAreSeenFromTheSurveyVehiclesRowPoses) {
     // The survey camera read its rows in 60 ms while the survey vehicle drove at 2.5 m/s
     // (references 0.25 m and 0.1 s apart); the query camera is a global shutter.

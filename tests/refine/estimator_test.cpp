@@ -133,6 +133,7 @@ ReferenceView rollingView(const CPose3D& ref_vehicle, const CPose3D& query_vehic
 struct RollingOutcome {
     double with_model_m, without_model_m;  ///< position error
     double with_rms_px, without_rms_px;
+    std::optional<RowTravel> with_travel, without_travel;  ///< what the rows show
 };
 
 // The estimate with the per-row model against the stamp's pose, and without it (today's
@@ -147,6 +148,7 @@ RollingOutcome estimateRolling(const CPose3D& on_vehicle) {
     in.query_camera = camera();
     in.query_camera_on_vehicle = on_vehicle;
     in.ceiling_height_m = 5.0;
+    in.query_rows = timing.rows;
     EstimatorOptions o;
     o.ceiling_height_sigma_m = 1.0;
     const auto without = estimateQueryPose(in, o);
@@ -158,8 +160,8 @@ RollingOutcome estimateRolling(const CPose3D& on_vehicle) {
         return std::hypot(e.vehicle_in_map.x() - p.x(), e.vehicle_in_map.y() - p.y());
     };
     EXPECT_NEAR(with.ceiling_height_m, kTrueHeight, 0.005);
-    return {error(with, truth), error(without, middle), with.rms_residual_px,
-            without.rms_residual_px};
+    return {error(with, truth),      error(without, middle), with.rms_residual_px,
+            without.rms_residual_px, with.row_travel,        without.row_travel};
 }
 
 }  // namespace
@@ -181,6 +183,25 @@ TEST(Estimator, RollingShutterRowsAlongTheDriveAreSeenFromTheirOwnPoses) {
     EXPECT_LT(r.with_rms_px, 0.02);
     EXPECT_GT(r.without_model_m, 0.03);
     EXPECT_GT(r.without_rms_px, 0.5);
+}
+
+TEST(Estimator, TheRowsShowTheTravelOfAReadoutTheModelDoesNotCarry) {
+    // 40 km/h x 30 ms: 0.333 m from the first row to the last, along the drive or across it.
+    for (const CPose3D& mount :
+         {synthetic::ceilingCameraOnVehicle(), CPose3D(0, 0, 1.5, M_PI / 2, 0, 0)}) {
+        const auto r = estimateRolling(mount);
+        ASSERT_TRUE(r.without_travel && r.with_travel);
+        EXPECT_NEAR(r.without_travel->travel_m, 40 / 3.6 * 0.030, 0.01);
+        EXPECT_LT(r.without_travel->sigma_m, 0.02);
+        EXPECT_NEAR(r.with_travel->travel_m, 0.0, 0.005);  // the model carries it
+    }
+    // A global shutter shows none.
+    const CPose3D truth(0.25, 0.1, 0, 0.05, 0, 0);
+    auto in = input(truth, {CPose3D(), CPose3D(0.6, -0.1, 0, 0, 0, 0)});
+    in.query_rows = 240;
+    const auto e = estimateQueryPose(in, EstimatorOptions());
+    ASSERT_TRUE(e.ok && e.row_travel);
+    EXPECT_NEAR(e.row_travel->travel_m, 0.0, 0.005);
 }
 
 TEST(Estimator, GlobalShutterOrStandstillChangesNothing) {

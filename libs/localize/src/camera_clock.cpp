@@ -6,15 +6,16 @@
 #include <cmath>
 #include <vector>
 
+#include "robust_fit.h"
+
 namespace lookup::localize {
 
 namespace {
+using detail::robustFit;
 // The yaw rate is taken over the odometry's velocity span, centred on the fix.
 constexpr double kRateHalfSpan_s = 0.5 * common::OdometryTrack::kVelocitySpanS;
 // A reading gap longer than this (a dropout) leaves the heading between unknown.
 constexpr double kMaxReadingGap_s = 0.1;
-constexpr int kRobustIterations = 5;
-constexpr double kInlierMads = 3.0;
 // A lateness widens the poses' covariance as soon as a few pairs show it significant; it is
 // applied only once min_pairs pairs rest on it.
 constexpr std::size_t kMinPairsToWiden = 10;
@@ -22,42 +23,6 @@ constexpr std::size_t kMinPairsToWiden = 10;
 // from rest speeds up most in its first second.
 constexpr std::size_t kMinSpeedPairs = 6;
 
-struct LineFit {
-    double slope = 0, sigma = 0;
-};
-
-/// y = slope x + nuisance z over the pairs by least squares, those beyond kInlierMads robust
-/// deviations dropped and refitted; sigma from the inliers' scatter. None when x and z do not
-/// vary apart (nothing to see).
-template <class Pairs, class X, class Z, class Y>
-std::optional<LineFit> robustFit(const Pairs& pairs, X x, Z z, Y y) {
-    std::vector<double> w(pairs.size(), 1.0), res(pairs.size());
-    double slope = 0, det = 0, s11 = 0, mad = 0;
-    for (int it = 0; it < kRobustIterations; ++it) {
-        double sxx = 0, sx1 = 0, sxr = 0, s1r = 0;
-        s11 = 0;
-        for (std::size_t k = 0; k < pairs.size(); ++k) {
-            const auto& p = pairs[k];
-            sxx += w[k] * x(p) * x(p);
-            sx1 += w[k] * x(p) * z(p);
-            s11 += w[k] * z(p) * z(p);
-            sxr += w[k] * x(p) * y(p);
-            s1r += w[k] * z(p) * y(p);
-        }
-        det = sxx * s11 - sx1 * sx1;
-        if (!(det > 0)) return std::nullopt;
-        slope = (sxr * s11 - sx1 * s1r) / det;
-        const double nuisance = (sxx * s1r - sx1 * sxr) / det;
-        for (std::size_t k = 0; k < pairs.size(); ++k) {
-            res[k] = std::abs(y(pairs[k]) - slope * x(pairs[k]) - nuisance * z(pairs[k]));
-        }
-        std::vector<double> sorted = res;
-        std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
-        mad = 1.4826 * sorted[sorted.size() / 2] + 1e-9;
-        for (std::size_t k = 0; k < pairs.size(); ++k) w[k] = res[k] < kInlierMads * mad ? 1 : 0;
-    }
-    return LineFit{slope, mad * std::sqrt(s11 / det)};
-}
 }  // namespace
 
 void CameraClock::addFix(double stamp_s, const mrpt::poses::CPose2D& pose) {

@@ -466,6 +466,7 @@ class Session {
         }
         reportOnlineRefresh();
         reportCameraClock();
+        reportReadout();
         saveCameraClock();
         timing_.wall_s = wall_.Tac();
         writer_->finish(timing_);
@@ -554,6 +555,37 @@ class Session {
                 << std::round(1e4 * clock.unappliedOffset()) / 10 << " ms";
         }
         return out.str();
+    }
+
+    void reportReadout() {
+        const auto& r = localizer_->readoutEstimator();
+        if (!r.estimate()) return;
+        const auto& e = *r.estimate();
+        timing_.readout = {{"query_s", e.query_s},
+                           {"query_sigma_s", e.query_sigma_s},
+                           {"survey_s", e.survey_s},
+                           {"survey_sigma_s", e.survey_sigma_s},
+                           {"frames", double(e.frames)},
+                           {"query_applied_s", r.queryReadout()},
+                           {"survey_applied_s", r.surveyReadout()}};
+        const auto text = [](double s, double sigma) {
+            char buf[64];
+            std::snprintf(buf, sizeof buf, "%.1f +- %.1f ms", 1e3 * s, 1e3 * sigma);
+            return std::string(buf);
+        };
+        const auto outcome = [](bool applied, double modelled_s) {
+            if (applied) return std::string("applied");
+            if (modelled_s > 0)
+                return std::string("configured: ") +
+                       std::to_string(int(std::round(1e3 * modelled_s))) + " ms kept";
+            return std::string("not applied (not precise and significant)");
+        };
+        std::cerr << "lookup-localize: ceiling cameras' rolling-shutter readout from the rows of "
+                  << e.frames << " refined frames: this vehicle's "
+                  << text(e.query_s, e.query_sigma_s) << ", "
+                  << outcome(r.queryApplied(), r.queryReadout()) << "; the survey's "
+                  << text(e.survey_s, e.survey_sigma_s) << ", "
+                  << outcome(r.surveyApplied(), r.surveyReadout()) << "\n";
     }
 
     /// Writes the estimate for the vehicle's next run (camera_clock_file); a failure is said,

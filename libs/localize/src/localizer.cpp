@@ -220,6 +220,8 @@ Localizer::Localizer(database::ReferenceDatabase& db, const LocalizerOptions& op
       coarse_(std::move(coarse)),
       coarse_uses_images_(coarse_uses_images),
       camera_clock_(cameraClockOptions(options, db.info())),
+      readout_(options.readout, 1e-3 * refiner_options.rolling_shutter.readout_ms,
+               1e-3 * db.info().ceiling_readout_ms),
       uncalibrated_clock_sigma_s_(
           surveyClockKnown(options, db.info()) ? options.uncalibrated_image_time_sigma_s : 0.0),
       survey_clock_sigma_s_(surveyClockKnown(options, db.info())
@@ -334,6 +336,7 @@ void Localizer::restart() {
     last_coarse_.reset();
     coarse_ms_since_frame_ = 0;
     odometry_.clear();
+    pending_rows_.clear();
     travelled_since_forward_ = 0;
     forward_had_odometry_ = false;
     last_fix_.reset();
@@ -646,12 +649,17 @@ refine::RowTiming Localizer::surveyRowTiming(std::size_t index, int rows) const 
         t.readout_s = 1e-3 * shutter.readout_ms;
         t.stamp_row = shutter.stampRow(rows);
     } else {
-        t.readout_s = 1e-3 * db_.info().ceiling_readout_ms;
+        t.readout_s = readout_.surveyReadout();
         t.stamp_row =
             db_.info().ceiling_stamp_row == common::StampRow::Middle ? 0.5 * (rows - 1) : 0.0;
     }
     if (!(t.readout_s > 0)) return t;
-    // The vehicle's velocity from the neighbouring references of its traverse.
+    if (const auto v = surveyVelocity(index)) t.velocity = *v;
+    return t;
+}
+
+std::optional<refine::VehicleMotion> Localizer::surveyVelocity(std::size_t index) const {
+    const auto& ref = db_.reference(index);
     const auto neighbour = [&](std::size_t j) {
         if (j >= db_.size()) return &ref;
         const auto& r = db_.reference(j);
@@ -660,13 +668,13 @@ refine::RowTiming Localizer::surveyRowTiming(std::size_t index, int rows) const 
     const auto* a = index > 0 ? neighbour(index - 1) : &ref;
     const auto* b = neighbour(index + 1);
     const double dt = b->time_s - a->time_s;
-    if (!(dt > 0)) return t;  // a lone reference: no velocity, seen as a global shutter's
+    if (!(dt > 0)) return std::nullopt;  // a lone reference: seen as a global shutter's
     const double dx = (b->vehicle_pose.x() - a->vehicle_pose.x()) / dt;
     const double dy = (b->vehicle_pose.y() - a->vehicle_pose.y()) / dt;
     const double c = std::cos(ref.vehicle_pose.yaw()), s = std::sin(ref.vehicle_pose.yaw());
-    t.velocity = {c * dx + s * dy, -s * dx + c * dy,
-                  mrpt::math::wrapToPi(b->vehicle_pose.yaw() - a->vehicle_pose.yaw()) / dt};
-    return t;
+    return refine::VehicleMotion{
+        c * dx + s * dy, -s * dx + c * dy,
+        mrpt::math::wrapToPi(b->vehicle_pose.yaw() - a->vehicle_pose.yaw()) / dt};
 }
 
 const refine::ReferenceImage& Localizer::referenceView(std::size_t index) {
@@ -978,11 +986,54 @@ FrameResult Localizer::processCeilingOnClock(const mrpt::obs::CObservationImage&
     const double applied_before = camera_clock_.applied();
     camera_clock_.update(odometry_);
     retimeFixes(camera_clock_.applied() - applied_before);
+    feedReadout();
     mrpt::obs::CObservationImage query = rectifier_.rectify(image);
     query.timestamp = mrpt::Clock::fromDouble(stamp_s + camera_clock_.applied());
     FrameResult out = processCeiling(query);
-    if (out.status == FrameStatus::Refined) camera_clock_.addFix(stamp_s, out.pose.mean);
+    if (out.status == FrameStatus::Refined) {
+        camera_clock_.addFix(stamp_s, out.pose.mean);
+        estimateReadout(out);
+    }
     return out;
+}
+
+void Localizer::estimateReadout(const FrameResult& out) {
+    const auto& r = out.refinement;
+    if (!r || !r->accepted() || !r->estimate.row_travel || out.reference_indices.empty()) return;
+    double survey_speed = 0;
+    for (std::size_t i : out.reference_indices) {
+        // A reference this run added was seen by this camera: no survey readout in it.
+        if (db_.reference(i).source == database::kOnlineSource) return;
+        const auto v = surveyVelocity(i);
+        if (!v) return;
+        survey_speed += v->vx_mps / double(out.reference_indices.size());
+    }
+    pending_rows_.push_back({out.time_s, survey_speed, *r->estimate.row_travel});
+}
+
+void Localizer::feedReadout() {
+    // The vehicle's speed centred on the frame: the odometry's up to the stamp lags it by half
+    // a span, which at 2 m/s^2 would pass for a readout of several ms.
+    constexpr double kHalfSpan_s = 0.5 * common::OdometryTrack::kVelocitySpanS;
+    while (!pending_rows_.empty() && !odometry_.empty() &&
+           odometry_.lastTime() >= pending_rows_.front().time_s + kHalfSpan_s) {
+        const PendingRows f = pending_rows_.front();
+        pending_rows_.pop_front();
+        const auto a = odometryAt(f.time_s - kHalfSpan_s), b = odometryAt(f.time_s + kHalfSpan_s);
+        if (!a || !b) continue;
+        const double speed = (b->pose - a->pose).x() / (2 * kHalfSpan_s);
+        const double query_before = readout_.queryReadout();
+        const double survey_before = readout_.surveyReadout();
+        readout_.addFrame(speed, f.survey_speed, f.rows);
+        if (readout_.queryReadout() != query_before) {
+            refiner_.setReadout(1e3 * readout_.queryReadout());
+            ceiling_refiner_.setReadout(1e3 * readout_.queryReadout());
+        }
+        if (readout_.surveyReadout() != survey_before) {
+            views_.clear();  // their rows' timing changed
+            view_order_.clear();
+        }
+    }
 }
 
 void Localizer::retimeFixes(double moved_s) {

@@ -36,6 +36,11 @@ void LocalizerOptions::declareKeys(common::OptionsTable& t) {
     t.add("camera_time_offset_min_pairs", camera_clock.min_pairs, 3, 100000000);
     t.add("camera_time_offset_max_sigma_s", camera_clock.max_sigma_s, common::kPositive);
     t.add("camera_time_offset_significance", camera_clock.significance, 0.0, 100.0);
+    t.add("estimate_readout", readout.enabled);
+    t.add("apply_estimated_readout", readout.apply);
+    t.add("readout_min_frames", readout.min_frames, 10, 100000000);
+    t.add("readout_max_sigma_s", readout.max_sigma_s, common::kPositive);
+    t.add("readout_significance", readout.significance, 0.0, 100.0);
     t.add("acquisition_radius_m", acquisition_radius_m, 0.0);
     t.add("acquisition_step_m", acquisition_step_m, common::kPositive);
     t.add("tracking_acquisition_sigmas", tracking_acquisition_sigmas, 0.0, 100.0);

@@ -241,6 +241,7 @@ void RunWriter::finish(const RunTiming& t) {
     for (const auto& [kind, count] : t.skipped) j["skipped"][kind] = count;
     if (!t.online_refresh.empty()) j["online_refresh"] = t.online_refresh;
     if (!t.camera_time_offset.empty()) j["camera_time_offset"] = t.camera_time_offset;
+    if (!t.readout.empty()) j["readout"] = t.readout;
     // Last: its presence, with the frame count, marks the run complete (lookup-eval checks).
     common::writeFileAtomically(dir_ + "/timing.json", j.dump(2) + "\n");
     common::syncDirectory(dir_);

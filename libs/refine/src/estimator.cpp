@@ -4,6 +4,7 @@
 #include <ceres/rotation.h>
 
 #include <Eigen/Geometry>
+#include <Eigen/LU>
 #include <cmath>
 
 namespace lookup::refine {
@@ -95,6 +96,7 @@ Eigen::Matrix3d rotationOf(const mrpt::poses::CPose3D& p) {
 struct Correspondences {
     std::vector<Eigen::Vector3d> As, Bs;
     std::vector<cv::Point2d> qs;
+    std::vector<double> rows;  ///< the query points' sensor rows
     std::vector<mrpt::poses::CPose2D> motions;
     Eigen::Matrix2Xd src, dst;
 };
@@ -138,6 +140,7 @@ Correspondences collect(const EstimatorInput& in, double h0) {
             c.As.push_back(t - t.z() / dir.z() * dir);
             c.Bs.push_back(dir / dir.z());
             c.qs.push_back(view.query_px[i]);
+            c.rows.push_back(rowOf(view.query_row, view.query_px, i));
             c.motions.push_back(motion);
             src.emplace_back(p_qry->x, p_qry->y);
             dst.emplace_back(p_ref->x, p_ref->y);
@@ -257,6 +260,77 @@ double rmsResidualPx(const Correspondences& corr, const EstimatorInput& in,
     return std::sqrt(sq / double(corr.qs.size()));
 }
 
+// The vehicle's travel between the first and the last row's exposure that the residuals at the
+// solution show: a rolling shutter the model does not carry moves each point by the image
+// motion of the travel up to its row, r = c (row - mean row) u with u the image direction of
+// the vehicle's heading; refitted with what the pose and h would take of it (a shift, a
+// rotation, an isotropic scale) so that only the stretch or shear along the drive is left.
+// Twice: all points, then those within 3 robust deviations of the first fit.
+std::optional<RowTravel> rowTravel(const Correspondences& corr, const EstimatorInput& in,
+                                   const CameraMount& mount, const double* pose, const double* h) {
+    constexpr std::size_t kMinPoints = 20;
+    constexpr int kUnknowns = 7;
+    const Eigen::Vector2d u = mount.R.row(0).head<2>();  // the vehicle's x axis, camera frame
+    const double distance_m = h[0] - in.vehicle_z - mount.t.z();
+    const std::size_t n = corr.qs.size();
+    if (in.query_rows < 2 || u.norm() < 0.5 || !(distance_m > 0) || n < kMinPoints) {
+        return std::nullopt;
+    }
+    const Eigen::Vector2d dir = u.normalized();
+    double mean_row = 0;
+    Eigen::Vector2d mean_px = Eigen::Vector2d::Zero();
+    for (std::size_t i = 0; i < n; ++i) {
+        mean_row += corr.rows[i] / double(n);
+        mean_px += Eigen::Vector2d(corr.qs[i].x, corr.qs[i].y) / double(n);
+    }
+    // Unknowns: c, scale, rotation, shift x, shift y, tilt about the camera's x and y axes.
+    const double f = in.query_camera.fx;
+    std::vector<Eigen::Matrix<double, 2, kUnknowns>> A(n);
+    std::vector<Eigen::Vector2d> r(n);
+    for (std::size_t i = 0; i < n; ++i) {
+        reprojection(corr, i, in, mount, 1.0)(pose, h, r[i].data());
+        const double dr = corr.rows[i] - mean_row;
+        const Eigen::Vector2d p = Eigen::Vector2d(corr.qs[i].x, corr.qs[i].y) - mean_px;
+        const double x = corr.qs[i].x - in.query_camera.cx, y = corr.qs[i].y - in.query_camera.cy;
+        A[i] << dr * dir.x(), p.x(), -p.y(), 1, 0, x * y / f, x * x / f,  //
+            dr * dir.y(), p.y(), p.x(), 0, 1, y * y / f, x * y / f;
+    }
+    std::vector<char> use(n, 1);
+    Eigen::Matrix<double, kUnknowns, 1> x;
+    Eigen::Matrix<double, kUnknowns, kUnknowns> AtA;
+    double rr = 0;
+    std::size_t used = 0;
+    for (int pass = 0; pass < 2; ++pass) {
+        AtA.setZero();
+        Eigen::Matrix<double, kUnknowns, 1> Atr = Eigen::Matrix<double, kUnknowns, 1>::Zero();
+        rr = 0;
+        used = 0;
+        for (std::size_t i = 0; i < n; ++i) {
+            if (!use[i]) continue;
+            AtA += A[i].transpose() * A[i];
+            Atr += A[i].transpose() * r[i];
+            ++used;
+        }
+        if (used < kMinPoints) return std::nullopt;
+        const Eigen::FullPivLU<Eigen::Matrix<double, kUnknowns, kUnknowns>> lu(AtA);
+        if (!lu.isInvertible()) return std::nullopt;
+        x = lu.solve(Atr);
+        std::vector<double> e(n);
+        for (std::size_t i = 0; i < n; ++i) e[i] = (r[i] - A[i] * x).norm();
+        for (std::size_t i = 0; i < n; ++i) rr += use[i] ? e[i] * e[i] : 0.0;
+        std::vector<double> sorted = e;
+        std::nth_element(sorted.begin(), sorted.begin() + n / 2, sorted.end());
+        const double gate = std::max(0.5, 3 * 1.4826 * sorted[n / 2]);
+        for (std::size_t i = 0; i < n; ++i) use[i] = e[i] <= gate;
+    }
+    const double s2 = rr / double(2 * used - kUnknowns);
+    const double var_c = s2 * AtA.inverse()(0, 0);
+    // c is pixels per row; the vehicle moving d metres moves the ceiling by f d / distance px.
+    const double px_per_m = std::sqrt(in.query_camera.fx * in.query_camera.fy) / distance_m;
+    const double rows = double(in.query_rows - 1);
+    return RowTravel{x(0) * rows / px_per_m, std::sqrt(var_c) * rows / px_per_m};
+}
+
 }  // namespace
 
 PoseEstimate estimateQueryPose(const EstimatorInput& in, const EstimatorOptions& o) {
@@ -295,6 +369,7 @@ PoseEstimate estimateQueryPose(const EstimatorInput& in, const EstimatorOptions&
     }
     storeSolution(in, pose, h, out);
     out.rms_residual_px = rmsResidualPx(corr, in, mount, pose, h);
+    out.row_travel = rowTravel(corr, in, mount, pose, h);
     out.ok = true;
     return out;
 }

@@ -116,6 +116,7 @@ struct QueryView {
     std::optional<mrpt::poses::CPose3D> camera_in_map;  ///< at the coarse pose, if any
     double ceiling_height_m = 0;                        ///< prior of h
     RowTiming timing;                                   ///< its rolling shutter, if any
+    int rows = 0;                                       ///< image height [px]
     ImagePyramid pyramid;
 };
 
@@ -209,6 +210,7 @@ EstimatorInput estimatorInput(const std::vector<const ReferenceImage*>& refs, co
     input.query_camera_on_vehicle = q.on_vehicle;
     input.ceiling_height_m = q.ceiling_height_m;
     input.query_timing = q.timing;
+    input.query_rows = q.rows;
     for (const ReferenceImage* r : refs) {
         input.vehicle_z += r->vehicle_in_map.z() / double(refs.size());
         input.prior_pitch_rad += r->vehicle_in_map.pitch() / double(refs.size());
@@ -239,11 +241,12 @@ void addInliers(const ReferenceOutcome& outcome, const ReferenceImage& ref, cons
     view.timing = ref.timing;
     if (view.timing.rows == 0) view.timing.rows = ref.image.rows;
     view.camera_on_vehicle = ref.camera_on_vehicle;
+    // Row times are the sensor's rows, before rectification; the query's also show a rolling
+    // shutter the model does not carry (RowTravel).
     if (view.timing.active() || q.timing.active()) {
-        // Row times are the sensor's rows, before rectification.
         for (const auto& p : ref_px) view.reference_row.push_back(p.y);
-        for (const auto& p : query_px) view.query_row.push_back(p.y);
     }
+    for (const auto& p : query_px) view.query_row.push_back(p.y);
     input.views.push_back(std::move(view));
 }
 
@@ -323,6 +326,7 @@ std::optional<Failure> unusableInput(const cv::Mat& image, const std::vector<Ref
         return Failure{RefineStatus::InvalidQuery, "ceiling height prior is not finite"};
     }
     if (hint.vehicle_pose) q.camera_in_map = *hint.vehicle_pose + q.on_vehicle;
+    q.rows = image.rows;
     q.timing = queryTiming(hint, image.rows, rolling_shutter);
     if (q.camera_in_map && q.timing.active()) {
         // The matcher's prediction from the middle row's pose: the rows' mean time.

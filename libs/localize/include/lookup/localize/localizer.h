@@ -28,6 +28,7 @@
 #include "lookup/database/reference_database.h"
 #include "lookup/localize/camera_clock.h"
 #include "lookup/localize/localizer_options.h"
+#include "lookup/localize/readout_estimator.h"
 #include "lookup/refine/rectifier.h"
 #include "lookup/refine/refiner.h"
 
@@ -148,6 +149,8 @@ class Localizer {
     const CameraClock& cameraClock() const { return camera_clock_; }
     /// Starts the camera clock from the vehicle's earlier runs (CameraClock::carry).
     void carryCameraClock(const CameraClock::Estimate& earlier) { camera_clock_.carry(earlier); }
+    /// The ceiling cameras' rolling-shutter readouts, as estimated and applied so far.
+    const ReadoutEstimator& readoutEstimator() const { return readout_; }
 
     /// What the online refresh did so far (LocalizerOptions::online_refresh).
     struct OnlineRefreshCounts {
@@ -306,6 +309,14 @@ class Localizer {
     /// The rows of reference `index` (db.ini ceiling_readout_ms) with the survey vehicle's
     /// velocity from its traverse's neighbouring references.
     refine::RowTiming surveyRowTiming(std::size_t index, int rows) const;
+    /// The survey vehicle's velocity at reference `index` from its traverse's neighbouring
+    /// references (its own frame); none for a lone reference.
+    std::optional<refine::VehicleMotion> surveyVelocity(std::size_t index) const;
+    /// Keeps a refined frame's rows for the readout estimate (feedReadout).
+    void estimateReadout(const FrameResult& out);
+    /// Gives the kept frames the odometry now covers to the readout estimate, and applies
+    /// what it changed.
+    void feedReadout();
     struct GlobalOutcome {
         std::shared_ptr<const refine::RefineResult> result;  ///< the fix, or the ambiguous one
         bool ambiguous = false;
@@ -356,6 +367,12 @@ class Localizer {
     double coarse_ms_since_frame_ = 0;
     common::OdometryTrack odometry_;
     CameraClock camera_clock_;
+    ReadoutEstimator readout_;
+    struct PendingRows {
+        double time_s = 0, survey_speed = 0;
+        refine::RowTravel rows;
+    };
+    std::deque<PendingRows> pending_rows_;  ///< refined frames waiting for the odometry
     /// LocalizerOptions::uncalibrated_image_time_sigma_s where it applies, else 0 [s].
     double uncalibrated_clock_sigma_s_ = 0;
     /// The survey camera clock's sigma where it is not known well enough to correct the

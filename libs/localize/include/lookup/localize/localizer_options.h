@@ -8,6 +8,7 @@
 #include "lookup/common/options_table.h"
 #include "lookup/database/refresh_bridge.h"
 #include "lookup/localize/camera_clock.h"
+#include "lookup/localize/readout_estimator.h"
 
 namespace lookup::localize {
 
@@ -79,6 +80,10 @@ struct LocalizerOptions : public common::TableOptions<LocalizerOptions> {
     /// (docs/benchmarks.md, "The camera's offset against the odometry, from the fixes' heading").
     CameraClockApply apply_camera_time_offset = CameraClockApply::Auto;
     double survey_clock_max_sigma_s = 0.010;  ///< [s]
+    /// The ceiling cameras' rolling-shutter readouts, estimated from the rows of the refined
+    /// frames and reported (readout_estimator.h); one not configured is applied once precise
+    /// and significant.
+    ReadoutEstimatorOptions readout;
     /// Acquisition (not tracking): also try references within this distance of the coarse
     /// match, one by one, before giving up, since the SAD window covers only +-L_SR/2 [m].
     double acquisition_radius_m = 4.0;

@@ -33,6 +33,10 @@ struct RunTiming {
     /// The ceiling camera's time offset against the odometry (estimate_s, sigma_s, pairs,
     /// applied_s); empty when nothing was estimated.
     std::map<std::string, double> camera_time_offset;
+    /// The ceiling cameras' rolling-shutter readouts (query_s, query_sigma_s, survey_s,
+    /// survey_sigma_s, frames, query_applied_s, survey_applied_s); empty when nothing was
+    /// estimated.
+    std::map<std::string, double> readout;
 
     /// Frames the localiser processed (not dropped): per-frame times divide by this.
     std::size_t processed() const { return frames > frames_dropped ? frames - frames_dropped : 0; }

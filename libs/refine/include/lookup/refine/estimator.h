@@ -14,6 +14,7 @@
 #include <mrpt/poses/CPose3D.h>
 #include <mrpt/poses/CPosePDFGaussian.h>
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -45,6 +46,16 @@ struct EstimatorInput {
     double prior_roll_rad = 0.0;
     double ceiling_height_m = 5.0;  ///< centre of the h prior [m]
     RowTiming query_timing;         ///< the query image's rows (velocity: the query vehicle's)
+    int query_rows = 0;             ///< the query image's height [px] (for row_travel_m)
+};
+
+/// What the query's rows show of a rolling shutter the model does not carry: the vehicle's
+/// travel along its heading from the first row's exposure to the last, as the residuals'
+/// stretch along the drive that grows with the row (rolling_shutter.h). Measured after the
+/// solve, the pose left as solved.
+struct RowTravel {
+    double travel_m = 0;  ///< signed: forward travel of a late last row positive [m]
+    double sigma_m = 0;   ///< its standard deviation [m]
 };
 
 /// Covariance order of `covariance`: x, y, yaw, pitch, roll, h.
@@ -59,6 +70,7 @@ struct PoseEstimate {
     double rms_residual_px = 0.0;  ///< over all correspondences at the solution
     int correspondences = 0;
     int iterations = 0;
+    std::optional<RowTravel> row_travel;  ///< when the rows could show it
 };
 
 PoseEstimate estimateQueryPose(const EstimatorInput& input, const EstimatorOptions& options);

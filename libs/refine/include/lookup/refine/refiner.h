@@ -85,6 +85,8 @@ class Refiner {
 
     const RefinerOptions& options() const { return options_; }
     const AcceptancePolicy& acceptance() const { return acceptance_; }
+    /// The query camera's readout as estimated while driving ([refine.rolling_shutter]).
+    void setReadout(double readout_ms) { options_.rolling_shutter.readout_ms = readout_ms; }
 
   private:
     RefinerOptions options_;
