@@ -1365,10 +1365,12 @@ TEST(Localize, ARollingShutterQueryIsRefinedRowByRowWithTheOdometrysVelocity) {
 namespace {
 
 // A drive along the vehicle's heading speeding up from 0.5 to 4 m/s and braking again, its
-// ceiling camera a rolling shutter of 60 ms stamped at the first row; localised with `ini`.
-// Returns the mean error of the last 15 frames and the run's timing.
-std::pair<double, localize::RunTiming> varyingSpeedRollingRun(const std::string& name,
-                                                              const std::string& ini) {
+// ceiling camera a rolling shutter of 60 ms stamped at the first row, over a database whose
+// survey camera clock is known to `survey_clock_sigma_s` (none: not known); localised with
+// `ini`. Returns the mean error of the last 15 frames and the run's timing.
+std::pair<double, localize::RunTiming> varyingSpeedRollingRun(
+    const std::string& name, const std::string& ini,
+    std::optional<double> survey_clock_sigma_s = 0.005) {
     constexpr int kFrames = 40;
     constexpr double kHeading = 0.05;
     std::vector<double> speed, travelled{0.0};
@@ -1384,6 +1386,7 @@ std::pair<double, localize::RunTiming> varyingSpeedRollingRun(const std::string&
     const Scene scene;
     PlanarDrive drive;
     drive.vehicle = pose;
+    drive.survey_camera.time_offset_sigma_s = survey_clock_sigma_s;
     auto req = planarRun(
         dir,
         [&](int i, mrpt::obs::CObservationImage& img, mrpt::obs::CObservationOdometry&) {
@@ -1414,16 +1417,24 @@ std::pair<double, localize::RunTiming> varyingSpeedRollingRun(const std::string&
 
 TEST(Localize, AnUnconfiguredRollingShutterIsEstimatedFromTheRowsAndApplied) {
     // Up to 4 m/s x 60 ms: the rows' mean exposure 0.12 m past the stamp's pose.
+    const std::string estimating =
+        "[localizer]\nreadout_min_frames = 20\nreadout_max_sigma_s = 0.005\n";
     const auto [unmodelled_m, unmodelled] =
         varyingSpeedRollingRun("rolling_unmodelled", "[localizer]\nestimate_readout = false\n");
-    const auto [estimated_m, estimated] = varyingSpeedRollingRun(
-        "rolling_estimated", "[localizer]\nreadout_min_frames = 20\nreadout_max_sigma_s = 0.005\n");
+    const auto [estimated_m, estimated] = varyingSpeedRollingRun("rolling_estimated", estimating);
     EXPECT_TRUE(unmodelled.readout.empty());
     ASSERT_EQ(estimated.readout.count("query_applied_s"), 1u);
     EXPECT_NEAR(estimated.readout.at("query_applied_s"), 0.060, 0.008);
     EXPECT_NEAR(estimated.readout.at("survey_applied_s"), 0.0, 1e-12);  // a global shutter
     EXPECT_GT(unmodelled_m, 0.05);
     EXPECT_LT(estimated_m, 0.02);
+    // Against a survey whose camera clock is not known the estimate is only reported: there
+    // the half readout is part of the lateness the references and the vehicle share.
+    const auto [reported_m, reported] =
+        varyingSpeedRollingRun("rolling_reported", estimating, std::nullopt);
+    EXPECT_NEAR(reported.readout.at("query_s"), 0.060, 0.008);
+    EXPECT_EQ(reported.readout.at("query_applied_s"), 0.0);
+    EXPECT_NEAR(reported_m, unmodelled_m, 1e-9);
 }
 
 TEST(Localize, RollingShutterReferencesAreSeenFromTheSurveyVehiclesRowPoses) {

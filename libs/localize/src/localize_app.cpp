@@ -573,12 +573,15 @@ class Session {
             std::snprintf(buf, sizeof buf, "%.1f +- %.1f ms", 1e3 * s, 1e3 * sigma);
             return std::string(buf);
         };
-        const auto outcome = [](bool applied, double modelled_s) {
+        const auto outcome = [&r](bool applied, double modelled_s) {
             if (applied) return std::string("applied");
             if (modelled_s > 0)
                 return std::string("configured: ") +
                        std::to_string(int(std::round(1e3 * modelled_s))) + " ms kept";
-            return std::string("not applied (not precise and significant)");
+            return std::string(r.applies() ? "not applied (not precise and significant)"
+                                           : "reported only (the survey camera clock is not "
+                                             "known, or estimate_readout / "
+                                             "apply_estimated_readout)");
         };
         std::cerr << "lookup-localize: ceiling cameras' rolling-shutter readout from the rows of "
                   << e.frames << " refined frames: this vehicle's "

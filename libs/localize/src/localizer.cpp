@@ -161,6 +161,17 @@ CameraClockOptions cameraClockOptions(const LocalizerOptions& o, const database:
     return c;
 }
 
+// A readout is applied only against a survey whose camera clock is known: an uncalibrated
+// camera's lateness is left to cancel between the survey's references and the vehicle, and the
+// half readout after a first-row stamp is part of what cancels; modelling it alone moves the
+// poses by it.
+ReadoutEstimatorOptions readoutOptions(const LocalizerOptions& o,
+                                       const database::DatabaseInfo& db) {
+    ReadoutEstimatorOptions r = o.readout;
+    r.apply = r.apply && surveyClockKnown(o, db);
+    return r;
+}
+
 }  // namespace
 
 bool surveyClockKnown(const LocalizerOptions& options, const database::DatabaseInfo& db) {
@@ -220,7 +231,8 @@ Localizer::Localizer(database::ReferenceDatabase& db, const LocalizerOptions& op
       coarse_(std::move(coarse)),
       coarse_uses_images_(coarse_uses_images),
       camera_clock_(cameraClockOptions(options, db.info())),
-      readout_(options.readout, 1e-3 * refiner_options.rolling_shutter.readout_ms,
+      readout_(readoutOptions(options, db.info()),
+               1e-3 * refiner_options.rolling_shutter.readout_ms,
                1e-3 * db.info().ceiling_readout_ms),
       uncalibrated_clock_sigma_s_(
           surveyClockKnown(options, db.info()) ? options.uncalibrated_image_time_sigma_s : 0.0),

@@ -41,6 +41,7 @@ void LocalizerOptions::declareKeys(common::OptionsTable& t) {
     t.add("readout_min_frames", readout.min_frames, 10, 100000000);
     t.add("readout_max_sigma_s", readout.max_sigma_s, common::kPositive);
     t.add("readout_significance", readout.significance, 0.0, 100.0);
+    t.add("readout_min_s", readout.min_readout_s, 0.0, 1.0);
     t.add("acquisition_radius_m", acquisition_radius_m, 0.0);
     t.add("acquisition_step_m", acquisition_step_m, common::kPositive);
     t.add("tracking_acquisition_sigmas", tracking_acquisition_sigmas, 0.0, 100.0);

@@ -11,10 +11,10 @@
 // braking, driving at another speed than the survey.
 //
 // A readout not configured ([refine.rolling_shutter] readout_ms, the database's
-// ceiling_readout_ms) is applied once its estimate is precise and significant: unmodelled, a
-// 30 ms readout at 40 km/h puts every pose 0.17 m along the drive (the rows' mean exposure
-// lies half a readout after the first row's stamp). A configured readout is kept, and the
-// estimate only reported.
+// ceiling_readout_ms) is applied, where ReadoutEstimatorOptions::apply says, once its estimate
+// is precise and significant: unmodelled, a 30 ms readout at 40 km/h puts every pose 0.17 m
+// along the drive (the rows' mean exposure lies half a readout after the first row's stamp).
+// A configured readout is kept, and the estimate only reported.
 
 #include <cstddef>
 #include <deque>
@@ -29,11 +29,11 @@ struct ReadoutEstimatorOptions {
     bool apply = true;              ///< apply an estimate to a readout not configured
     std::size_t min_frames = 40;    ///< before anything is applied
     std::size_t max_frames = 1000;  ///< the newest kept (the cameras' readouts are fixed)
-    double max_sigma_s = 0.002;     ///< an estimate more uncertain is not applied [s]
+    double max_sigma_s = 0.003;     ///< an estimate more uncertain is not applied [s]
     double significance = 3.0;      ///< nor one within this many sigmas of zero
-    /// Nor one shorter: the rows' travel strays by a few ms of readout on global shutters, and
-    /// a shorter readout moves a pose by under 1.5 cm at 40 km/h [s].
-    double min_readout_s = 0.005;
+    /// Nor one shorter: on global shutters the rows' travel strays by several ms of readout
+    /// while the fit settles [s].
+    double min_readout_s = 0.010;
     double max_readout_s = 0.1;  ///< nor one longer (not a readout) [s]
 };
 
@@ -62,6 +62,8 @@ class ReadoutEstimator {
     double surveyReadout() const { return survey_s_; }
     bool queryApplied() const { return query_applied_; }
     bool surveyApplied() const { return survey_applied_; }
+    /// Whether an estimate will be applied once precise and significant.
+    bool applies() const { return options_.enabled && options_.apply; }
 
   private:
     struct Frame {
