@@ -19,6 +19,7 @@
 #include "lookup/localize/camera_clock.h"
 #include "lookup/localize/localizer.h"
 #include "lookup/localize/pose_stream.h"
+#include "lookup/localize/readout_estimator.h"
 #include "lookup/localize/vehicle_link.h"
 #include "lookup/refine/testing/synthetic_ceiling.h"
 
@@ -210,5 +211,24 @@ void BM_CameraClockFixAndFit(benchmark::State& state) {
     state.counters["pairs"] = clock.estimate() ? double(clock.estimate()->pairs) : 0.0;
 }
 BENCHMARK(BM_CameraClockFixAndFit)->Unit(benchmark::kMicrosecond);
+
+// What the readout estimate costs a refined frame once its window is full: one frame added
+// and the robust fit over the newest max_frames frames (a drive speeding up and braking over
+// references driven at about 5 m/s, a 30 ms readout nobody configured).
+void BM_ReadoutEstimatorFrame(benchmark::State& state) {
+    lookup::localize::ReadoutEstimator estimator({}, 0.0, 0.0);
+    int k = 0;
+    const auto frame = [&] {
+        const double speed = 6 + 5 * std::sin(0.05 * k), survey_speed = 5 + std::sin(0.3 * k);
+        const double travel =
+            0.030 * speed - estimator.queryReadout() * speed + 0.005 * std::sin(1.7 * k);
+        estimator.addFrame(speed, survey_speed, {travel, 0.01});
+        ++k;
+    };
+    for (int i = 0; i < 1200; ++i) frame();  // the window full
+    for (auto _ : state) frame();
+    state.counters["frames"] = estimator.estimate() ? double(estimator.estimate()->frames) : 0.0;
+}
+BENCHMARK(BM_ReadoutEstimatorFrame)->Unit(benchmark::kMicrosecond);
 
 }  // namespace

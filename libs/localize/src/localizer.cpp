@@ -1045,6 +1045,14 @@ void Localizer::feedReadout() {
             views_.clear();  // their rows' timing changed
             view_order_.clear();
         }
+        if (readout_.queryReadout() != query_before ||
+            readout_.surveyReadout() != survey_before) {
+            // Unmodelled, a first-row stamp's half readout read as a camera early: the fixes
+            // so far measured that, not the clock.
+            const double applied_before = camera_clock_.applied();
+            camera_clock_.forget();
+            retimeFixes(camera_clock_.applied() - applied_before);
+        }
     }
 }
 

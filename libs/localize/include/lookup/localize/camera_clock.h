@@ -71,6 +71,9 @@ class CameraClock {
 
     /// A refined frame: its stamp as the camera gave it (before applied()) and its pose.
     void addFix(double stamp_s, const mrpt::poses::CPose2D& pose);
+    /// Starts again from nothing (fixes, estimates, what was applied or carried): the fixes so
+    /// far were made under another model of the image's time (a readout applied since).
+    void forget() { *this = CameraClock(options_); }
     /// Pairs the fixes the odometry now covers (it must reach a little past them for the yaw
     /// rate) and refits; then, with CameraClockOptions::apply, applies the fit when it is
     /// precise and significant, or follows it once applied.
