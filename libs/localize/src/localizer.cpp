@@ -1034,25 +1034,28 @@ void Localizer::feedReadout() {
         const auto a = odometryAt(f.time_s - kHalfSpan_s), b = odometryAt(f.time_s + kHalfSpan_s);
         if (!a || !b) continue;
         const double speed = (b->pose - a->pose).x() / (2 * kHalfSpan_s);
-        const double query_before = readout_.queryReadout();
-        const double survey_before = readout_.surveyReadout();
+        const auto before = readout_.modelled();
         readout_.addFrame(speed, f.survey_speed, f.rows);
-        if (readout_.queryReadout() != query_before) {
-            refiner_.setReadout(1e3 * readout_.queryReadout());
-            ceiling_refiner_.setReadout(1e3 * readout_.queryReadout());
-        }
-        if (readout_.surveyReadout() != survey_before) {
-            views_.clear();  // their rows' timing changed
-            view_order_.clear();
-        }
-        if (readout_.queryReadout() != query_before ||
-            readout_.surveyReadout() != survey_before) {
-            // Unmodelled, a first-row stamp's half readout read as a camera early: the fixes
-            // so far measured that, not the clock.
-            const double applied_before = camera_clock_.applied();
-            camera_clock_.forget();
-            retimeFixes(camera_clock_.applied() - applied_before);
-        }
+        applyReadouts(before);
+    }
+}
+
+void Localizer::applyReadouts(const ReadoutEstimator::Modelled& before) {
+    if (readout_.queryReadout() != before.query_s) {
+        refiner_.setReadout(1e3 * readout_.queryReadout());
+        ceiling_refiner_.setReadout(1e3 * readout_.queryReadout());
+    }
+    if (readout_.surveyReadout() != before.survey_s) {
+        views_.clear();  // their rows' timing changed
+        view_order_.clear();
+    }
+    if ((readout_.queryApplied() && !before.query_applied) ||
+        (readout_.surveyApplied() && !before.survey_applied)) {
+        // Unmodelled, a first-row stamp's half readout read as a camera early: the fixes so
+        // far measured that, not the clock.
+        const double applied_before = camera_clock_.applied();
+        camera_clock_.forget();
+        retimeFixes(camera_clock_.applied() - applied_before);
     }
 }
 

@@ -317,6 +317,9 @@ class Localizer {
     /// Gives the kept frames the odometry now covers to the readout estimate, and applies
     /// what it changed.
     void feedReadout();
+    /// The readouts as the estimate now has them, against what it had (`before`): into the
+    /// refiners and the references' row timing; a newly applied one restarts the camera clock.
+    void applyReadouts(const ReadoutEstimator::Modelled& before);
     struct GlobalOutcome {
         std::shared_ptr<const refine::RefineResult> result;  ///< the fix, or the ambiguous one
         bool ambiguous = false;

@@ -65,6 +65,13 @@ class ReadoutEstimator {
     /// Whether an estimate will be applied once precise and significant.
     bool applies() const { return options_.enabled && options_.apply; }
 
+    /// What is modelled now, to tell what a frame changed.
+    struct Modelled {
+        double query_s = 0, survey_s = 0;
+        bool query_applied = false, survey_applied = false;
+    };
+    Modelled modelled() const { return {query_s_, survey_s_, query_applied_, survey_applied_}; }
+
   private:
     struct Frame {
         double query_speed = 0, survey_speed = 0;
