@@ -260,49 +260,53 @@ double rmsResidualPx(const Correspondences& corr, const EstimatorInput& in,
     return std::sqrt(sq / double(corr.qs.size()));
 }
 
-// The vehicle's travel between the first and the last row's exposure that the residuals at the
-// solution show: a rolling shutter the model does not carry moves each point by the image
-// motion of the travel up to its row, r = c (row - mean row) u with u the image direction of
-// the vehicle's heading; refitted with what the pose and h would take of it (a shift, a
-// rotation, an isotropic scale) so that only the stretch or shear along the drive is left.
-// Twice: all points, then those within 3 robust deviations of the first fit.
-std::optional<RowTravel> rowTravel(const Correspondences& corr, const EstimatorInput& in,
-                                   const CameraMount& mount, const double* pose, const double* h) {
-    constexpr std::size_t kMinPoints = 20;
-    constexpr int kUnknowns = 7;
-    const Eigen::Vector2d u = mount.R.row(0).head<2>();  // the vehicle's x axis, camera frame
-    const double distance_m = h[0] - in.vehicle_z - mount.t.z();
+// The unknowns of the rows' refit: c, isotropic scale, rotation, shift x, shift y, tilt about
+// the camera's x and y axes.
+constexpr int kRowUnknowns = 7;
+using RowDesign = Eigen::Matrix<double, 2, kRowUnknowns>;
+using RowVector = Eigen::Matrix<double, kRowUnknowns, 1>;
+using RowNormal = Eigen::Matrix<double, kRowUnknowns, kRowUnknowns>;
+
+// Each correspondence's pixel residual at the solution and its design: the rows' term
+// c (row - mean row) u with u the image direction of the vehicle's heading, then what the pose
+// and h would take of a stretch (shift, rotation, scale, tilt).
+void rowDesign(const Correspondences& corr, const EstimatorInput& in, const CameraMount& mount,
+               const double* pose, const double* h, const Eigen::Vector2d& u,
+               std::vector<RowDesign>& A, std::vector<Eigen::Vector2d>& r) {
     const std::size_t n = corr.qs.size();
-    if (in.query_rows < 2 || u.norm() < 0.5 || !(distance_m > 0) || n < kMinPoints) {
-        return std::nullopt;
-    }
-    const Eigen::Vector2d dir = u.normalized();
     double mean_row = 0;
     Eigen::Vector2d mean_px = Eigen::Vector2d::Zero();
     for (std::size_t i = 0; i < n; ++i) {
         mean_row += corr.rows[i] / double(n);
         mean_px += Eigen::Vector2d(corr.qs[i].x, corr.qs[i].y) / double(n);
     }
-    // Unknowns: c, scale, rotation, shift x, shift y, tilt about the camera's x and y axes.
-    const double f = in.query_camera.fx;
-    std::vector<Eigen::Matrix<double, 2, kUnknowns>> A(n);
-    std::vector<Eigen::Vector2d> r(n);
+    const Pinhole& c = in.query_camera;
+    A.resize(n);
+    r.resize(n);
     for (std::size_t i = 0; i < n; ++i) {
         reprojection(corr, i, in, mount, 1.0)(pose, h, r[i].data());
         const double dr = corr.rows[i] - mean_row;
         const Eigen::Vector2d p = Eigen::Vector2d(corr.qs[i].x, corr.qs[i].y) - mean_px;
-        const double x = corr.qs[i].x - in.query_camera.cx, y = corr.qs[i].y - in.query_camera.cy;
-        A[i] << dr * dir.x(), p.x(), -p.y(), 1, 0, x * y / f, x * x / f,  //
-            dr * dir.y(), p.y(), p.x(), 0, 1, y * y / f, x * y / f;
+        const double x = corr.qs[i].x - c.cx, y = corr.qs[i].y - c.cy;
+        A[i] << dr * u.x(), p.x(), -p.y(), 1, 0, x * y / c.fx, x * x / c.fx,  //
+            dr * u.y(), p.y(), p.x(), 0, 1, y * y / c.fx, x * y / c.fx;
     }
+}
+
+// Least squares of r = A x twice, all points then those within 3 robust deviations of the
+// first fit; the variance of x's first unknown. None with too few points or a singular fit.
+std::optional<std::pair<double, double>> robustFirstUnknown(const std::vector<RowDesign>& A,
+                                                            const std::vector<Eigen::Vector2d>& r,
+                                                            std::size_t min_points) {
+    const std::size_t n = A.size();
     std::vector<char> use(n, 1);
-    Eigen::Matrix<double, kUnknowns, 1> x;
-    Eigen::Matrix<double, kUnknowns, kUnknowns> AtA;
+    RowVector x;
+    RowNormal AtA;
     double rr = 0;
     std::size_t used = 0;
     for (int pass = 0; pass < 2; ++pass) {
         AtA.setZero();
-        Eigen::Matrix<double, kUnknowns, 1> Atr = Eigen::Matrix<double, kUnknowns, 1>::Zero();
+        RowVector Atr = RowVector::Zero();
         rr = 0;
         used = 0;
         for (std::size_t i = 0; i < n; ++i) {
@@ -311,8 +315,8 @@ std::optional<RowTravel> rowTravel(const Correspondences& corr, const EstimatorI
             Atr += A[i].transpose() * r[i];
             ++used;
         }
-        if (used < kMinPoints) return std::nullopt;
-        const Eigen::FullPivLU<Eigen::Matrix<double, kUnknowns, kUnknowns>> lu(AtA);
+        if (used < min_points) return std::nullopt;
+        const Eigen::FullPivLU<RowNormal> lu(AtA);
         if (!lu.isInvertible()) return std::nullopt;
         x = lu.solve(Atr);
         std::vector<double> e(n);
@@ -323,12 +327,31 @@ std::optional<RowTravel> rowTravel(const Correspondences& corr, const EstimatorI
         const double gate = std::max(0.5, 3 * 1.4826 * sorted[n / 2]);
         for (std::size_t i = 0; i < n; ++i) use[i] = e[i] <= gate;
     }
-    const double s2 = rr / double(2 * used - kUnknowns);
-    const double var_c = s2 * AtA.inverse()(0, 0);
+    const double s2 = rr / double(2 * used - kRowUnknowns);
+    return std::make_pair(x(0), s2 * AtA.inverse()(0, 0));
+}
+
+// The vehicle's travel between the first and the last row's exposure that the residuals at the
+// solution show: a rolling shutter the model does not carry moves each point by the image
+// motion of the travel up to its row; refitted beside what the pose and h would take of it so
+// that only the stretch or shear along the drive is left.
+std::optional<RowTravel> rowTravel(const Correspondences& corr, const EstimatorInput& in,
+                                   const CameraMount& mount, const double* pose, const double* h) {
+    constexpr std::size_t kMinPoints = 20;
+    const Eigen::Vector2d u = mount.R.row(0).head<2>();  // the vehicle's x axis, camera frame
+    const double distance_m = h[0] - in.vehicle_z - mount.t.z();
+    if (in.query_rows < 2 || u.norm() < 0.5 || !(distance_m > 0) || corr.qs.size() < kMinPoints) {
+        return std::nullopt;
+    }
+    std::vector<RowDesign> A;
+    std::vector<Eigen::Vector2d> r;
+    rowDesign(corr, in, mount, pose, h, u.normalized(), A, r);
+    const auto c = robustFirstUnknown(A, r, kMinPoints);
+    if (!c) return std::nullopt;
     // c is pixels per row; the vehicle moving d metres moves the ceiling by f d / distance px.
     const double px_per_m = std::sqrt(in.query_camera.fx * in.query_camera.fy) / distance_m;
     const double rows = double(in.query_rows - 1);
-    return RowTravel{x(0) * rows / px_per_m, std::sqrt(var_c) * rows / px_per_m};
+    return RowTravel{c->first * rows / px_per_m, std::sqrt(c->second) * rows / px_per_m};
 }
 
 }  // namespace

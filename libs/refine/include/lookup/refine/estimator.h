@@ -46,7 +46,7 @@ struct EstimatorInput {
     double prior_roll_rad = 0.0;
     double ceiling_height_m = 5.0;  ///< centre of the h prior [m]
     RowTiming query_timing;         ///< the query image's rows (velocity: the query vehicle's)
-    int query_rows = 0;             ///< the query image's height [px] (for row_travel_m)
+    int query_rows = 0;             ///< the query image's height [px] (for row_travel)
 };
 
 /// What the query's rows show of a rolling shutter the model does not carry: the vehicle's
