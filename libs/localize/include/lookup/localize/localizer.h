@@ -306,8 +306,9 @@ class Localizer {
     const std::shared_ptr<const refine::ImagePyramid>& framePyramid(
         const mrpt::obs::CObservationImage& query);
     const refine::ReferenceImage& referenceView(std::size_t index);
-    /// The rows of reference `index` (db.ini ceiling_readout_ms) with the survey vehicle's
-    /// velocity from its traverse's neighbouring references.
+    /// The rows of reference `index` (db.ini ceiling_readout_ms, or the readout estimated and
+    /// applied since) with the survey vehicle's velocity from its traverse's neighbouring
+    /// references.
     refine::RowTiming surveyRowTiming(std::size_t index, int rows) const;
     /// The survey vehicle's velocity at reference `index` from its traverse's neighbouring
     /// references (its own frame); none for a lone reference.
