@@ -497,14 +497,15 @@ class Session {
                   << offsetText(saved->estimate) << "\n";
     }
 
-    static std::string millisecondsText(const CameraClock::Estimate& e) {
+    static std::string millisecondsText(double value_s, double sigma_s) {
         char text[64];
-        std::snprintf(text, sizeof text, "%+.1f +- %.1f ms", 1e3 * e.offset_s, 1e3 * e.sigma_s);
+        std::snprintf(text, sizeof text, "%+.1f +- %.1f ms", 1e3 * value_s, 1e3 * sigma_s);
         return text;
     }
 
     static std::string offsetText(const CameraClock::Estimate& e) {
-        return millisecondsText(e) + " from " + std::to_string(e.pairs) + " pairs of fixes";
+        return millisecondsText(e.offset_s, e.sigma_s) + " from " + std::to_string(e.pairs) +
+               " pairs of fixes";
     }
 
     void reportCameraClock() {
@@ -548,7 +549,7 @@ class Session {
                 << " ms, db.ini)";
         }
         if (const auto& speed = clock.speedEstimate()) {
-            out << "; from its speed changes " << millisecondsText(*speed);
+            out << "; from its speed changes " << millisecondsText(speed->offset_s, speed->sigma_s);
         }
         if (clock.unappliedOffset() > 0) {
             out << "; every pose's covariance carries "
@@ -568,11 +569,6 @@ class Session {
                            {"frames", double(e.frames)},
                            {"query_applied_s", r.queryReadout()},
                            {"survey_applied_s", r.surveyReadout()}};
-        const auto text = [](double s, double sigma) {
-            char buf[64];
-            std::snprintf(buf, sizeof buf, "%.1f +- %.1f ms", 1e3 * s, 1e3 * sigma);
-            return std::string(buf);
-        };
         const auto outcome = [&r](bool applied, double modelled_s) {
             if (applied) return std::string("applied");
             if (modelled_s > 0)
@@ -585,9 +581,9 @@ class Session {
         };
         std::cerr << "lookup-localize: ceiling cameras' rolling-shutter readout from the rows of "
                   << e.frames << " refined frames: this vehicle's "
-                  << text(e.query_s, e.query_sigma_s) << ", "
+                  << millisecondsText(e.query_s, e.query_sigma_s) << ", "
                   << outcome(r.queryApplied(), r.queryReadout()) << "; the survey's "
-                  << text(e.survey_s, e.survey_sigma_s) << ", "
+                  << millisecondsText(e.survey_s, e.survey_sigma_s) << ", "
                   << outcome(r.surveyApplied(), r.surveyReadout()) << "\n";
     }
 

@@ -248,16 +248,21 @@ void storeSolution(const EstimatorInput& in, const double* pose, const double* h
     out.ceiling_height_sigma_m = std::sqrt(std::max(0.0, out.covariance(5, 5)));
 }
 
-// Root mean square of the unweighted pixel residuals at the solution.
-double rmsResidualPx(const Correspondences& corr, const EstimatorInput& in,
-                     const CameraMount& mount, const double* pose, const double* h) {
-    double sq = 0.0;
-    for (std::size_t i = 0; i < corr.qs.size(); ++i) {
-        double r[2];
-        reprojection(corr, i, in, mount, 1.0)(pose, h, r);
-        sq += r[0] * r[0] + r[1] * r[1];
+// The unweighted pixel residual of every correspondence at the solution.
+std::vector<Eigen::Vector2d> pixelResiduals(const Correspondences& corr, const EstimatorInput& in,
+                                            const CameraMount& mount, const double* pose,
+                                            const double* h) {
+    std::vector<Eigen::Vector2d> r(corr.qs.size());
+    for (std::size_t i = 0; i < r.size(); ++i) {
+        reprojection(corr, i, in, mount, 1.0)(pose, h, r[i].data());
     }
-    return std::sqrt(sq / double(corr.qs.size()));
+    return r;
+}
+
+double rootMeanSquare(const std::vector<Eigen::Vector2d>& residuals) {
+    double sq = 0.0;
+    for (const auto& r : residuals) sq += r[0] * r[0] + r[1] * r[1];
+    return std::sqrt(sq / double(residuals.size()));
 }
 
 // The unknowns of the rows' refit: c, isotropic scale, rotation, shift x, shift y, tilt about
@@ -267,12 +272,11 @@ using RowDesign = Eigen::Matrix<double, 2, kRowUnknowns>;
 using RowVector = Eigen::Matrix<double, kRowUnknowns, 1>;
 using RowNormal = Eigen::Matrix<double, kRowUnknowns, kRowUnknowns>;
 
-// Each correspondence's pixel residual at the solution and its design: the rows' term
-// c (row - mean row) u with u the image direction of the vehicle's heading, then what the pose
-// and h would take of a stretch (shift, rotation, scale, tilt).
-void rowDesign(const Correspondences& corr, const EstimatorInput& in, const CameraMount& mount,
-               const double* pose, const double* h, const Eigen::Vector2d& u,
-               std::vector<RowDesign>& A, std::vector<Eigen::Vector2d>& r) {
+// Each correspondence's design against its residual: the rows' term c (row - mean row) u with
+// u the image direction of the vehicle's heading, then what the pose and h would take of a
+// stretch (shift, rotation, scale, tilt).
+std::vector<RowDesign> rowDesign(const Correspondences& corr, const EstimatorInput& in,
+                                 const Eigen::Vector2d& u) {
     const std::size_t n = corr.qs.size();
     double mean_row = 0;
     Eigen::Vector2d mean_px = Eigen::Vector2d::Zero();
@@ -281,16 +285,15 @@ void rowDesign(const Correspondences& corr, const EstimatorInput& in, const Came
         mean_px += Eigen::Vector2d(corr.qs[i].x, corr.qs[i].y) / double(n);
     }
     const Pinhole& c = in.query_camera;
-    A.resize(n);
-    r.resize(n);
+    std::vector<RowDesign> A(n);
     for (std::size_t i = 0; i < n; ++i) {
-        reprojection(corr, i, in, mount, 1.0)(pose, h, r[i].data());
         const double dr = corr.rows[i] - mean_row;
         const Eigen::Vector2d p = Eigen::Vector2d(corr.qs[i].x, corr.qs[i].y) - mean_px;
         const double x = corr.qs[i].x - c.cx, y = corr.qs[i].y - c.cy;
         A[i] << dr * u.x(), p.x(), -p.y(), 1, 0, x * y / c.fx, x * x / c.fx,  //
             dr * u.y(), p.y(), p.x(), 0, 1, y * y / c.fx, x * y / c.fx;
     }
+    return A;
 }
 
 // Least squares of r = A x twice, all points then those within 3 robust deviations of the
@@ -336,17 +339,15 @@ std::optional<std::pair<double, double>> robustFirstUnknown(const std::vector<Ro
 // motion of the travel up to its row; refitted beside what the pose and h would take of it so
 // that only the stretch or shear along the drive is left.
 std::optional<RowTravel> rowTravel(const Correspondences& corr, const EstimatorInput& in,
-                                   const CameraMount& mount, const double* pose, const double* h) {
+                                   const CameraMount& mount, const double* h,
+                                   const std::vector<Eigen::Vector2d>& residuals) {
     constexpr std::size_t kMinPoints = 20;
     const Eigen::Vector2d u = mount.R.row(0).head<2>();  // the vehicle's x axis, camera frame
     const double distance_m = h[0] - in.vehicle_z - mount.t.z();
     if (in.query_rows < 2 || u.norm() < 0.5 || !(distance_m > 0) || corr.qs.size() < kMinPoints) {
         return std::nullopt;
     }
-    std::vector<RowDesign> A;
-    std::vector<Eigen::Vector2d> r;
-    rowDesign(corr, in, mount, pose, h, u.normalized(), A, r);
-    const auto c = robustFirstUnknown(A, r, kMinPoints);
+    const auto c = robustFirstUnknown(rowDesign(corr, in, u.normalized()), residuals, kMinPoints);
     if (!c) return std::nullopt;
     // c is pixels per row; the vehicle moving d metres moves the ceiling by f d / distance px.
     const double px_per_m = std::sqrt(in.query_camera.fx * in.query_camera.fy) / distance_m;
@@ -391,8 +392,9 @@ PoseEstimate estimateQueryPose(const EstimatorInput& in, const EstimatorOptions&
         return out;
     }
     storeSolution(in, pose, h, out);
-    out.rms_residual_px = rmsResidualPx(corr, in, mount, pose, h);
-    out.row_travel = rowTravel(corr, in, mount, pose, h);
+    const auto residuals = pixelResiduals(corr, in, mount, pose, h);
+    out.rms_residual_px = rootMeanSquare(residuals);
+    out.row_travel = rowTravel(corr, in, mount, h, residuals);
     out.ok = true;
     return out;
 }
