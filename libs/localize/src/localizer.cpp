@@ -671,22 +671,11 @@ refine::RowTiming Localizer::surveyRowTiming(std::size_t index, int rows) const 
 }
 
 std::optional<refine::VehicleMotion> Localizer::surveyVelocity(std::size_t index) const {
-    const auto& ref = db_.reference(index);
-    const auto neighbour = [&](std::size_t j) {
-        if (j >= db_.size()) return &ref;
-        const auto& r = db_.reference(j);
-        return r.traverse == ref.traverse && std::abs(r.time_s - ref.time_s) < 1.0 ? &r : &ref;
-    };
-    const auto* a = index > 0 ? neighbour(index - 1) : &ref;
-    const auto* b = neighbour(index + 1);
-    const double dt = b->time_s - a->time_s;
-    if (!(dt > 0)) return std::nullopt;  // a lone reference: seen as a global shutter's
-    const double dx = (b->vehicle_pose.x() - a->vehicle_pose.x()) / dt;
-    const double dy = (b->vehicle_pose.y() - a->vehicle_pose.y()) / dt;
-    const double c = std::cos(ref.vehicle_pose.yaw()), s = std::sin(ref.vehicle_pose.yaw());
-    return refine::VehicleMotion{
-        c * dx + s * dy, -s * dx + c * dy,
-        mrpt::math::wrapToPi(b->vehicle_pose.yaw() - a->vehicle_pose.yaw()) / dt};
+    const auto v = referenceVelocity(index);
+    if (!v) return std::nullopt;  // a lone reference: seen as a global shutter's
+    const double yaw = db_.reference(index).vehicle_pose.yaw();
+    const double c = std::cos(yaw), s = std::sin(yaw);
+    return refine::VehicleMotion{c * v->x() + s * v->y(), -s * v->x() + c * v->y(), v->z()};
 }
 
 const refine::ReferenceImage& Localizer::referenceView(std::size_t index) {
@@ -1438,20 +1427,20 @@ mrpt::math::CMatrixDouble33 Localizer::imageTimeCovariance(double time_s, double
 
 std::optional<Eigen::Vector3d> Localizer::referenceVelocity(std::size_t i) const {
     const auto& ref = db_.reference(i);
-    if (ref.source != "survey") return std::nullopt;  // placed by a drive's own fixes
+    // A neighbour more than a second away is across a gap in the drive, not beside it.
     const auto neighbour = [&](std::size_t j) {
-        return j < db_.size() && db_.reference(j).traverse == ref.traverse &&
-               db_.reference(j).source == ref.source;
+        if (j >= db_.size()) return false;
+        const auto& r = db_.reference(j);
+        return r.traverse == ref.traverse && r.source == ref.source &&
+               std::abs(r.time_s - ref.time_s) < 1.0;
     };
-    const std::size_t a = i > 0 && neighbour(i - 1) ? i - 1 : i;
-    const std::size_t b = neighbour(i + 1) ? i + 1 : i;
-    const auto &ra = db_.reference(a), &rb = db_.reference(b);
-    const double dt = rb.time_s - ra.time_s;
+    const auto& a = db_.reference(i > 0 && neighbour(i - 1) ? i - 1 : i);
+    const auto& b = db_.reference(neighbour(i + 1) ? i + 1 : i);
+    const double dt = b.time_s - a.time_s;
     if (!(dt > 0)) return std::nullopt;
-    return Eigen::Vector3d(
-        (rb.vehicle_pose.x() - ra.vehicle_pose.x()) / dt,
-        (rb.vehicle_pose.y() - ra.vehicle_pose.y()) / dt,
-        mrpt::math::wrapToPi(rb.vehicle_pose.yaw() - ra.vehicle_pose.yaw()) / dt);
+    return Eigen::Vector3d((b.vehicle_pose.x() - a.vehicle_pose.x()) / dt,
+                           (b.vehicle_pose.y() - a.vehicle_pose.y()) / dt,
+                           mrpt::math::wrapToPi(b.vehicle_pose.yaw() - a.vehicle_pose.yaw()) / dt);
 }
 
 mrpt::math::CMatrixDouble33 Localizer::unsharedLatencyCovariance(double time_s, double yaw) const {
@@ -1466,6 +1455,7 @@ mrpt::math::CMatrixDouble33 Localizer::unsharedLatencyCovariance(double time_s, 
     if (!vehicle) return cov;
     std::size_t n = 0;
     for (std::size_t i : fix_references_) {
+        if (db_.reference(i).source != "survey") continue;  // placed by a drive's own fixes
         const auto reference = referenceVelocity(i);
         if (!reference) continue;
         const Eigen::Vector3d w = *vehicle - *reference;

@@ -219,8 +219,8 @@ class Localizer {
     /// The lateness the references do not share with the vehicle (survey clock unknown): what
     /// it adds to the pose at `time_s` against the last fix's references.
     mrpt::math::CMatrixDouble33 unsharedLatencyCovariance(double time_s, double yaw) const;
-    /// Reference `i`'s velocity in the map frame (x, y [m/s], yaw rate [rad/s]) from its
-    /// neighbours in its survey traverse; nullopt where it has none.
+    /// The vehicle's velocity at reference `i` in the map frame (x, y [m/s], yaw rate [rad/s])
+    /// from its neighbours of the same drive (traverse and source); nullopt for a lone one.
     std::optional<Eigen::Vector3d> referenceVelocity(std::size_t i) const;
     void finishFrame(FrameResult& out);
     std::optional<double> floorHeightUnder(const mrpt::poses::CPose2D& pose) const;
@@ -310,8 +310,7 @@ class Localizer {
     /// applied since) with the survey vehicle's velocity from its traverse's neighbouring
     /// references.
     refine::RowTiming surveyRowTiming(std::size_t index, int rows) const;
-    /// The survey vehicle's velocity at reference `index` from its traverse's neighbouring
-    /// references (its own frame); none for a lone reference.
+    /// referenceVelocity in the reference vehicle's own frame.
     std::optional<refine::VehicleMotion> surveyVelocity(std::size_t index) const;
     /// Keeps a refined frame's rows for the readout estimate (feedReadout).
     void estimateReadout(const FrameResult& out);
