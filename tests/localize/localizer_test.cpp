@@ -1366,11 +1366,12 @@ namespace {
 
 // A drive along the vehicle's heading speeding up from 0.5 to 4 m/s and braking again, its
 // ceiling camera a rolling shutter of 60 ms stamped at the first row, over a database whose
-// survey camera clock is known to `survey_clock_sigma_s` (none: not known); localised with
+// survey camera clock is known to `survey_clock_sigma_s` (none: not known) and whose camera
+// read its rows in `survey_readout_s` (not recorded) at the survey's 2.5 m/s; localised with
 // `ini`. Returns the mean error of the last 15 frames and the run's timing.
 std::pair<double, localize::RunTiming> varyingSpeedRollingRun(
     const std::string& name, const std::string& ini,
-    std::optional<double> survey_clock_sigma_s = 0.005) {
+    std::optional<double> survey_clock_sigma_s = 0.005, double survey_readout_s = 0) {
     constexpr int kFrames = 40;
     constexpr double kHeading = 0.05;
     std::vector<double> speed, travelled{0.0};
@@ -1387,6 +1388,8 @@ std::pair<double, localize::RunTiming> varyingSpeedRollingRun(
     PlanarDrive drive;
     drive.vehicle = pose;
     drive.survey_camera.time_offset_sigma_s = survey_clock_sigma_s;
+    drive.survey_camera.timing.readout_s = survey_readout_s;
+    drive.survey_camera.timing.velocity = {2.5, 0.0, 0.0};
     auto req = planarRun(
         dir,
         [&](int i, mrpt::obs::CObservationImage& img, mrpt::obs::CObservationOdometry&) {
@@ -1428,13 +1431,23 @@ TEST(Localize, AnUnconfiguredRollingShutterIsEstimatedFromTheRowsAndApplied) {
     EXPECT_NEAR(estimated.readout.at("survey_applied_s"), 0.0, 1e-12);  // a global shutter
     EXPECT_GT(unmodelled_m, 0.05);
     EXPECT_LT(estimated_m, 0.02);
-    // Against a survey whose camera clock is not known the estimate is only reported: there
-    // the half readout is part of the lateness the references and the vehicle share.
-    const auto [reported_m, reported] =
-        varyingSpeedRollingRun("rolling_reported", estimating, std::nullopt);
-    EXPECT_NEAR(reported.readout.at("query_s"), 0.060, 0.008);
-    EXPECT_EQ(reported.readout.at("query_applied_s"), 0.0);
-    EXPECT_NEAR(reported_m, unmodelled_m, 1e-9);
+    // Against a survey whose camera clock is not known, the vehicle's readout is applied where
+    // the survey's camera shows none (a global shutter)...
+    const auto [unknown_m, unknown] =
+        varyingSpeedRollingRun("rolling_unknown_clock", estimating, std::nullopt);
+    EXPECT_NEAR(unknown.readout.at("query_applied_s"), 0.060, 0.008);
+    EXPECT_LT(unknown_m, 0.02);
+    // ... and not where the survey's camera read its rows alike: its half readout is part of
+    // the lateness that the references and the vehicle share, and cancels with the vehicle's.
+    const auto [alike_off_m, alike_off] = varyingSpeedRollingRun(
+        "rolling_alike_off", "[localizer]\nestimate_readout = false\n", std::nullopt, 0.060);
+    const auto [alike_m, alike] =
+        varyingSpeedRollingRun("rolling_alike", estimating, std::nullopt, 0.060);
+    EXPECT_NEAR(alike.readout.at("query_s"), 0.060, 0.008);
+    EXPECT_NEAR(alike.readout.at("survey_s"), 0.060, 0.008);
+    EXPECT_EQ(alike.readout.at("query_applied_s"), 0.0);
+    EXPECT_EQ(alike.readout.at("survey_applied_s"), 0.0);
+    EXPECT_NEAR(alike_m, alike_off_m, 1e-9);
 }
 
 TEST(Localize, RollingShutterReferencesAreSeenFromTheSurveyVehiclesRowPoses) {

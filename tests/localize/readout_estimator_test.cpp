@@ -20,8 +20,9 @@ namespace {
 /// rows show `query_s` x its speed less `survey_s` x the survey's, beyond the readouts modelled
 /// then, with 1 cm of noise.
 ReadoutEstimator drive(double query_s, double survey_s, double configured_query_s = 0,
-                       bool survey_as_query = false) {
-    ReadoutEstimator estimator(ReadoutEstimatorOptions(), configured_query_s, 0.0);
+                       bool survey_as_query = false,
+                       const ReadoutEstimatorOptions& options = ReadoutEstimatorOptions()) {
+    ReadoutEstimator estimator(options, configured_query_s, 0.0);
     std::mt19937 rng(3);
     std::normal_distribution<double> noise(0, 0.01), wobble(0, 1.0);
     for (int k = 0; k < 120; ++k) {
@@ -69,6 +70,21 @@ TEST(ReadoutEstimator, TwoAlikeCamerasAreAppliedTogetherOrNotAtAll) {
     EXPECT_NEAR(both.estimate()->survey_s, 0.020, 0.003);
     EXPECT_TRUE(both.queryApplied());
     EXPECT_TRUE(both.surveyApplied());
+}
+
+TEST(ReadoutEstimator, WhereTheSurveysReadoutIsNotAppliedOnlyAVehicleAloneIs) {
+    // A survey camera clock nobody knows: the survey's readout is never applied, so a vehicle's
+    // alike stays out too (the two cancel), and one beside a global shutter is applied.
+    ReadoutEstimatorOptions options;
+    options.apply_survey = false;
+    const auto alike = drive(0.020, 0.020, 0.0, false, options);
+    ASSERT_TRUE(alike.estimate());
+    EXPECT_NEAR(alike.estimate()->survey_s, 0.020, 0.003);
+    EXPECT_FALSE(alike.queryApplied());
+    EXPECT_FALSE(alike.surveyApplied());
+    const auto alone = drive(0.030, 0.0, 0.0, false, options);
+    EXPECT_TRUE(alone.queryApplied());
+    EXPECT_NEAR(alone.queryReadout(), 0.030, 0.002);
 }
 
 TEST(ReadoutEstimator, AConfiguredReadoutIsKeptAndTheEstimateOnlyReported) {

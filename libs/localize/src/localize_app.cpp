@@ -569,22 +569,26 @@ class Session {
                            {"frames", double(e.frames)},
                            {"query_applied_s", r.queryReadout()},
                            {"survey_applied_s", r.surveyReadout()}};
-        const auto outcome = [&r](bool applied, double modelled_s) {
+        const auto outcome = [](bool applied, double modelled_s, bool applies,
+                                const char* why_not) {
             if (applied) return std::string("applied");
             if (modelled_s > 0)
                 return std::string("configured: ") +
                        std::to_string(int(std::round(1e3 * modelled_s))) + " ms kept";
-            return std::string(r.applies() ? "not applied (not precise and significant)"
-                                           : "reported only (the survey camera clock is not "
-                                             "known, or estimate_readout / "
-                                             "apply_estimated_readout)");
+            return std::string(applies ? why_not : "reported only (apply_estimated_readout)");
         };
         std::cerr << "lookup-localize: ceiling cameras' rolling-shutter readout from the rows of "
                   << e.frames << " refined frames: this vehicle's "
                   << millisecondsText(e.query_s, e.query_sigma_s) << ", "
-                  << outcome(r.queryApplied(), r.queryReadout()) << "; the survey's "
-                  << millisecondsText(e.survey_s, e.survey_sigma_s) << ", "
-                  << outcome(r.surveyApplied(), r.surveyReadout()) << "\n";
+                  << outcome(r.queryApplied(), r.queryReadout(), r.applies(),
+                             "not applied (not precise and significant, or the survey's not "
+                             "bounded under half of it)")
+                  << "; the survey's " << millisecondsText(e.survey_s, e.survey_sigma_s) << ", "
+                  << outcome(r.surveyApplied(), r.surveyReadout(), r.applies(),
+                             r.appliesSurvey() ? "not applied (not precise and significant)"
+                                               : "reported only (the survey camera clock is not "
+                                                 "known)")
+                  << "\n";
     }
 
     /// Writes the estimate for the vehicle's next run (camera_clock_file); a failure is said,

@@ -161,14 +161,13 @@ CameraClockOptions cameraClockOptions(const LocalizerOptions& o, const database:
     return c;
 }
 
-// A readout is applied only against a survey whose camera clock is known: an uncalibrated
+// The survey camera's readout is applied only where its clock is known: an uncalibrated
 // camera's lateness is left to cancel between the survey's references and the vehicle, and the
-// half readout after a first-row stamp is part of what cancels; modelling it alone moves the
-// poses by it.
+// half readout after a first-row stamp is part of what cancels.
 ReadoutEstimatorOptions readoutOptions(const LocalizerOptions& o,
                                        const database::DatabaseInfo& db) {
     ReadoutEstimatorOptions r = o.readout;
-    r.apply = r.apply && surveyClockKnown(o, db);
+    r.apply_survey = surveyClockKnown(o, db);
     return r;
 }
 

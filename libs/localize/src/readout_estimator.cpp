@@ -47,7 +47,7 @@ void ReadoutEstimator::refit() {
     // alike: each is applied alone only where the other is bounded to under half of it (then
     // modelling it leaves less error than not), or with the other where both are applicable.
     const bool query = applicable(fit->slope, fit->sigma);
-    const bool survey = applicable(fit->nuisance, fit->nuisance_sigma);
+    const bool survey = options_.apply_survey && applicable(fit->nuisance, fit->nuisance_sigma);
     const bool query_known = query_configured_ || query_applied_ || query;
     const bool survey_known = survey_configured_ || survey_applied_ || survey;
     if (!query_configured_ && query &&

@@ -25,8 +25,13 @@
 namespace lookup::localize {
 
 struct ReadoutEstimatorOptions {
-    bool enabled = true;            ///< estimate (and report)
-    bool apply = true;              ///< apply an estimate to a readout not configured
+    bool enabled = true;  ///< estimate (and report)
+    bool apply = true;    ///< apply an estimate to a readout not configured
+    /// Apply the survey camera's too. Where the survey's camera clock is unknown its lateness
+    /// and its half readout are one unknown shift of the references, which a vehicle's camera
+    /// alike cancels: its readout is then left alone, and the vehicle's applied only where the
+    /// survey's is configured or bounded to under half of it.
+    bool apply_survey = true;
     std::size_t min_frames = 40;    ///< before anything is applied
     std::size_t max_frames = 1000;  ///< the newest kept (the cameras' readouts are fixed)
     double max_sigma_s = 0.003;     ///< an estimate more uncertain is not applied [s]
@@ -64,6 +69,7 @@ class ReadoutEstimator {
     bool surveyApplied() const { return survey_applied_; }
     /// Whether an estimate will be applied once precise and significant.
     bool applies() const { return options_.enabled && options_.apply; }
+    bool appliesSurvey() const { return applies() && options_.apply_survey; }
 
     /// What is modelled now, to tell what a frame changed.
     struct Modelled {
