@@ -1,10 +1,12 @@
 // Rectification cost (lookup::refine::Rectifier): one cv::remap per query frame of the
 // simulator's 320 x 240 ceiling camera, strong barrel (plumb_bob) and fisheye (kannala_brandt),
-// with the maps cached; and building the maps once per camera. One core.
+// with the maps cached; building the maps once per camera; and the pixels of a frame's inliers
+// undistorted for the estimator (lookup::refine::undistortPixels). One core.
 #include <benchmark/benchmark.h>
 
 #include <opencv2/core.hpp>
 
+#include "lookup/refine/geometry.h"
 #include "lookup/refine/rectifier.h"
 
 namespace {
@@ -51,5 +53,20 @@ BENCHMARK(buildMaps)
     ->Arg(0)
     ->Arg(1)
     ->Unit(benchmark::kMillisecond);
+
+// 150 inliers spread over the image: three references' worth of a tracked frame.
+void undistortInliers(benchmark::State& state) {
+    cv::setNumThreads(1);
+    const auto cam = camera(state.range(0) == 1);
+    std::vector<cv::Point2f> px;
+    cv::RNG rng(1);
+    for (int i = 0; i < 150; ++i) px.emplace_back(rng.uniform(0.f, 319.f), rng.uniform(0.f, 239.f));
+    for (auto _ : state) benchmark::DoNotOptimize(lookup::refine::undistortPixels(px, cam));
+}
+BENCHMARK(undistortInliers)
+    ->Name("Undistort_150_inliers")
+    ->Arg(0)
+    ->Arg(1)
+    ->Unit(benchmark::kMicrosecond);
 
 }  // namespace

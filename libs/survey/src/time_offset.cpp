@@ -127,19 +127,9 @@ cv::Mat loadGrey(const mrpt::obs::CObservationImage& obs) {
 
 // Pixels to the pinhole part of the camera (lens distortion removed).
 std::vector<cv::Point2f> rectified(const std::vector<cv::Point2f>& px,
-                                   const mrpt::img::TCamera& cam, const refine::Pinhole& pin) {
-    if (!refine::hasDistortion(cam)) return px;
-    const cv::Matx33d K = pin.K();
-    std::vector<cv::Point2f> out;
-    const auto& d = cam.dist;
-    if (cam.distortion == mrpt::img::DistortionModel::kannala_brandt) {
-        cv::fisheye::undistortPoints(px, out, K, cv::Vec4d(d[0], d[1], d[4], d[5]), cv::noArray(),
-                                     K);
-    } else {
-        cv::undistortPoints(px, out, K, std::vector<double>{d[0], d[1], d[2], d[3], d[4]},
-                            cv::noArray(), K);
-    }
-    return out;
+                                   const mrpt::img::TCamera& cam) {
+    const auto out = refine::undistortPixels(px, cam);
+    return {out.begin(), out.end()};
 }
 
 // Ceiling points of image a tracked into image b (forward-backward checked), `guess` the
@@ -194,8 +184,8 @@ std::optional<Motion> imageMotion(const mrpt::obs::CObservationImage& ia,
     if (!(distance_m > 0)) return std::nullopt;
     std::vector<cv::Point2f> pa, pb;
     if (!trackPoints(a, b, pin, mount, h, guess, pa, pb)) return std::nullopt;
-    pa = rectified(pa, ia.cameraParams, pin);
-    pb = rectified(pb, ia.cameraParams, pin);
+    pa = rectified(pa, ia.cameraParams);
+    pb = rectified(pb, ia.cameraParams);
     std::vector<cv::Point2f> on_a, on_b;
     for (std::size_t k = 0; k < pa.size(); ++k) {
         const auto qa = refine::backProjectToCeiling(pin, mount, cv::Point2d(pa[k]), h);
