@@ -35,10 +35,10 @@ bool hasDistortion(const mrpt::img::TCamera& camera) {
 namespace {
 
 // OpenCV's undistortPoints iterates a fixed point that converges slowly, or not at all, towards
-// the rim of a strong barrel lens (k1 = -0.4 at 95 deg: two pixels in three left more than 0.01
-// px off after its five iterations, the corners tens of pixels). Newton's method on OpenCV's own
-// lens model (projectPoints, whose Jacobian in the translation is the one in the point for a
-// point at depth 1) converges on the whole image of a lens whose radius grows monotonically.
+// the rim of a strong barrel lens (docs/benchmarks.md, "Pixels undistorted to convergence").
+// Newton's method on OpenCV's own lens model (projectPoints, whose Jacobian in the translation
+// is the one in the point for a point at depth 1) converges on the whole image of a lens whose
+// radius grows monotonically.
 std::vector<cv::Point2d> newtonUndistort(const std::vector<cv::Point2f>& px, const cv::Matx33d& K,
                                          const std::vector<double>& dist) {
     constexpr int kMaxIterations = 20;
