@@ -81,8 +81,8 @@ struct LocalizerOptions : public common::TableOptions<LocalizerOptions> {
     CameraClockApply apply_camera_time_offset = CameraClockApply::Auto;
     double survey_clock_max_sigma_s = 0.010;  ///< [s]
     /// The ceiling cameras' rolling-shutter readouts, estimated from the rows of the refined
-    /// frames and reported (readout_estimator.h); against a survey whose camera clock is known
-    /// (survey_clock_max_sigma_s), one not configured is applied once precise and significant.
+    /// frames and reported (readout_estimator.h); one not configured is applied once precise and
+    /// significant, the survey camera's only where its clock is known (survey_clock_max_sigma_s).
     ReadoutEstimatorOptions readout;
     /// Acquisition (not tracking): also try references within this distance of the coarse
     /// match, one by one, before giving up, since the SAD window covers only +-L_SR/2 [m].
