@@ -54,7 +54,11 @@ std::optional<CameraClock::Sample> CameraClock::sampleAt(
 }
 
 double CameraClock::shift() const {
-    if (!estimate_ || estimate_->pairs < options_.min_pairs) return 0.0;
+    // Only an estimate that stands out of zero says the offset is large. Read around one
+    // within its noise, the odometry's motion at the stamps and at the shifted times differs
+    // by more than the linear correction takes, and the fit settles on the shift it was read
+    // at: it would confirm itself.
+    if (!significant(estimate_) || estimate_->pairs < options_.min_pairs) return 0.0;
     return std::clamp(estimate_->offset_s, -options_.max_offset_s, options_.max_offset_s);
 }
 

@@ -120,8 +120,8 @@ class CameraClock {
     };
     std::optional<Sample> sampleAt(double t, const mrpt::poses::CPose2D& fix, double shift,
                                    const common::OdometryTrack& odometry) const;
-    /// Where the odometry is read for a fix: at its stamp plus the latest estimate, so that a
-    /// large offset is measured as a small one around it.
+    /// Where the odometry is read for a fix: at its stamp plus the latest estimate where that
+    /// is significant, so that a large offset is measured as a small one around it.
     double shift() const;
     /// `e` exists and stands `significance` sigmas out of zero.
     bool significant(const std::optional<Estimate>& e) const {
