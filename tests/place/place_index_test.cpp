@@ -33,9 +33,9 @@ Located locate(const place::PlaceIndex& index, const database::ReferenceDatabase
     if (candidates.empty()) return out;
     const auto& c = candidates.front();
     const auto& ref = db.reference(c.reference);
-    const auto pose = place::vehiclePose(c, db.info().ceiling_camera, grade + ref.vehicle_pose,
-                                         ref.ceiling_camera_mount, {scene.camera, scene.mount},
-                                         db.info().ceiling_height_m);
+    const auto pose = place::vehiclePose(
+        c, db.info().ceiling_camera, grade + ref.vehicle_pose, ref.ceiling_camera_mount,
+        {scene.camera, scene.mount}, db.info().ceiling_height_m, index.options().max_scale_change);
     if (!pose) return out;
     const mrpt::poses::CPose2D truth(grade + vehicle);
     out.found = true;

@@ -33,7 +33,7 @@ PlaceSearchResult searchPlaces(const place::PlaceIndex& index,
     const place::QueryCamera camera{query.cameraParams, query.cameraPose};
     for (const auto& c : candidates) {
         if (out.places.size() >= max_places) break;
-        const auto pose = place::vehiclePose(c, db, camera);
+        const auto pose = place::vehiclePose(c, db, camera, index.options().max_scale_change);
         if (!pose) continue;
         // Candidates come most inliers first: a later one near a kept place is the same place.
         bool known = false;

@@ -171,7 +171,9 @@ std::vector<mrpt::poses::CPose2D> candidatePoses(const PlaceIndex& index,
                                                  PlaceQueryTimes* t) {
     std::vector<mrpt::poses::CPose2D> poses;
     for (const auto& c : index.query(grey, t)) {
-        if (auto p = vehiclePose(c, db, camera)) poses.push_back(*p);
+        if (auto p = vehiclePose(c, db, camera, index.options().max_scale_change)) {
+            poses.push_back(*p);
+        }
     }
     return poses;
 }

@@ -15,7 +15,8 @@ std::optional<mrpt::poses::CPose2D> onLevelFloor(const PlaceCandidate& candidate
                                                  const mrpt::img::TCamera& reference_camera,
                                                  const mrpt::poses::CPose3D& reference_vehicle,
                                                  const mrpt::poses::CPose3D& reference_mount,
-                                                 const QueryCamera& query, double h) {
+                                                 const QueryCamera& query, double h,
+                                                 double max_scale_change) {
     refine::Pinhole ref_cam, query_cam;
     if (!refine::pinholeFrom(reference_camera, ref_cam, nullptr) ||
         !refine::pinholeFrom(query.intrinsics, query_cam, nullptr)) {
@@ -48,12 +49,16 @@ std::optional<mrpt::poses::CPose2D> onLevelFloor(const PlaceCandidate& candidate
     }
     ca /= double(in_vehicle.size());
     cb /= double(in_map.size());
-    double s_cos = 0, s_sin = 0;
+    double s_cos = 0, s_sin = 0, spread_a = 0, spread_b = 0;
     for (std::size_t i = 0; i < in_vehicle.size(); ++i) {
         const cv::Point2d a = in_vehicle[i] - ca, b = in_map[i] - cb;
         s_cos += a.x * b.x + a.y * b.y;
         s_sin += a.x * b.y - a.y * b.x;
+        spread_a += a.dot(a);
+        spread_b += b.dot(b);
     }
+    // One ceiling seen by both: the same size in metres, whatever each camera's height.
+    if (!(std::abs(std::sqrt(spread_b / spread_a) - 1) <= max_scale_change)) return std::nullopt;
     const double yaw = std::atan2(s_sin, s_cos);
     const double c = std::cos(yaw), s = std::sin(yaw);
     const double x = cb.x - (c * ca.x - s * ca.y), y = cb.y - (s * ca.x + c * ca.y);
@@ -67,26 +72,28 @@ std::optional<mrpt::poses::CPose2D> vehiclePose(const PlaceCandidate& candidate,
                                                 const mrpt::img::TCamera& reference_camera,
                                                 const mrpt::poses::CPose3D& reference_vehicle,
                                                 const mrpt::poses::CPose3D& reference_mount,
-                                                const QueryCamera& query, double h) {
+                                                const QueryCamera& query, double h,
+                                                double max_scale_change) {
     // A reference with a 3-D pose on a grade sees its ceiling parallel to its floor.
     const auto floor = refine::floorFrame({reference_vehicle});
     if (!floor) {
         return onLevelFloor(candidate, reference_camera, reference_vehicle, reference_mount, query,
-                            h);
+                            h, max_scale_change);
     }
     const auto local =
         onLevelFloor(candidate, reference_camera, refine::inFloorFrame(reference_vehicle, *floor),
-                     reference_mount, query, h);
+                     reference_mount, query, h, max_scale_change);
     if (!local) return std::nullopt;
     return mrpt::poses::CPose2D(*floor + mrpt::poses::CPose3D(*local));
 }
 
 std::optional<mrpt::poses::CPose2D> vehiclePose(const PlaceCandidate& candidate,
                                                 const database::ReferenceDatabase& db,
-                                                const QueryCamera& query) {
+                                                const QueryCamera& query, double max_scale_change) {
     const auto& ref = db.reference(candidate.reference);
     return vehiclePose(candidate, refine::idealPinhole(db.info().ceiling_camera), ref.vehicle_pose,
-                       ref.ceiling_camera_mount, query, db.info().ceiling_height_m);
+                       ref.ceiling_camera_mount, query, db.info().ceiling_height_m,
+                       max_scale_change);
 }
 
 }  // namespace lookup::place

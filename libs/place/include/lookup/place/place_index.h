@@ -69,8 +69,11 @@ struct PlaceIndexOptions : public common::TableOptions<PlaceIndexOptions> {
     int rerank_references = 12;        ///< best-voted references fitted geometrically
     double ransac_threshold_px = 4.0;  ///< similarity RANSAC inlier distance [px]
     int min_inliers = 12;              ///< fewer geometric inliers: not a candidate
-    double max_scale_change = 0.25;    ///< |scale - 1| allowed (another camera height)
-    int lsh_tables = 3;                ///< LSH tables (binary descriptors)
+    /// |scale - 1| allowed between the query's and the reference's view of the ceiling, in
+    /// metres on the ceiling (place::vehiclePose): a camera nearer the ceiling sees it larger
+    /// in pixels, not in metres.
+    double max_scale_change = 0.25;
+    int lsh_tables = 3;  ///< LSH tables (binary descriptors)
     int lsh_key_bits = 18;
     int lsh_probe_level = 0;
     int lsh_max_bucket = 0;  ///< LSH buckets holding more descriptors are skipped (0: none)

@@ -26,18 +26,21 @@ struct QueryCamera {
 /// reference camera where the survey put it, the query camera on a vehicle at the origin), and
 /// the planar rigid motion between the two point sets is the query vehicle's pose; a reference
 /// with a 3-D pose (a grade) in its floor's frame (refine::floorFrame), the plane h above its
-/// floor. Empty when the rays miss the plane or the intrinsics are unusable.
+/// floor. Empty when the rays miss the plane, the intrinsics are unusable, or the two point
+/// sets' sizes differ by more than `max_scale_change` (PlaceIndexOptions): no camera height
+/// explains the transform.
 std::optional<mrpt::poses::CPose2D> vehiclePose(const PlaceCandidate& candidate,
                                                 const mrpt::img::TCamera& reference_camera,
                                                 const mrpt::poses::CPose3D& reference_vehicle,
                                                 const mrpt::poses::CPose3D& reference_mount,
-                                                const QueryCamera& query, double ceiling_height_m);
+                                                const QueryCamera& query, double ceiling_height_m,
+                                                double max_scale_change);
 
 /// The same for a candidate of `db`'s index: its reference's pose and mount, the database's
 /// ceiling height, and the reference camera the index was built in (the ideal pinhole twin of
 /// db.ini's; `query.intrinsics` must be of a rectified query likewise).
 std::optional<mrpt::poses::CPose2D> vehiclePose(const PlaceCandidate& candidate,
                                                 const database::ReferenceDatabase& db,
-                                                const QueryCamera& query);
+                                                const QueryCamera& query, double max_scale_change);
 
 }  // namespace lookup::place
