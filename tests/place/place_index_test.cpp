@@ -28,7 +28,8 @@ Located locate(const place::PlaceIndex& index, const database::ReferenceDatabase
                const localize_testing::Scene& scene, const CPose3D& vehicle,
                const std::function<cv::Mat(const cv::Mat&)>& seen = {}, const CPose3D& grade = {}) {
     const auto obs = scene.image(vehicle, 0);
-    const auto candidates = index.query(seen ? seen(grey(*obs)) : grey(*obs));
+    const auto candidates = index.query(seen ? seen(grey(*obs)) : grey(*obs), nullptr,
+                                        place::expectedPixelScale(db, {scene.camera, scene.mount}));
     Located out;
     if (candidates.empty()) return out;
     const auto& c = candidates.front();
@@ -79,6 +80,38 @@ TEST(PlaceIndex, FindsThePlaceAnywhereAtAnyHeadingFromOneImage) {
         }
     }
     EXPECT_GE(right, tried * 95 / 100) << right << " of " << tried;
+}
+
+TEST(PlaceIndex, AQueryCameraAtAnotherHeightIsPlacedThroughItsMount) {
+    // Mounted 1.1 m higher than the survey's, the camera has the ceiling 2.4 m away instead of
+    // 3.5 m and sees it 1.46 times larger in pixels: the query is detected at the references'
+    // scale, and a candidate is judged by the two views' sizes in metres on the ceiling.
+    const auto dir = lookup::test::freshDir("lookup_localize_place_other_height");
+    const auto survey = sceneWithDatabase(dir);
+    const auto db = database::ReferenceDatabase::load((dir / "db").string());
+    const auto index = place::PlaceIndex::load((dir / "db" / place::kPlaceIndexFile).string(), db,
+                                               place::PlaceIndexOptions());
+    localize_testing::Scene higher = survey;
+    higher.mount = CPose3D(0, 0, 2.6, 0, 0, 0);
+    int right = 0, tried = 0, misplaced = 0;
+    for (double x = -7; x <= 7; x += 1.75) {
+        for (double yaw_deg : {0.0, 90.0, 180.0}) {
+            const CPose3D vehicle(x, 0.3, 0, mrpt::DEG2RAD(yaw_deg), 0, 0);
+            const auto r = locate(index, db, higher, vehicle);
+            ++tried;
+            if (r.found && r.error_m < 0.15 && r.yaw_error_deg < 2) ++right;
+            // The same images with the survey's mount reported: no height explains the scale.
+            const place::QueryCamera misreported{higher.camera, survey.mount};
+            for (const auto& c : index.query(grey(*higher.image(vehicle, 0)), nullptr,
+                                             place::expectedPixelScale(db, misreported))) {
+                if (place::vehiclePose(c, db, misreported, index.options().max_scale_change)) {
+                    ++misplaced;
+                }
+            }
+        }
+    }
+    EXPECT_GE(right, tried * 90 / 100) << right << " of " << tried;
+    EXPECT_EQ(misplaced, 0);
 }
 
 // The query under other light: the tunnel lamps off, only the vehicle's cone lighting the

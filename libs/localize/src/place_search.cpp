@@ -27,10 +27,11 @@ PlaceSearchResult searchPlaces(const place::PlaceIndex& index,
     mrpt::system::CTicTac timer;
     PlaceSearchResult out;
     place::PlaceQueryTimes times;
-    const auto candidates = index.query(greyOf(query.image), &times);
-    out.features = times.query_features;
     // The query is rectified (Localizer::process), as the indexed references were.
     const place::QueryCamera camera{query.cameraParams, query.cameraPose};
+    const auto candidates =
+        index.query(greyOf(query.image), &times, place::expectedPixelScale(db, camera));
+    out.features = times.query_features;
     for (const auto& c : candidates) {
         if (out.places.size() >= max_places) break;
         const auto pose = place::vehiclePose(c, db, camera, index.options().max_scale_change);

@@ -18,6 +18,12 @@
 
 namespace lookup::place {
 
+namespace {
+// Within a quarter of the references' scale ORB's pyramid levels match the query as it is
+// (resized, a camera 0.4 m nearer the ceiling found its place less often: docs/place-index.md).
+constexpr double kResizeAbove = 0.25;
+}  // namespace
+
 const char* toString(FeatureType t) {
     switch (t) {
         case FeatureType::Orb:
@@ -165,15 +171,24 @@ PlaceIndex PlaceIndex::build(const database::ReferenceDatabase& db, const PlaceI
     return index;
 }
 
-std::vector<PlaceCandidate> PlaceIndex::query(const cv::Mat& grey, PlaceQueryTimes* times) const {
+std::vector<PlaceCandidate> PlaceIndex::query(const cv::Mat& grey, PlaceQueryTimes* times,
+                                              double pixel_scale) const {
     const Impl& impl = *impl_;
     const auto& o = impl.options;
     PlaceQueryTimes local;
     PlaceQueryTimes& t = times ? *times : local;
     mrpt::system::CTicTac timer;
+    // ORB's few pyramid levels hold the same corners across a small change of scale only.
+    const bool resize =
+        std::isfinite(pixel_scale) && pixel_scale > 0 && std::abs(pixel_scale - 1) > kResizeAbove;
+    cv::Mat seen = grey;
+    if (resize) {
+        cv::resize(grey, seen, cv::Size(), pixel_scale, pixel_scale,
+                   pixel_scale < 1 ? cv::INTER_AREA : cv::INTER_LINEAR);
+    }
     std::vector<cv::KeyPoint> keypoints;
     cv::Mat descriptors;
-    detail::detect(grey, o, o.query_features, keypoints, descriptors);
+    detail::detect(seen, o, o.query_features, keypoints, descriptors);
     t.query_features = static_cast<int>(keypoints.size());
     t.features_ms = 1e3 * timer.Tac();
     if (keypoints.empty() || !detail::hasSearch(impl)) return {};
@@ -184,6 +199,15 @@ std::vector<PlaceCandidate> PlaceIndex::query(const cv::Mat& grey, PlaceQueryTim
 
     timer.Tic();
     auto candidates = detail::fitCandidates(impl, votes);
+    if (resize) {
+        for (auto& c : candidates) {
+            for (int r = 0; r < 2; ++r) {
+                c.query_to_reference(r, 0) *= pixel_scale;
+                c.query_to_reference(r, 1) *= pixel_scale;
+            }
+            c.scale *= pixel_scale;
+        }
+    }
     t.geometry_ms = 1e3 * timer.Tac();
     return candidates;
 }

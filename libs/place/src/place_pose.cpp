@@ -87,6 +87,21 @@ std::optional<mrpt::poses::CPose2D> vehiclePose(const PlaceCandidate& candidate,
     return mrpt::poses::CPose2D(*floor + mrpt::poses::CPose3D(*local));
 }
 
+double expectedPixelScale(const database::ReferenceDatabase& db, const QueryCamera& query) {
+    if (db.size() == 0) return 1.0;
+    // The survey's mount: the index holds the survey's references.
+    const double h = db.info().ceiling_height_m;
+    const double to_reference = h - db.reference(0).ceiling_camera_mount.z();
+    const double to_query = h - query.on_vehicle.z();
+    refine::Pinhole ref_cam, query_cam;
+    if (!refine::pinholeFrom(refine::idealPinhole(db.info().ceiling_camera), ref_cam, nullptr) ||
+        !refine::pinholeFrom(query.intrinsics, query_cam, nullptr) || !(to_reference > 0) ||
+        !(to_query > 0)) {
+        return 1.0;
+    }
+    return (to_query / to_reference) * (ref_cam.fx / query_cam.fx);
+}
+
 std::optional<mrpt::poses::CPose2D> vehiclePose(const PlaceCandidate& candidate,
                                                 const database::ReferenceDatabase& db,
                                                 const QueryCamera& query, double max_scale_change) {

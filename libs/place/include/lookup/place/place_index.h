@@ -125,7 +125,12 @@ class PlaceIndex {
     static bool existsFor(const database::ReferenceDatabase& db);
 
     /// Candidates for one grey query image, most inliers first (several per place possible).
-    std::vector<PlaceCandidate> query(const cv::Mat& grey, PlaceQueryTimes* times = nullptr) const;
+    /// `pixel_scale`: how much larger the references show the ceiling than the query does
+    /// (place::expectedPixelScale); the query is resized by it before detection, so that its
+    /// corners are found at the references' scale, and the candidates map the query's own
+    /// pixels.
+    std::vector<PlaceCandidate> query(const cv::Mat& grey, PlaceQueryTimes* times = nullptr,
+                                      double pixel_scale = 1.0) const;
 
     std::size_t indexedReferences() const;
     std::size_t featureCount() const;

@@ -36,6 +36,11 @@ std::optional<mrpt::poses::CPose2D> vehiclePose(const PlaceCandidate& candidate,
                                                 const QueryCamera& query, double ceiling_height_m,
                                                 double max_scale_change);
 
+/// How much larger `db`'s references show the ceiling than the query camera does, in pixels:
+/// the cameras' distances to the ceiling (the query vehicle on a reference's floor) and their
+/// focal lengths. 1 where a camera is unusable or not below the ceiling.
+double expectedPixelScale(const database::ReferenceDatabase& db, const QueryCamera& query);
+
 /// The same for a candidate of `db`'s index: its reference's pose and mount, the database's
 /// ceiling height, and the reference camera the index was built in (the ideal pinhole twin of
 /// db.ini's; `query.intrinsics` must be of a rectified query likewise).
