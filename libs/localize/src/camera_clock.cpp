@@ -38,28 +38,32 @@ void CameraClock::addFix(double stamp_s, const mrpt::poses::CPose2D& pose) {
     pending_.emplace_back(stamp_s, pose);
 }
 
-std::optional<CameraClock::Sample> CameraClock::sampleAt(
-    double t, const mrpt::poses::CPose2D& fix, double shift,
-    const common::OdometryTrack& odometry) const {
-    const double at_t = t + shift;
-    const auto at = odometry.at(at_t), before = odometry.at(at_t - kRateHalfSpan_s),
-               after = odometry.at(at_t + kRateHalfSpan_s);
+std::optional<CameraClock::Reading> CameraClock::readAt(double t,
+                                                        const common::OdometryTrack& odometry) {
+    const auto at = odometry.at(t), before = odometry.at(t - kRateHalfSpan_s),
+               after = odometry.at(t + kRateHalfSpan_s);
     for (const auto& p : {at, before, after}) {
         if (!p || p->extrapolated_s > 0 || p->gap_s > kMaxReadingGap_s) return std::nullopt;
     }
     const double turned = mrpt::math::wrapToPi(after->pose.phi() - before->pose.phi());
     const double ahead = (after->pose - before->pose).x();  // signed: reversing is negative
-    return Sample{
-        t, fix, at->pose, turned / (2 * kRateHalfSpan_s), ahead / (2 * kRateHalfSpan_s), shift};
+    return Reading{at->pose, turned / (2 * kRateHalfSpan_s), ahead / (2 * kRateHalfSpan_s)};
+}
+
+std::optional<CameraClock::Sample> CameraClock::sampleAt(
+    double t, const mrpt::poses::CPose2D& fix, double shift,
+    const common::OdometryTrack& odometry) const {
+    const auto at_stamp = readAt(t, odometry), shifted = readAt(t + shift, odometry);
+    if (!at_stamp || !shifted) return std::nullopt;
+    return Sample{t, fix, *shifted, *at_stamp, shift};
 }
 
 double CameraClock::shift() const {
-    // Only an estimate that stands out of zero says the offset is large. Read around one
-    // within its noise, the odometry's motion at the stamps and at the shifted times differs
-    // by more than the linear correction takes, and the fit settles on the shift it was read
-    // at: it would confirm itself.
-    if (!significant(estimate_) || estimate_->pairs < options_.min_pairs) return 0.0;
-    return std::clamp(estimate_->offset_s, -options_.max_offset_s, options_.max_offset_s);
+    // The fit at the stamps alone, never the shifted one: read around its own estimate, a fit
+    // whose pairs show little of the offset returns the shift it was read at, however wrong.
+    const auto& e = stamp_estimate_;
+    if (!significant(e) || e->pairs < options_.min_pairs) return 0.0;
+    return std::clamp(e->offset_s, -options_.max_offset_s, options_.max_offset_s);
 }
 
 void CameraClock::update(const common::OdometryTrack& odometry) {
@@ -67,7 +71,7 @@ void CameraClock::update(const common::OdometryTrack& odometry) {
     bool added = false;
     const double shift = this->shift();
     while (!pending_.empty() &&
-           pending_.front().first + shift + kRateHalfSpan_s <= odometry.lastTime()) {
+           pending_.front().first + std::max(shift, 0.0) + kRateHalfSpan_s <= odometry.lastTime()) {
         const auto [t, fix] = pending_.front();
         pending_.pop_front();
         if (const auto s = sampleAt(t, fix, shift, odometry)) {
@@ -87,17 +91,27 @@ void CameraClock::addPair(const Sample& s) {
         const double dt = s.t - it->t;
         if (dt < options_.min_pair_s) continue;
         const double fix_turn = mrpt::math::wrapToPi(s.fix.phi() - it->fix.phi());
-        const double odo_turn = mrpt::math::wrapToPi(s.odo.phi() - it->odo.phi());
+        const auto turn = [](const Reading& a, const Reading& b) {
+            return mrpt::math::wrapToPi(a.pose.phi() - b.pose.phi());
+        };
         // Read at t + shift, a fix's heading less the odometry's is (offset - shift) x the yaw
         // rate: adding shift x rate brings every pair back to the offset itself. Likewise its
         // place, by (offset - shift) x the speed.
-        const double shifted = s.shift * s.odo_rate - it->shift * it->odo_rate;
+        const double shifted = s.shift * s.odo.rate - it->shift * it->odo.rate;
         // Both travels along the vehicle's heading at the earlier fix, each in its own frame.
-        const double fix_travel = (s.fix - it->fix).x(), odo_travel = (s.odo - it->odo).x();
-        const double shifted_travel = s.shift * s.odo_speed - it->shift * it->odo_speed;
-        pairs_.push_back({fix_turn - odo_turn + shifted, -(s.odo_rate - it->odo_rate), dt,
-                          fix_travel - odo_travel + shifted_travel, s.odo_speed - it->odo_speed,
-                          odo_travel});
+        const double fix_travel = (s.fix - it->fix).x();
+        const double odo_travel = (s.odo.pose - it->odo.pose).x();
+        const double shifted_travel = s.shift * s.odo.speed - it->shift * it->odo.speed;
+        Pair p;
+        p.residual = fix_turn - turn(s.odo, it->odo) + shifted;
+        p.rate_change = -(s.odo.rate - it->odo.rate);
+        p.stamp_residual = fix_turn - turn(s.at_stamp, it->at_stamp);
+        p.stamp_rate_change = -(s.at_stamp.rate - it->at_stamp.rate);
+        p.dt = dt;
+        p.travel_residual = fix_travel - odo_travel + shifted_travel;
+        p.speed_change = s.odo.speed - it->odo.speed;
+        p.travel = odo_travel;
+        pairs_.push_back(p);
         if (pairs_.size() > options_.max_pairs) pairs_.pop_front();
         break;
     }
@@ -108,6 +122,10 @@ void CameraClock::fit() {
     if (pairs_.size() >= kMinSpeedPairs) fitSpeedChanges();
     if (pairs_.size() < std::min(options_.min_pairs, kMinPairsToWiden)) return;
     // residual = tau x rate_change + drift x dt (the odometry's heading drift).
+    const auto at_stamps = robustFit(
+        pairs_, [](const Pair& p) { return p.stamp_rate_change; },
+        [](const Pair& p) { return p.dt; }, [](const Pair& p) { return p.stamp_residual; });
+    if (at_stamps) stamp_estimate_ = Estimate{-at_stamps->slope, at_stamps->sigma, pairs_.size()};
     const auto tau = robustFit(
         pairs_, [](const Pair& p) { return p.rate_change; }, [](const Pair& p) { return p.dt; },
         [](const Pair& p) { return p.residual; });

@@ -103,12 +103,16 @@ class CameraClock {
     bool applies() const { return options_.enabled && options_.apply; }
 
   private:
-    /// A fix with the odometry's pose, yaw rate and speed (signed, along its heading) at its
-    /// stamp.
+    /// The odometry's pose, yaw rate and speed (signed, along its heading) at one time.
+    struct Reading {
+        mrpt::poses::CPose2D pose;
+        double rate = 0, speed = 0;
+    };
+    /// A fix with the odometry read at its stamp plus the shift, and at its stamp.
     struct Sample {
         double t = 0;
-        mrpt::poses::CPose2D fix, odo;
-        double odo_rate = 0, odo_speed = 0;
+        mrpt::poses::CPose2D fix;
+        Reading odo, at_stamp;
         double shift = 0;  ///< the odometry read at t + shift (the estimate then)
     };
     /// Fixes' heading change minus the odometry's, against minus the change of yaw rate; and
@@ -116,12 +120,15 @@ class CameraClock {
     /// change of speed and the odometry's travel (its scale error).
     struct Pair {
         double residual = 0, rate_change = 0, dt = 0;
+        double stamp_residual = 0, stamp_rate_change = 0;  ///< the same read at the stamps
         double travel_residual = 0, speed_change = 0, travel = 0;
     };
+    static std::optional<Reading> readAt(double t, const common::OdometryTrack& odometry);
     std::optional<Sample> sampleAt(double t, const mrpt::poses::CPose2D& fix, double shift,
                                    const common::OdometryTrack& odometry) const;
-    /// Where the odometry is read for a fix: at its stamp plus the latest estimate where that
-    /// is significant, so that a large offset is measured as a small one around it.
+    /// Where the odometry is read for a fix: at its stamp plus the latest estimate of the fit
+    /// at the stamps where that is significant, so that a large offset is measured as a small
+    /// one around it.
     double shift() const;
     /// `e` exists and stands `significance` sigmas out of zero.
     bool significant(const std::optional<Estimate>& e) const {
@@ -146,6 +153,7 @@ class CameraClock {
     std::deque<Sample> samples_;  ///< the last max_pair_s of fixes
     std::deque<Pair> pairs_;
     std::optional<Estimate> estimate_, applied_, carried_, speed_estimate_;
+    std::optional<Estimate> stamp_estimate_;  ///< the heading's fit read at the stamps
     bool carried_dropped_ = false;
 };
 
