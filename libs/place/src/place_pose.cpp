@@ -89,7 +89,8 @@ std::optional<mrpt::poses::CPose2D> vehiclePose(const PlaceCandidate& candidate,
 
 double expectedPixelScale(const database::ReferenceDatabase& db, const QueryCamera& query) {
     if (db.size() == 0) return 1.0;
-    // The survey's mount: the index holds the survey's references.
+    // The first reference's mount, the survey's: a refresh may add another vehicle's, whose
+    // candidates are still judged in metres by their own mount (vehiclePose).
     const double h = db.info().ceiling_height_m;
     const double to_reference = h - db.reference(0).ceiling_camera_mount.z();
     const double to_query = h - query.on_vehicle.z();
