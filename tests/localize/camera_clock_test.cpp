@@ -262,8 +262,8 @@ TEST(CameraClock, AnEstimateWithinItsNoiseDoesNotMoveWhereTheOdometryIsRead) {
     // Standing, the odometry's yaw rate never changes; the first fits from a few pairs as the
     // vehicle moves off are noise. Read around such a fit, the odometry's heading across the
     // start and the bends differs from the stamps' by more than the linear correction takes,
-    // and the fit settled on the shift it was read at: cameras on time estimated 0.2-0.7 s
-    // off with deviations of 10-40 ms, one LHD's -0.41 s applied.
+    // and the fit settled on the shift it was read at, far from the truth and seemingly
+    // precise (docs/benchmarks.md, "Seed 65").
     for (unsigned seed = 1; seed <= 12; ++seed) {
         for (const double noise : {0.003, 0.01}) {
             for (const double stand_s : {5.0, 9.0}) {

@@ -19,8 +19,8 @@
 namespace lookup::place {
 
 namespace {
-// Within a quarter of the references' scale ORB's pyramid levels match the query as it is
-// (resized, a camera 0.4 m nearer the ceiling found its place less often: docs/place-index.md).
+// Within a quarter of the references' scale ORB's pyramid levels match the query as it is,
+// better than resized (docs/place-index.md).
 constexpr double kResizeAbove = 0.25;
 }  // namespace
 
