@@ -41,8 +41,6 @@ Votes vote(const Impl& impl, const std::vector<cv::KeyPoint>& keypoints,
 
 namespace {
 
-constexpr double kMaxPixelScale = 2.0;
-
 std::optional<PlaceCandidate> fitOne(
     const PlaceIndexOptions& o, std::uint32_t reference,
     const std::vector<std::pair<cv::Point2f, cv::Point2f>>& pairs) {
@@ -63,8 +61,7 @@ std::optional<PlaceCandidate> fitOne(
         for (int col = 0; col < 3; ++col) c.query_to_reference(r, col) = A.at<double>(r, col);
     c.scale = std::hypot(A.at<double>(0, 0), A.at<double>(1, 0));
     c.rotation_rad = std::atan2(A.at<double>(1, 0), A.at<double>(0, 0));
-    // In pixels a camera twice as far from the ceiling sees it at half the size; the scale in
-    // metres is judged once the cameras' heights are known (vehiclePose).
+    // The scale in metres is judged once the cameras' heights are known (vehiclePose).
     if (c.inliers < o.min_inliers || c.scale < 1 / kMaxPixelScale || c.scale > kMaxPixelScale) {
         return std::nullopt;
     }

@@ -178,9 +178,11 @@ std::vector<PlaceCandidate> PlaceIndex::query(const cv::Mat& grey, PlaceQueryTim
     PlaceQueryTimes local;
     PlaceQueryTimes& t = times ? *times : local;
     mrpt::system::CTicTac timer;
-    // ORB's few pyramid levels hold the same corners across a small change of scale only.
-    const bool resize =
-        std::isfinite(pixel_scale) && pixel_scale > 0 && std::abs(pixel_scale - 1) > kResizeAbove;
+    // ORB's few pyramid levels hold the same corners across a small change of scale only. A
+    // scale no candidate may have (a mount far off) is not worth the larger image.
+    const bool resize = std::abs(pixel_scale - 1) > kResizeAbove &&
+                        pixel_scale >= 1 / detail::kMaxPixelScale &&
+                        pixel_scale <= detail::kMaxPixelScale;
     cv::Mat seen = grey;
     if (resize) {
         cv::resize(grey, seen, cv::Size(), pixel_scale, pixel_scale,

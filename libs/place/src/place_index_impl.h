@@ -13,6 +13,10 @@
 
 namespace lookup::place::detail {
 
+/// The pixel scale between a query and a reference a candidate may have: a camera twice as far
+/// from the ceiling sees it at half the size.
+constexpr double kMaxPixelScale = 2.0;
+
 /// One indexed feature: the reference it belongs to and where it lies in that image.
 struct Feature {
     std::uint32_t reference = 0;
