@@ -102,12 +102,8 @@ TEST(PlaceIndex, AQueryCameraAtAnotherHeightIsPlacedThroughItsMount) {
             if (r.found && r.error_m < 0.15 && r.yaw_error_deg < 2) ++right;
             // The same images with the survey's mount reported: no height explains the scale.
             const place::QueryCamera misreported{higher.camera, survey.mount};
-            for (const auto& c : index.query(grey(*higher.image(vehicle, 0)), nullptr,
-                                             place::expectedPixelScale(db, misreported))) {
-                if (place::vehiclePose(c, db, misreported, index.options().max_scale_change)) {
-                    ++misplaced;
-                }
-            }
+            misplaced += static_cast<int>(
+                place::placeQuery(index, db, misreported, grey(*higher.image(vehicle, 0))).size());
         }
     }
     EXPECT_GE(right, tried * 90 / 100) << right << " of " << tried;

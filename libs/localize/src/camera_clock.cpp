@@ -53,7 +53,8 @@ std::optional<CameraClock::Reading> CameraClock::readAt(double t,
 std::optional<CameraClock::Sample> CameraClock::sampleAt(
     double t, const mrpt::poses::CPose2D& fix, double shift,
     const common::OdometryTrack& odometry) const {
-    const auto at_stamp = readAt(t, odometry), shifted = readAt(t + shift, odometry);
+    const auto at_stamp = readAt(t, odometry);
+    const auto shifted = shift == 0 ? at_stamp : readAt(t + shift, odometry);
     if (!at_stamp || !shifted) return std::nullopt;
     return Sample{t, fix, *shifted, *at_stamp, shift};
 }
@@ -122,15 +123,20 @@ void CameraClock::fit() {
     if (pairs_.size() >= kMinSpeedPairs) fitSpeedChanges();
     if (pairs_.size() < std::min(options_.min_pairs, kMinPairsToWiden)) return;
     // residual = tau x rate_change + drift x dt (the odometry's heading drift).
-    const auto at_stamps = robustFit(
-        pairs_, [](const Pair& p) { return p.stamp_rate_change; },
-        [](const Pair& p) { return p.dt; }, [](const Pair& p) { return p.stamp_residual; });
-    if (at_stamps) stamp_estimate_ = Estimate{-at_stamps->slope, at_stamps->sigma, pairs_.size()};
-    const auto tau = robustFit(
-        pairs_, [](const Pair& p) { return p.rate_change; }, [](const Pair& p) { return p.dt; },
-        [](const Pair& p) { return p.residual; });
-    if (!tau) return;  // the yaw rate never changed: nothing to see
-    estimate_ = withCarried({-tau->slope, tau->sigma, pairs_.size()});
+    const auto headingFit = [this](double Pair::*rate_change,
+                                   double Pair::*residual) -> std::optional<Estimate> {
+        const auto tau = robustFit(
+            pairs_, [&](const Pair& p) { return p.*rate_change; },
+            [](const Pair& p) { return p.dt; }, [&](const Pair& p) { return p.*residual; });
+        if (!tau) return std::nullopt;  // the yaw rate never changed: nothing to see
+        return Estimate{-tau->slope, tau->sigma, pairs_.size()};
+    };
+    if (auto at_stamps = headingFit(&Pair::stamp_rate_change, &Pair::stamp_residual)) {
+        stamp_estimate_ = at_stamps;
+    }
+    const auto shifted = headingFit(&Pair::rate_change, &Pair::residual);
+    if (!shifted) return;
+    estimate_ = withCarried(*shifted);
     if (pairs_.size() >= options_.min_pairs) consider(*estimate_);
 }
 

@@ -29,20 +29,17 @@ PlaceSearchResult searchPlaces(const place::PlaceIndex& index,
     place::PlaceQueryTimes times;
     // The query is rectified (Localizer::process), as the indexed references were.
     const place::QueryCamera camera{query.cameraParams, query.cameraPose};
-    const auto candidates =
-        index.query(greyOf(query.image), &times, place::expectedPixelScale(db, camera));
+    const auto candidates = place::placeQuery(index, db, camera, greyOf(query.image), &times);
     out.features = times.query_features;
-    for (const auto& c : candidates) {
+    for (const auto& [c, pose] : candidates) {
         if (out.places.size() >= max_places) break;
-        const auto pose = place::vehiclePose(c, db, camera, index.options().max_scale_change);
-        if (!pose) continue;
         // Candidates come most inliers first: a later one near a kept place is the same place.
         bool known = false;
         for (const auto& p : out.places) {
-            known = known || std::hypot(p.vehicle_pose.x() - pose->x(),
-                                        p.vehicle_pose.y() - pose->y()) < separation_m;
+            known = known || std::hypot(p.vehicle_pose.x() - pose.x(),
+                                        p.vehicle_pose.y() - pose.y()) < separation_m;
         }
-        if (!known) out.places.push_back({*pose, c.reference, c.inliers});
+        if (!known) out.places.push_back({pose, c.reference, c.inliers});
     }
     out.ms = 1e3 * timer.Tac();
     return out;

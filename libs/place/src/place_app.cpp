@@ -170,11 +170,7 @@ std::vector<mrpt::poses::CPose2D> candidatePoses(const PlaceIndex& index,
                                                  const QueryCamera& camera, const cv::Mat& grey,
                                                  PlaceQueryTimes* t) {
     std::vector<mrpt::poses::CPose2D> poses;
-    for (const auto& c : index.query(grey, t, expectedPixelScale(db, camera))) {
-        if (auto p = vehiclePose(c, db, camera, index.options().max_scale_change)) {
-            poses.push_back(*p);
-        }
-    }
+    for (const auto& p : placeQuery(index, db, camera, grey, t)) poses.push_back(p.vehicle_pose);
     return poses;
 }
 

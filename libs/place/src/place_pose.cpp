@@ -112,4 +112,17 @@ std::optional<mrpt::poses::CPose2D> vehiclePose(const PlaceCandidate& candidate,
                        max_scale_change);
 }
 
+std::vector<PlacedCandidate> placeQuery(const PlaceIndex& index,
+                                        const database::ReferenceDatabase& db,
+                                        const QueryCamera& query, const cv::Mat& grey,
+                                        PlaceQueryTimes* times) {
+    std::vector<PlacedCandidate> out;
+    for (const auto& c : index.query(grey, times, expectedPixelScale(db, query))) {
+        if (auto pose = vehiclePose(c, db, query, index.options().max_scale_change)) {
+            out.push_back({c, *pose});
+        }
+    }
+    return out;
+}
+
 }  // namespace lookup::place

@@ -7,6 +7,7 @@
 #include <mrpt/poses/CPose3D.h>
 
 #include <optional>
+#include <vector>
 
 #include "lookup/place/place_index.h"
 
@@ -47,5 +48,19 @@ double expectedPixelScale(const database::ReferenceDatabase& db, const QueryCame
 std::optional<mrpt::poses::CPose2D> vehiclePose(const PlaceCandidate& candidate,
                                                 const database::ReferenceDatabase& db,
                                                 const QueryCamera& query, double max_scale_change);
+
+/// A candidate of the index with the vehicle pose it implies.
+struct PlacedCandidate {
+    PlaceCandidate candidate;
+    mrpt::poses::CPose2D vehicle_pose;
+};
+
+/// The index's candidates for one rectified grey query image that imply a vehicle pose, most
+/// inliers first: the query detected at the references' scale (expectedPixelScale), each
+/// candidate judged in metres (vehiclePose with the index's max_scale_change).
+std::vector<PlacedCandidate> placeQuery(const PlaceIndex& index,
+                                        const database::ReferenceDatabase& db,
+                                        const QueryCamera& query, const cv::Mat& grey,
+                                        PlaceQueryTimes* times = nullptr);
 
 }  // namespace lookup::place
