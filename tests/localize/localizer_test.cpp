@@ -444,6 +444,40 @@ TEST(Localize, OnAChangedCeilingTheDeadReckoningFollowsTheCeilingsOwnMotion) {
     EXPECT_GT(error(odometry.frames[19], 19), 0.9);
 }
 
+// From frame 5 the ceiling is another one (as above) and the camera shows the same image
+// every frame (mud over the lens, or a driver that resends its last frame) while the wheels,
+// gripping, drive on 0.3 m a frame. Frame to frame the ceiling then says the vehicle stands
+// still: a disagreement no wheel's slip makes (ceiling_odometry_max_slip), so the dead
+// reckoning keeps the odometry's steps. Without that bound it stops where the image froze.
+TEST(Localize, AnImageThatStandsStillWhileTheWheelsGripDoesNotStopTheDeadReckoning) {
+    Scene changed;
+    changed.ceiling = refine::synthetic::SyntheticCeiling::make(kCeilingHeight, 40.0, 0.01, 8);
+    const auto frozen = changed.image(PlanarDrive().vehicle(5), kT0 + 0.5)->image;
+    const auto spoil = [&](int i, mrpt::obs::CObservationImage& img,
+                           mrpt::obs::CObservationOdometry&) {
+        if (i >= 5) img.image = frozen;
+    };
+    const auto run = [&](const std::string& name, const std::string& ini_text) {
+        return localisedPlanarRun("lookup_localize_frozen_view_" + name, spoil, 20, ini_text);
+    };
+    const auto bounded = run("bounded", "[localizer]\n");
+    const auto unbounded = run("unbounded", "[localizer]\nceiling_odometry_max_slip = 10\n");
+    ASSERT_EQ(bounded.frames.size(), 20u);
+    ASSERT_EQ(unbounded.frames.size(), 20u);
+    ASSERT_EQ(bounded.frames[4].status, "refined") << bounded.frames[4].reason;
+    const auto error = [](const eval::FrameRow& f, int i) {
+        return std::hypot(f.x - (-5 + 0.3 * i), f.y - 0.4);
+    };
+    for (int i = 5; i < 20; ++i) {
+        const auto& f = bounded.frames[i];
+        ASSERT_EQ(f.status, "fallback") << i << ": " << f.reason;
+        EXPECT_EQ(f.reason.find("ceiling's own motion"), std::string::npos)
+            << i << ": " << f.reason;
+        EXPECT_LT(error(f, i), 0.1) << i;
+    }
+    EXPECT_GT(error(unbounded.frames[19], 19), 2.0) << "the ceiling's step was never taken";
+}
+
 // The vehicle turns at 0.3 rad/s until frame 7, then drives straight; over frames 8-21 the
 // odometry drops out (readings not finite) and the ceiling is another one (textured, nothing
 // of it in the references). Extrapolated, the odometry would keep turning, and past the

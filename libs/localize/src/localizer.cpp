@@ -1302,14 +1302,17 @@ refine::ReferenceImage Localizer::previousView() const {
 bool Localizer::slipped(const PreviousFrame& prev, const mrpt::poses::CPose2D& moved,
                         double time_s) const {
     // Frame to frame the ceiling's relief puts its steps a few per cent off: a wheel that grips
-    // does better, so the ceiling's step replaces the odometry's only where they disagree.
+    // does better, so the ceiling's step replaces the odometry's only where they disagree. A
+    // wheel slips by a share of its step; a match on the lens says the vehicle stood still.
     const auto odo_prev = odometryAt(prev.time_s), odo_now = odometryAt(time_s);
     if (!odo_prev || !odo_now) return true;
     const auto odo_step = (odo_now->pose - odo_prev->pose).translation();
-    const auto ceiling_step = (moved - prev.pose).translation();
-    const double limit =
-        std::max(kCeilingStepPrecision_m, options_.ceiling_odometry_min_slip * odo_step.norm());
-    return (ceiling_step - odo_step).norm() > limit;
+    const double disagreement = ((moved - prev.pose).translation() - odo_step).norm();
+    const double step_m = odo_step.norm();
+    return disagreement >
+               std::max(kCeilingStepPrecision_m, options_.ceiling_odometry_min_slip * step_m) &&
+           disagreement <=
+               std::max(kCeilingStepPrecision_m, options_.ceiling_odometry_max_slip * step_m);
 }
 
 void Localizer::keepFrame(const mrpt::obs::CObservationImage& query, const FrameResult& out) {

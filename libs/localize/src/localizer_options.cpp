@@ -23,6 +23,7 @@ void LocalizerOptions::declareKeys(common::OptionsTable& t) {
     t.add("max_dead_reckoning_s", max_dead_reckoning_s, 0.0);
     t.add("ceiling_odometry", ceiling_odometry);
     t.add("ceiling_odometry_min_slip", ceiling_odometry_min_slip, 0.0, 10.0);
+    t.add("ceiling_odometry_max_slip", ceiling_odometry_max_slip, 0.0, 10.0);
     t.add("online_refresh", online_refresh);
     t.add("online_refresh_spacing_m", online_refresh_spacing_m, common::kPositive);
     t.add("online_refresh_max_references", online_refresh_max_references, 0, 100000000);
@@ -84,6 +85,8 @@ void LocalizerOptions::check() const {
               "acquisition_ambiguity_margin", "in [0, 1)");
     c.require(acquisition_probe_min_matched <= acquisition_probe_points,
               "acquisition_probe_min_matched", "in [0, acquisition_probe_points]");
+    c.require(ceiling_odometry_max_slip > ceiling_odometry_min_slip, "ceiling_odometry_max_slip",
+              "> ceiling_odometry_min_slip");
     c.require(image_cache_capacity >= static_cast<std::size_t>(references_per_query),
               "image_cache_capacity", ">= references_per_query");
     c.throwIfFailed();

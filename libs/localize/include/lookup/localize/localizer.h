@@ -429,7 +429,8 @@ class Localizer {
     /// The previous frame as a reference: rectified, posed, prepared for ceiling_refiner_.
     refine::ReferenceImage previousView() const;
     /// Whether the ceiling's step from `prev` to `moved` disagrees with the odometry's by more
-    /// than ceiling_odometry_min_slip of it (and than the ceiling's own precision).
+    /// than ceiling_odometry_min_slip of it (and than the ceiling's own precision), and by no
+    /// more than ceiling_odometry_max_slip of it (a slip, not a match on the lens).
     bool slipped(const PreviousFrame& prev, const mrpt::poses::CPose2D& moved, double time_s) const;
     /// The ceiling's step precision frame to frame [m]: below it, steps agree.
     static constexpr double kCeilingStepPrecision_m = 0.02;

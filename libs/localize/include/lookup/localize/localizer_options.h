@@ -41,8 +41,12 @@ struct LocalizerOptions : public common::TableOptions<LocalizerOptions> {
     /// disagrees with the odometry's by more than ceiling_odometry_min_slip of the odometry's
     /// step (a slipping wheel), it replaces the odometry's position in the dead reckoning.
     /// Elsewhere the odometry's step is the more precise. The uncertainty stays the odometry's.
+    /// Nor where they disagree by more than ceiling_odometry_max_slip of the odometry's step:
+    /// a step that far off is a match on something that does not move with the ceiling (dirt
+    /// or a drop on the lens matches at no motion at all), not a wheel's slip.
     bool ceiling_odometry = true;
     double ceiling_odometry_min_slip = 0.1;  ///< share of the odometry's step
+    double ceiling_odometry_max_slip = 0.5;  ///< share of the odometry's step
     /// Online refresh: where a fix follows a stretch that no reference refined (a changed
     /// ceiling), the stretch's frames, posed on the odometry between the two fixes as
     /// lookup-survey --refresh poses them (the refresh_* keys), become references for the rest
