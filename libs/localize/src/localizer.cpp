@@ -1065,11 +1065,11 @@ FrameResult Localizer::processCeiling(const mrpt::obs::CObservationImage& query)
     Attempt attempt = locate(query, coarse_fix, prediction, out);
     auditCoarse(attempt.result, coarse_fix, prediction.has_value());
     checkTrack(query, prediction, attempt, out);
-    const bool followed = followCeiling(query, attempt, out);
+    const auto ceiling_step = followCeiling(query, attempt, out);
+    const bool followed = ceiling_step == StepAgreement::Slipped;
     if (followed && prediction) prediction = predict(out.time_s);
     emit(attempt, prediction, out);
-    if (followed && out.pose_source == "prediction")
-        out.reason += "; dead-reckoned on the ceiling's own motion";
+    if (out.pose_source == "prediction") out.reason += ceilingStepNote(ceiling_step);
     finishFrame(out);
     keepMeasuredPlace(out, followed);
     keepFrame(query, out);
@@ -1239,12 +1239,14 @@ void Localizer::checkTrack(const mrpt::obs::CObservationImage& query,
     a.ambiguous = trackContradicted(query, *a.result, out);
 }
 
-bool Localizer::followCeiling(const mrpt::obs::CObservationImage& query, const Attempt& a,
-                              FrameResult& out) {
-    if (!options_.ceiling_odometry || !previous_frame_ || !last_fix_) return false;
-    if ((a.result && a.result->accepted()) || a.ambiguous || a.dropped) return false;
+Localizer::StepAgreement Localizer::followCeiling(const mrpt::obs::CObservationImage& query,
+                                                  const Attempt& a, FrameResult& out) {
+    if (!options_.ceiling_odometry || !previous_frame_ || !last_fix_)
+        return StepAgreement::NotMeasured;
+    if ((a.result && a.result->accepted()) || a.ambiguous || a.dropped)
+        return StepAgreement::NotMeasured;
     const auto dead = deadReckon(out.time_s);
-    if (!dead || !dead->motion.velocity_known) return false;
+    if (!dead || !dead->motion.velocity_known) return StepAgreement::NotMeasured;
     mrpt::system::CTicTac timer;
     const auto& prev = *previous_frame_;
     const auto view = previousView();
@@ -1257,7 +1259,7 @@ bool Localizer::followCeiling(const mrpt::obs::CObservationImage& query, const A
     const auto r = ceiling_refiner_.refine(query, hint, {view}, framePyramid(query));
     out.times.refine_ms += 1e3 * timer.Tac();
     ++out.refinement_attempts;
-    if (!r.accepted()) return false;
+    if (!r.accepted()) return StepAgreement::NotMeasured;
     // The camera's position from the ceiling, the heading from the odometry: chained frame to
     // frame, the ceiling's small rotations drift by degrees over tens of frames, the odometry's
     // do not. Where the odometry is missing, or extrapolated over a dropout (repeating the last
@@ -1270,12 +1272,15 @@ bool Localizer::followCeiling(const mrpt::obs::CObservationImage& query, const A
     const double heading = extrapolated ? r.pose.mean.phi() : dead->pose.phi();
     const auto moved = mrpt::poses::CPose2D(camera.x(), camera.y(), heading) +
                        mrpt::poses::CPose2D(-mount.x(), -mount.y(), 0);
-    if (!extrapolated && !slipped(prev, moved, out.time_s)) return false;
+    if (!extrapolated) {
+        const auto agreement = compareSteps(prev, moved, out.time_s);
+        if (agreement != StepAgreement::Slipped) return agreement;
+    }
     // The step measured on the ceiling is as uncertain as the odometry's over that distance.
     const double step_m = (moved - prev.pose).translation().norm();
     const auto step = refiner_.acceptance().deadReckoned(moved, {step_m, 0.0, true});
     ceiling_motion_ = CeilingMotion{out.time_s, moved, prev.cov + step.cov};
-    return true;
+    return StepAgreement::Slipped;
 }
 
 refine::ReferenceImage Localizer::previousView() const {
@@ -1299,20 +1304,35 @@ refine::ReferenceImage Localizer::previousView() const {
     return view;
 }
 
-bool Localizer::slipped(const PreviousFrame& prev, const mrpt::poses::CPose2D& moved,
-                        double time_s) const {
+std::string Localizer::ceilingStepNote(StepAgreement step) {
+    switch (step) {
+        case StepAgreement::Slipped:
+            return "; dead-reckoned on the ceiling's own motion";
+        case StepAgreement::BeyondSlip:
+            return "; the ceiling's step is off the odometry's by more than a wheel slips "
+                   "(something on the lens?): not used";
+        default:
+            return "";
+    }
+}
+
+Localizer::StepAgreement Localizer::compareSteps(const PreviousFrame& prev,
+                                                 const mrpt::poses::CPose2D& moved,
+                                                 double time_s) const {
     // Frame to frame the ceiling's relief puts its steps a few per cent off: a wheel that grips
     // does better, so the ceiling's step replaces the odometry's only where they disagree. A
     // wheel slips by a share of its step; a match on the lens says the vehicle stood still.
     const auto odo_prev = odometryAt(prev.time_s), odo_now = odometryAt(time_s);
-    if (!odo_prev || !odo_now) return true;
+    if (!odo_prev || !odo_now) return StepAgreement::Slipped;
     const auto odo_step = (odo_now->pose - odo_prev->pose).translation();
     const double disagreement = ((moved - prev.pose).translation() - odo_step).norm();
     const double step_m = odo_step.norm();
-    return disagreement >
-               std::max(kCeilingStepPrecision_m, options_.ceiling_odometry_min_slip * step_m) &&
-           disagreement <=
-               std::max(kCeilingStepPrecision_m, options_.ceiling_odometry_max_slip * step_m);
+    const auto over = [&](double share) {
+        return disagreement > std::max(kCeilingStepPrecision_m, share * step_m);
+    };
+    if (!over(options_.ceiling_odometry_min_slip)) return StepAgreement::Agrees;
+    return over(options_.ceiling_odometry_max_slip) ? StepAgreement::BeyondSlip
+                                                    : StepAgreement::Slipped;
 }
 
 void Localizer::keepFrame(const mrpt::obs::CObservationImage& query, const FrameResult& out) {

@@ -422,16 +422,22 @@ class Localizer {
     std::deque<std::pair<double, mrpt::poses::CPose2D>> measured_places_;
     static constexpr double kMeasuredPlacesSpanS = 0.5;
     refine::Refiner ceiling_refiner_;  ///< grid points: the previous frame has no heat map
+    /// The ceiling's step against the odometry's: within ceiling_odometry_min_slip of it (or
+    /// the ceiling's own precision) they agree; beyond ceiling_odometry_max_slip of it no wheel
+    /// slipped (a match on the lens); between, the wheel slipped.
+    enum class StepAgreement { NotMeasured, Agrees, Slipped, BeyondSlip };
     /// A frame no reference refined: its motion from the previous frame measured on the
-    /// ceiling, kept in ceiling_motion_ when the refiner accepts it. True when it did.
-    bool followCeiling(const mrpt::obs::CObservationImage& query, const Attempt& a,
-                       FrameResult& out);
+    /// ceiling, kept in ceiling_motion_ where the wheel slipped (or the odometry is missing).
+    StepAgreement followCeiling(const mrpt::obs::CObservationImage& query, const Attempt& a,
+                                FrameResult& out);
+    /// What a dead-reckoned frame's reason says of the ceiling's step.
+    static std::string ceilingStepNote(StepAgreement step);
     /// The previous frame as a reference: rectified, posed, prepared for ceiling_refiner_.
     refine::ReferenceImage previousView() const;
-    /// Whether the ceiling's step from `prev` to `moved` disagrees with the odometry's by more
-    /// than ceiling_odometry_min_slip of it (and than the ceiling's own precision), and by no
-    /// more than ceiling_odometry_max_slip of it (a slip, not a match on the lens).
-    bool slipped(const PreviousFrame& prev, const mrpt::poses::CPose2D& moved, double time_s) const;
+    /// The ceiling's step from `prev` to `moved` against the odometry's; Slipped where the
+    /// odometry does not cover both frames.
+    StepAgreement compareSteps(const PreviousFrame& prev, const mrpt::poses::CPose2D& moved,
+                               double time_s) const;
     /// The ceiling's step precision frame to frame [m]: below it, steps agree.
     static constexpr double kCeilingStepPrecision_m = 0.02;
     /// Keeps `query` as the next frame's reference for ceiling odometry.
