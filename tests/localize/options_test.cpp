@@ -68,6 +68,21 @@ TEST(LocalizeIni, AcquisitionKeysRoundTripAndAreChecked) {
     }
 }
 
+// A slip bound at or under the gate would leave no step the ceiling could take.
+TEST(LocalizeIni, TheCeilingOdometrysSlipBoundsAreChecked) {
+    localize::LocalizerOptions o;
+    o.ceiling_odometry_max_slip = o.ceiling_odometry_min_slip;
+    try {
+        o.check();
+        FAIL() << "a max slip equal to the min slip was accepted";
+    } catch (const common::ConfigError& e) {
+        EXPECT_NE(std::string(e.what()).find("ceiling_odometry_max_slip"), std::string::npos)
+            << e.what();
+    }
+    o.ceiling_odometry_max_slip = 0.5;
+    EXPECT_NO_THROW(o.check());
+}
+
 TEST(LocalizeIni, CoarseModeIsOneOfItsNames) {
     mrpt::config::CConfigFileMemory mem;
     mem.write("localizer", "coarse", "ceiling");
