@@ -54,6 +54,12 @@ eval::Run localisedPlanarRun(const std::string& name, const Spoiler& spoil, int 
     return eval::loadRun(req.out_dir);
 }
 
+/// How far a frame's pose lies from the default PlanarDrive's vehicle at frame `i` [m].
+double offDefaultDrive(const eval::FrameRow& f, int i) {
+    const auto truth = PlanarDrive().vehicle(i);
+    return std::hypot(f.x - truth.x(), f.y - truth.y());
+}
+
 }  // namespace
 
 TEST(Localize, RefinesCoarsePosesToCentimetresOnASyntheticCeiling) {
@@ -425,14 +431,11 @@ TEST(Localize, OnAChangedCeilingTheDeadReckoningFollowsTheCeilingsOwnMotion) {
     ASSERT_EQ(followed.frames.size(), 20u);
     ASSERT_EQ(odometry.frames.size(), 20u);
     ASSERT_EQ(followed.frames[4].status, "refined") << followed.frames[4].reason;
-    const auto error = [](const eval::FrameRow& f, int i) {
-        return std::hypot(f.x - (-5 + 0.3 * i), f.y - 0.4);
-    };
     for (int i = 5; i < 20; ++i) {
         const auto &f = followed.frames[i], &o = odometry.frames[i];
         ASSERT_EQ(f.status, "fallback") << i << ": " << f.reason;
         ASSERT_EQ(o.status, "fallback") << i << ": " << o.reason;
-        EXPECT_LT(error(f, i), 0.1) << i;
+        EXPECT_LT(offDefaultDrive(f, i), 0.1) << i;
         EXPECT_NEAR(f.cov_xx, o.cov_xx, 1e-9) << i;
         if (i > 5) {  // frame 5 has no frame of its own ceiling before it
             EXPECT_NE(f.reason.find("ceiling's own motion"), std::string::npos)
@@ -441,7 +444,7 @@ TEST(Localize, OnAChangedCeilingTheDeadReckoningFollowsTheCeilingsOwnMotion) {
         EXPECT_EQ(o.reason.find("ceiling's own motion"), std::string::npos)
             << i << ": " << o.reason;
     }
-    EXPECT_GT(error(odometry.frames[19], 19), 0.9);
+    EXPECT_GT(offDefaultDrive(odometry.frames[19], 19), 0.9);
 }
 
 // From frame 5 the ceiling is another one (as above) and the camera shows the same image
@@ -465,9 +468,6 @@ TEST(Localize, AnImageThatStandsStillWhileTheWheelsGripDoesNotStopTheDeadReckoni
     ASSERT_EQ(bounded.frames.size(), 20u);
     ASSERT_EQ(unbounded.frames.size(), 20u);
     ASSERT_EQ(bounded.frames[4].status, "refined") << bounded.frames[4].reason;
-    const auto error = [](const eval::FrameRow& f, int i) {
-        return std::hypot(f.x - (-5 + 0.3 * i), f.y - 0.4);
-    };
     for (int i = 5; i < 20; ++i) {
         const auto& f = bounded.frames[i];
         ASSERT_EQ(f.status, "fallback") << i << ": " << f.reason;
@@ -477,9 +477,10 @@ TEST(Localize, AnImageThatStandsStillWhileTheWheelsGripDoesNotStopTheDeadReckoni
             EXPECT_NE(f.reason.find("more than a wheel slips"), std::string::npos)
                 << i << ": " << f.reason;
         }
-        EXPECT_LT(error(f, i), 0.1) << i;
+        EXPECT_LT(offDefaultDrive(f, i), 0.1) << i;
     }
-    EXPECT_GT(error(unbounded.frames[19], 19), 2.0) << "the ceiling's step was never taken";
+    EXPECT_GT(offDefaultDrive(unbounded.frames[19], 19), 2.0)
+        << "the ceiling's step was never taken";
 }
 
 // The vehicle turns at 0.3 rad/s until frame 7, then drives straight; over frames 8-21 the
@@ -595,7 +596,7 @@ TEST(Localize, AFailedTrackedFrameSearchesAroundItsPrediction) {
         const auto& f = searched.frames[i];
         if (f.status != "refined") continue;
         ++refined_after_slip;
-        EXPECT_LT(std::hypot(f.x - (-5 + 0.3 * i), f.y - 0.4), 0.05) << i;
+        EXPECT_LT(offDefaultDrive(f, i), 0.05) << i;
     }
     for (int i = 8; i < 14; ++i) waited_refined += waited.frames[i].status == "refined";
     EXPECT_EQ(searched.frames[8].status, "refined") << searched.frames[8].reason;
@@ -637,7 +638,7 @@ TEST(Localize, AFixWhoseHeadingDisagreesWithTheOdometryIsRefused) {
     for (int i = 10; i < 16; ++i) {
         const auto& f = checked.frames[i];
         EXPECT_LT(yawError(f), 1.0) << i;
-        EXPECT_LT(std::hypot(f.x - (-5 + 0.3 * i), f.y - 0.4), 0.1) << i;
+        EXPECT_LT(offDefaultDrive(f, i), 0.1) << i;
     }
     ASSERT_EQ(unchecked.frames[10].status, "refined") << unchecked.frames[10].reason;
     EXPECT_GT(yawError(unchecked.frames[10]), 5.0);
@@ -702,7 +703,7 @@ TEST(Localize, FixesThatKeepDisagreeingInHeadingDropTheTrackAndFixAgain) {
     for (int i = 16; i < 20; ++i) {
         const auto& f = run.frames[i];
         ASSERT_EQ(f.status, "refined") << i << ": " << f.reason;
-        EXPECT_LT(std::hypot(f.x - (-5 + 0.3 * i), f.y - 0.4), 0.05) << i;
+        EXPECT_LT(offDefaultDrive(f, i), 0.05) << i;
     }
 }
 
@@ -849,7 +850,7 @@ TEST(Localize, PastTheTrackingGapOdometryFromTheLastFixStaysTheFallback) {
     for (int i = 16; i < frames; ++i) {  // more than 1 s after the last fix
         const auto& f = run.frames[i];
         ASSERT_EQ(f.status, "fallback") << i << ": " << f.reason;
-        EXPECT_LT(std::hypot(f.x - (-5 + 0.3 * i), f.y - 0.4), 0.1) << i;
+        EXPECT_LT(offDefaultDrive(f, i), 0.1) << i;
         EXPECT_LT(f.cov_xx, 1.0) << i;  // not the coarse pose's 2 m
     }
 }
@@ -880,7 +881,7 @@ TEST(Localize, PastTheTrackingGapTheSearchFollowsTheDeadReckoning) {
     for (int i = 16; i < frames; ++i) {
         const auto& f = run.frames[i];
         ASSERT_EQ(f.status, "refined") << i << ": " << f.reason;
-        EXPECT_LT(std::hypot(f.x - (-5 + 0.3 * i), f.y - 0.4), 0.05) << i;
+        EXPECT_LT(offDefaultDrive(f, i), 0.05) << i;
     }
 }
 
@@ -1376,7 +1377,7 @@ RollingRun rollingShutterRun(const std::string& name, double readout_s, const st
     for (const auto& f : run.frames) {
         if (f.status != "refined") continue;
         const int i = int(std::lround((f.time_s - kT0) / 0.1));
-        out.mean_error_m += std::hypot(f.x - (-5 + 0.3 * i), f.y - 0.4);
+        out.mean_error_m += offDefaultDrive(f, i);
         ++out.refined;
     }
     if (out.refined > 0) out.mean_error_m /= double(out.refined);
@@ -1513,7 +1514,7 @@ TEST(Localize, RollingShutterReferencesAreSeenFromTheSurveyVehiclesRowPoses) {
         for (const auto& f : eval::loadRun(req.out_dir).frames) {
             if (f.status != "refined") continue;
             const int i = int(std::lround((f.time_s - kT0) / 0.1));
-            sum += std::hypot(f.x - (-5 + 0.3 * i), f.y - 0.4);
+            sum += offDefaultDrive(f, i);
             ++n;
         }
         EXPECT_GE(n, 18u);
