@@ -83,6 +83,20 @@ TEST(LocalizeIni, TheCeilingOdometrysSlipBoundsAreChecked) {
     EXPECT_NO_THROW(o.check());
 }
 
+TEST(LocalizeIni, TheLensToleranceStaysUnderWhatCountsAsDirt) {
+    localize::LocalizerOptions o;
+    o.lens.dirty_transmission = 0.9;
+    o.lens.tolerance = 0.1;  // nothing could be found dirty
+    try {
+        o.check();
+        FAIL() << "a tolerance that hides every blotch was accepted";
+    } catch (const common::ConfigError& e) {
+        EXPECT_NE(std::string(e.what()).find("lens_tolerance"), std::string::npos) << e.what();
+    }
+    o.lens.tolerance = 0.05;
+    EXPECT_NO_THROW(o.check());
+}
+
 TEST(LocalizeIni, CoarseModeIsOneOfItsNames) {
     mrpt::config::CConfigFileMemory mem;
     mem.write("localizer", "coarse", "ceiling");

@@ -467,6 +467,7 @@ class Session {
         reportOnlineRefresh();
         reportCameraClock();
         reportReadout();
+        reportLens();
         saveCameraClock();
         timing_.wall_s = wall_.Tac();
         writer_->finish(timing_);
@@ -556,6 +557,23 @@ class Session {
                 << std::round(1e4 * clock.unappliedOffset()) / 10 << " ms";
         }
         return out.str();
+    }
+
+    void reportLens() {
+        const auto& lens = localizer_->lens();
+        if (lens.imagesAdded() < static_cast<std::size_t>(lens.options().frames)) return;
+        timing_.lens = {{"images", double(lens.imagesAdded())},
+                        {"dirty_share", lens.dirtyShare()},
+                        {"least_transmission", lens.leastTransmission()},
+                        {"corrected", lens.dirty() ? 1.0 : 0.0}};
+        if (!lens.dirty()) return;
+        std::cerr << "lookup-localize: the ceiling camera's lens is dirty: "
+                  << std::round(1e3 * lens.dirtyShare()) / 10 << " % of the image lets less than "
+                  << std::round(1e2 * lens.options().dirty_transmission)
+                  << " % of the light through (the least "
+                  << std::round(1e2 * lens.leastTransmission())
+                  << " %); divided out of each image, but matching behind dirt is at its noise: "
+                     "clean the lens\n";
     }
 
     void reportReadout() {

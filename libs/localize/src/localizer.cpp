@@ -38,6 +38,14 @@ const char* toString(FrameStatus s) {
 
 namespace {
 
+// The way the ceiling moves through a camera's image as the vehicle drives: the vehicle's x
+// axis in the camera's frame (the first row of the camera-to-vehicle rotation), projected.
+cv::Point2d driveInImage(const mrpt::poses::CPose3D& camera_on_vehicle,
+                         const mrpt::img::TCamera& camera) {
+    const auto r = camera_on_vehicle.getRotationMatrix();
+    return {camera.fx() * r(0, 0), camera.fy() * r(0, 1)};
+}
+
 mrpt::poses::CPose2D toPose2D(const mrpt::poses::CPose3D& p) {
     return mrpt::poses::CPose2D(p.x(), p.y(), p.yaw());
 }
@@ -227,6 +235,7 @@ Localizer::Localizer(database::ReferenceDatabase& db, const LocalizerOptions& op
       options_(options),
       refiner_(refiner_options),
       rectifier_(db.info().ceiling_camera),
+      lens_(options.lens),
       coarse_(std::move(coarse)),
       coarse_uses_images_(coarse_uses_images),
       camera_clock_(cameraClockOptions(options, db.info())),
@@ -378,7 +387,9 @@ void Localizer::processOdometry(const mrpt::obs::CObservation& obs) {
     // check() refused a reading out of order already; never corrupt the track
     if (!odometry_.empty() && t <= odometry_.lastTime()) return;
     if (!odometry_.empty()) {
-        travelled_since_forward_ += common::signedTravel(odometry_.lastPose(), odo->odometry);
+        const double step = common::signedTravel(odometry_.lastPose(), odo->odometry);
+        travelled_since_forward_ += step;
+        lens_travel_m_ += std::abs(step);
     }
     odometry_.add(t, odo->odometry);
     // Keep what dead reckoning can need: back to the last fix (bounded by the tracking gap, or
@@ -988,6 +999,7 @@ FrameResult Localizer::processCeilingOnClock(const mrpt::obs::CObservationImage&
     retimeFixes(camera_clock_.applied() - applied_before);
     feedReadout();
     mrpt::obs::CObservationImage query = rectifier_.rectify(image);
+    cleanLens(query);
     query.timestamp = mrpt::Clock::fromDouble(stamp_s + camera_clock_.applied());
     FrameResult out = processCeiling(query);
     if (out.status == FrameStatus::Refined) {
@@ -995,6 +1007,16 @@ FrameResult Localizer::processCeilingOnClock(const mrpt::obs::CObservationImage&
         estimateReadout(out);
     }
     return out;
+}
+
+void Localizer::cleanLens(mrpt::obs::CObservationImage& query) {
+    const cv::Mat image = query.image.asCvMatRef();
+    if (lens_travel_m_ >= options_.lens.min_travel_m) {
+        lens_.add(image, driveInImage(query.cameraPose, query.cameraParams));
+        lens_travel_m_ = 0;
+    }
+    const cv::Mat clean = lens_.correct(image);
+    if (clean.data != image.data) query.image = mrpt::img::CImage(clean, mrpt::img::SHALLOW_COPY);
 }
 
 void Localizer::estimateReadout(const FrameResult& out) {

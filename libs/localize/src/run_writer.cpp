@@ -242,6 +242,7 @@ void RunWriter::finish(const RunTiming& t) {
     if (!t.online_refresh.empty()) j["online_refresh"] = t.online_refresh;
     if (!t.camera_time_offset.empty()) j["camera_time_offset"] = t.camera_time_offset;
     if (!t.readout.empty()) j["readout"] = t.readout;
+    if (!t.lens.empty()) j["lens"] = t.lens;
     // Last: its presence, with the frame count, marks the run complete (lookup-eval checks).
     common::writeFileAtomically(dir_ + "/timing.json", j.dump(2) + "\n");
     common::syncDirectory(dir_);

@@ -29,6 +29,7 @@
 #include "lookup/localize/camera_clock.h"
 #include "lookup/localize/localizer_options.h"
 #include "lookup/localize/readout_estimator.h"
+#include "lookup/refine/lens_shading.h"
 #include "lookup/refine/rectifier.h"
 #include "lookup/refine/refiner.h"
 
@@ -151,6 +152,8 @@ class Localizer {
     void carryCameraClock(const CameraClock::Estimate& earlier) { camera_clock_.carry(earlier); }
     /// The ceiling cameras' rolling-shutter readouts, as estimated and applied so far.
     const ReadoutEstimator& readoutEstimator() const { return readout_; }
+    /// The ceiling camera's lens as judged so far (LocalizerOptions::lens).
+    const refine::LensShading& lens() const { return lens_; }
 
     /// What the online refresh did so far (LocalizerOptions::online_refresh).
     struct OnlineRefreshCounts {
@@ -182,6 +185,9 @@ class Localizer {
     /// A ceiling frame at its image time: its stamp moved by the camera's estimated offset
     /// against the odometry, and a refined frame's heading given to that estimate.
     FrameResult processCeilingOnClock(const mrpt::obs::CObservationImage& image);
+    /// Adds the (rectified) frame to the lens's mean where the vehicle has moved on since the
+    /// last one added, and divides the lens's dirt out of it.
+    void cleanLens(mrpt::obs::CObservationImage& query);
     FrameResult processCeiling(const mrpt::obs::CObservationImage& query);
     /// What a frame found: the refinement to report, or why there is no place.
     struct Attempt {
@@ -358,6 +364,8 @@ class Localizer {
     refine::Refiner refiner_;
     std::shared_ptr<const refine::ImagePyramid> frame_pyramid_;  ///< framePyramid()'s
     refine::Rectifier rectifier_;  ///< every ceiling image into the database's pinhole camera
+    refine::LensShading lens_;
+    double lens_travel_m_ = 0;  ///< odometry travel since the last image the lens's mean took
     std::unique_ptr<coarse::CoarseSource> coarse_;
     bool coarse_uses_images_;
 

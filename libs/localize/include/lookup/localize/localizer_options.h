@@ -9,6 +9,7 @@
 #include "lookup/database/refresh_bridge.h"
 #include "lookup/localize/camera_clock.h"
 #include "lookup/localize/readout_estimator.h"
+#include "lookup/refine/lens_shading.h"
 
 namespace lookup::localize {
 
@@ -88,6 +89,9 @@ struct LocalizerOptions : public common::TableOptions<LocalizerOptions> {
     /// frames and reported (readout_estimator.h); one not configured is applied once precise and
     /// significant, the survey camera's only where its clock is known (survey_clock_max_sigma_s).
     ReadoutEstimatorOptions readout;
+    /// Dirt on the ceiling camera's lens, found in the mean of the images taken while the
+    /// vehicle moves and divided out of each image (lens_shading.h); the lens_* keys.
+    refine::LensShadingOptions lens;
     /// Acquisition (not tracking): also try references within this distance of the coarse
     /// match, one by one, before giving up, since the SAD window covers only +-L_SR/2 [m].
     double acquisition_radius_m = 4.0;

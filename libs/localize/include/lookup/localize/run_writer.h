@@ -37,6 +37,9 @@ struct RunTiming {
     /// survey_sigma_s, frames, query_applied_s, survey_applied_s); empty when nothing was
     /// estimated.
     std::map<std::string, double> readout;
+    /// The ceiling camera's lens once judged (images, dirty_share, least_transmission,
+    /// corrected 0/1); empty before.
+    std::map<std::string, double> lens;
 
     /// Frames the localiser processed (not dropped): per-frame times divide by this.
     std::size_t processed() const { return frames > frames_dropped ? frames - frames_dropped : 0; }

@@ -1,0 +1,161 @@
+#include "lookup/refine/lens_shading.h"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <opencv2/imgproc.hpp>
+#include <vector>
+
+namespace lookup::refine {
+
+namespace {
+
+// The mean is kept at a quarter of the image's resolution: blotches are out of focus, tens of
+// pixels across, and the fit below costs a sixteenth.
+constexpr int kDownscale = 4;
+constexpr int kFitIterations = 6;
+// A column of the turned mean shorter than this is left to its neighbours (canvas corners).
+constexpr int kMinColumn = 5;
+
+cv::Mat greyFloat(const cv::Mat& image) {
+    cv::Mat grey = image;
+    if (image.channels() == 3) cv::cvtColor(image, grey, cv::COLOR_BGR2GRAY);
+    cv::Mat out;
+    grey.convertTo(out, CV_32F);
+    return out;
+}
+
+// Turns an image of `size` about its centre so that `direction` points down the columns, onto
+// a square canvas that holds every pixel.
+cv::Mat turnToColumns(cv::Size size, cv::Point2d direction, int* side) {
+    const double degrees = std::atan2(direction.x, direction.y) * 180.0 / CV_PI;
+    *side = static_cast<int>(std::ceil(std::hypot(size.width, size.height))) + 2;
+    const cv::Point2f centre(0.5f * (size.width - 1), 0.5f * (size.height - 1));
+    cv::Mat turn = cv::getRotationMatrix2D(centre, -degrees, 1.0);
+    turn.at<double>(0, 2) += 0.5 * (*side - 1) - centre.x;
+    turn.at<double>(1, 2) += 0.5 * (*side - 1) - centre.y;
+    return turn;
+}
+
+}  // namespace
+
+void LensShading::add(const cv::Mat& image, cv::Point2d drive_direction) {
+    if (!options_.enabled || image.empty()) return;
+    const double norm = std::hypot(drive_direction.x, drive_direction.y);
+    if (!(norm > 0)) return;
+    drive_direction *= 1.0 / norm;
+    if (image.size() != size_ || std::abs(drive_direction.ddot(direction_)) < kSameDirection) {
+        // another camera, or mounted otherwise: start over
+        size_ = image.size();
+        direction_ = drive_direction;
+        mean_.release();
+        transmission_.release();
+        gain_.release();
+        added_ = 0;
+        dirty_ = false;
+        dirty_share_ = 0;
+        least_ = 1;
+    }
+    cv::Mat small;
+    cv::resize(greyFloat(image), small, cv::Size(), 1.0 / kDownscale, 1.0 / kDownscale,
+               cv::INTER_AREA);
+    ++added_;
+    if (mean_.empty()) {
+        mean_ = small;
+    } else {
+        const double weight = 1.0 / std::min<std::size_t>(added_, options_.frames);
+        cv::addWeighted(mean_, 1.0 - weight, small, weight, 0.0, mean_);
+    }
+    if (added_ >= static_cast<std::size_t>(options_.frames)) judge();
+}
+
+void LensShading::judge() {
+    // Along the drive the ceiling's structures (a pipe, a cable, the walls) stay where they are
+    // across the image, so they stay in the mean; the lens's blotches and the lamp's light vary
+    // along the drive too. The light is fitted along the drive only (the mean turned so the
+    // drive runs down its columns), so the streaks are kept as light and only what is darker
+    // than the light along its line is dirt.
+    cv::Mat log_mean;
+    cv::log(cv::max(mean_, 1.0f), log_mean);
+    int side = 0;
+    const cv::Mat turn = turnToColumns(mean_.size(), direction_, &side);
+    cv::Mat turned, inside;
+    cv::warpAffine(log_mean, turned, turn, cv::Size(side, side), cv::INTER_LINEAR,
+                   cv::BORDER_REPLICATE);
+    cv::warpAffine(cv::Mat(mean_.size(), CV_8U, cv::Scalar(255)), inside, turn,
+                   cv::Size(side, side), cv::INTER_NEAREST, cv::BORDER_CONSTANT, 0);
+    cv::Mat light;
+    cv::warpAffine(lightAlongColumns(turned, inside), light, turn, mean_.size(),
+                   cv::INTER_LINEAR | cv::WARP_INVERSE_MAP, cv::BORDER_REPLICATE);
+    cv::Mat transmission;
+    cv::exp(cv::min(log_mean - light, 0.0f), transmission);
+    cv::GaussianBlur(transmission, transmission, cv::Size(), 1.0);
+    transmission = cv::min(transmission / (1.0 - options_.tolerance), 1.0);
+    transmission_ = transmission;
+    double least = 1.0;
+    cv::minMaxLoc(transmission, &least);
+    const cv::Mat below = transmission < options_.dirty_transmission;
+    least_ = least;
+    dirty_share_ = static_cast<double>(cv::countNonZero(below)) / below.total();
+    dirty_ = dirty_share_ >= options_.min_dirty_share;
+    if (!dirty_) {
+        gain_.release();
+        return;
+    }
+    cv::Mat gain = 1.0 / cv::max(transmission, 1.0 / options_.max_gain);
+    cv::resize(gain, gain_, size_, 0, 0, cv::INTER_LINEAR);
+}
+
+cv::Mat LensShading::lightAlongColumns(const cv::Mat& log_mean, const cv::Mat& inside) const {
+    // Per column, a parabola in the log (a lamp's spot is close to a Gaussian) fitted from
+    // above: points under the fit by more than the tolerance (dirt) are left out and it is
+    // fitted again.
+    const double drop = std::log(1.0 - options_.tolerance);
+    cv::Mat light(log_mean.size(), CV_32F, cv::Scalar(0));
+    std::vector<int> rows;
+    std::vector<char> used;
+    for (int u = 0; u < log_mean.cols; ++u) {
+        rows.clear();
+        for (int v = 0; v < log_mean.rows; ++v) {
+            if (inside.at<uchar>(v, u)) rows.push_back(v);
+        }
+        if (static_cast<int>(rows.size()) < kMinColumn) continue;
+        const double middle = 0.5 * (rows.front() + rows.back());
+        const double half = std::max(1.0, 0.5 * (rows.back() - rows.front()));
+        auto fitted = [&](const Eigen::Vector3d& c, int v) {
+            const double x = (v - middle) / half;
+            return c[0] + c[1] * x + c[2] * x * x;
+        };
+        used.assign(rows.size(), 1);
+        Eigen::Vector3d c = Eigen::Vector3d::Zero();
+        for (int iteration = 0; iteration < kFitIterations; ++iteration) {
+            Eigen::Matrix3d normal = Eigen::Matrix3d::Zero();
+            Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+            for (std::size_t i = 0; i < rows.size(); ++i) {
+                if (!used[i]) continue;
+                const double x = (rows[i] - middle) / half;
+                const Eigen::Vector3d basis(1.0, x, x * x);
+                normal += basis * basis.transpose();
+                rhs += basis * log_mean.at<float>(rows[i], u);
+            }
+            if (normal.determinant() < 1e-9) break;
+            c = normal.ldlt().solve(rhs);
+            for (std::size_t i = 0; i < rows.size(); ++i) {
+                used[i] = log_mean.at<float>(rows[i], u) - fitted(c, rows[i]) > drop;
+            }
+        }
+        for (int v : rows) light.at<float>(v, u) = static_cast<float>(fitted(c, v));
+    }
+    return light;
+}
+
+cv::Mat LensShading::correct(const cv::Mat& image) const {
+    if (!dirty_ || image.size() != size_ || image.depth() != CV_8U) return image;
+    cv::Mat gain = gain_;
+    if (image.channels() == 3) cv::merge(std::vector<cv::Mat>{gain_, gain_, gain_}, gain);
+    cv::Mat out;
+    cv::multiply(image, gain, out, 1.0, image.type());
+    return out;
+}
+
+}  // namespace lookup::refine
