@@ -483,6 +483,57 @@ TEST(Localize, AnImageThatStandsStillWhileTheWheelsGripDoesNotStopTheDeadReckoni
         << "the ceiling's step was never taken";
 }
 
+// Every query image behind a lens caked with dust (soft blotches letting 25-50 % of the light
+// through) in a dim, hazy place (a quarter of the ceiling's contrast over a flat airlight). Once
+// the lens's mean has its images (lens_frames, one per frame here), the dirt is found and
+// divided out: the later frames refine where, uncorrected, the blotches stand in the way.
+TEST(Localize, DirtOnTheLensIsFoundInTheDrivesMeanAndDividedOut) {
+    cv::Mat transmission(240, 320, CV_32F, cv::Scalar(1));
+    const double blotches[][4] = {{70, 60, 40, 0.75},
+                                  {230, 90, 45, 0.7},
+                                  {150, 180, 40, 0.6},
+                                  {290, 210, 30, 0.5},
+                                  {20, 200, 35, 0.7}};
+    for (const auto& b : blotches) {
+        for (int v = 0; v < 240; ++v) {
+            for (int u = 0; u < 320; ++u) {
+                const double d2 = (std::pow(u - b[0], 2) + std::pow(v - b[1], 2)) / (b[2] * b[2]);
+                transmission.at<float>(v, u) *= static_cast<float>(1 - b[3] * std::exp(-d2));
+            }
+        }
+    }
+    const auto spoil = [&](int, mrpt::obs::CObservationImage& img,
+                           mrpt::obs::CObservationOdometry&) {
+        cv::Mat radiance;
+        img.image.asCvMatRef().convertTo(radiance, CV_32F, 0.25, 90);
+        cv::Mat seen;
+        cv::Mat(radiance.mul(transmission)).convertTo(seen, CV_8U);
+        img.image = mrpt::img::CImage(seen, mrpt::img::DEEP_COPY);
+    };
+    const auto run = [&](const std::string& name, const std::string& ini_text) {
+        return localisedPlanarRun("lookup_localize_dirty_lens_" + name, spoil, 40, ini_text);
+    };
+    const std::string lens = "[localizer]\nlens_frames = 15\n";
+    const auto corrected = run("corrected", lens);
+    const auto uncorrected = run("uncorrected", lens + "lens_correction = false\n");
+    ASSERT_EQ(corrected.frames.size(), 40u);
+    ASSERT_EQ(uncorrected.frames.size(), 40u);
+    std::size_t refined = 0, refined_uncorrected = 0;
+    for (int i = 20; i < 40; ++i) {
+        refined += corrected.frames[i].status == "refined";
+        refined_uncorrected += uncorrected.frames[i].status == "refined";
+        if (corrected.frames[i].status == "refined")
+            EXPECT_LT(offDefaultDrive(corrected.frames[i], i), 0.05) << i;
+    }
+    EXPECT_GE(refined, 18u);
+    EXPECT_LE(refined_uncorrected + 5, refined);
+    std::ifstream timing(fs::temp_directory_path() / "lookup_localize_dirty_lens_corrected" /
+                         "run" / "timing.json");
+    const auto lens_json = nlohmann::json::parse(timing).at("lens");
+    EXPECT_EQ(lens_json.at("corrected").get<double>(), 1.0);
+    EXPECT_LT(lens_json.at("least_transmission").get<double>(), 0.6);
+}
+
 // The vehicle turns at 0.3 rad/s until frame 7, then drives straight; over frames 8-21 the
 // odometry drops out (readings not finite) and the ceiling is another one (textured, nothing
 // of it in the references). Extrapolated, the odometry would keep turning, and past the
