@@ -14,6 +14,9 @@ namespace {
 // pixels across, and the fit below costs a sixteenth.
 constexpr int kDownscale = 4;
 constexpr int kFitIterations = 6;
+// Judged again every this many images (the fit costs far more than adding an image): a lens
+// gets dirtier over minutes, not frames.
+constexpr std::size_t kJudgeEvery = 10;
 // A column of the turned mean shorter than this is left to its neighbours (canvas corners).
 constexpr int kMinColumn = 5;
 
@@ -66,7 +69,8 @@ void LensShading::add(const cv::Mat& image, cv::Point2d drive_direction) {
         const double weight = 1.0 / std::min<std::size_t>(added_, options_.frames);
         cv::addWeighted(mean_, 1.0 - weight, small, weight, 0.0, mean_);
     }
-    if (added_ >= static_cast<std::size_t>(options_.frames)) judge();
+    const auto frames = static_cast<std::size_t>(options_.frames);
+    if (added_ >= frames && (added_ - frames) % kJudgeEvery == 0) judge();
 }
 
 void LensShading::judge() {
