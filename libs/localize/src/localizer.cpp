@@ -38,14 +38,6 @@ const char* toString(FrameStatus s) {
 
 namespace {
 
-// The way the ceiling moves through a camera's image as the vehicle drives: the vehicle's x
-// axis in the camera's frame (the first row of the camera-to-vehicle rotation), projected.
-cv::Point2d driveInImage(const mrpt::poses::CPose3D& camera_on_vehicle,
-                         const mrpt::img::TCamera& camera) {
-    const auto r = camera_on_vehicle.getRotationMatrix();
-    return {camera.fx() * r(0, 0), camera.fy() * r(0, 1)};
-}
-
 mrpt::poses::CPose2D toPose2D(const mrpt::poses::CPose3D& p) {
     return mrpt::poses::CPose2D(p.x(), p.y(), p.yaw());
 }
@@ -1012,7 +1004,7 @@ FrameResult Localizer::processCeilingOnClock(const mrpt::obs::CObservationImage&
 void Localizer::cleanLens(mrpt::obs::CObservationImage& query) {
     const cv::Mat image = query.image.asCvMatRef();
     if (lens_travel_m_ >= options_.lens.min_travel_m) {
-        lens_.add(image, driveInImage(query.cameraPose, query.cameraParams));
+        lens_.add(image, refine::driveInImage(query.cameraPose, query.cameraParams));
         lens_travel_m_ = 0;
     }
     const cv::Mat clean = lens_.correct(image);

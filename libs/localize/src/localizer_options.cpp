@@ -43,13 +43,7 @@ void LocalizerOptions::declareKeys(common::OptionsTable& t) {
     t.add("readout_max_sigma_s", readout.max_sigma_s, common::kPositive);
     t.add("readout_significance", readout.significance, 0.0, 100.0);
     t.add("readout_min_s", readout.min_readout_s, 0.0, 1.0);
-    t.add("lens_correction", lens.enabled);
-    t.add("lens_frames", lens.frames, 2, 100000);
-    t.add("lens_min_travel_m", lens.min_travel_m, common::kPositive);
-    t.add("lens_dirty_transmission", lens.dirty_transmission, 0.0, 1.0);
-    t.add("lens_min_dirty_share", lens.min_dirty_share, 0.0, 1.0);
-    t.add("lens_tolerance", lens.tolerance, 0.0, 1.0);
-    t.add("lens_max_gain", lens.max_gain, 1.0, 256.0);
+    lens.declareKeys(t);
     t.add("acquisition_radius_m", acquisition_radius_m, 0.0);
     t.add("acquisition_step_m", acquisition_step_m, common::kPositive);
     t.add("tracking_acquisition_sigmas", tracking_acquisition_sigmas, 0.0, 100.0);
@@ -94,8 +88,7 @@ void LocalizerOptions::check() const {
               "acquisition_probe_min_matched", "in [0, acquisition_probe_points]");
     c.require(ceiling_odometry_max_slip > ceiling_odometry_min_slip, "ceiling_odometry_max_slip",
               "> ceiling_odometry_min_slip");
-    c.require(lens.tolerance < 1 - lens.dirty_transmission, "lens_tolerance",
-              "< 1 - lens_dirty_transmission");
+    lens.check(c);
     c.require(image_cache_capacity >= static_cast<std::size_t>(references_per_query),
               "image_cache_capacity", ">= references_per_query");
     c.throwIfFailed();

@@ -10,9 +10,9 @@ namespace lookup::refine {
 
 namespace {
 
-// The mean is kept at a quarter of the image's resolution: blotches are out of focus, tens of
-// pixels across, and the fit below costs a sixteenth.
-constexpr int kDownscale = 4;
+// The mean is kept about this many pixels wide: blotches are out of focus, a few percent of the
+// width across or more, and the fit below costs far less than at full resolution.
+constexpr int kMeanWidth = 80;
 constexpr int kFitIterations = 6;
 // Judged again every this many images (the fit costs far more than adding an image): a lens
 // gets dirtier over minutes, not frames.
@@ -42,6 +42,27 @@ cv::Mat turnToColumns(cv::Size size, cv::Point2d direction, int* side) {
 
 }  // namespace
 
+cv::Point2d driveInImage(const mrpt::poses::CPose3D& camera_on_vehicle,
+                         const mrpt::img::TCamera& camera) {
+    const auto r = camera_on_vehicle.getRotationMatrix();  // its first row: the x axis
+    return {camera.fx() * r(0, 0), camera.fy() * r(0, 1)};
+}
+
+void LensShadingOptions::declareKeys(common::OptionsTable& t) {
+    t.add("lens_correction", enabled);
+    t.add("lens_frames", frames, 2, 100000);
+    t.add("lens_min_travel_m", min_travel_m, common::kPositive);
+    t.add("lens_dirty_transmission", dirty_transmission, 0.0, 1.0);
+    t.add("lens_min_dirty_share", min_dirty_share, 0.0, 1.0);
+    t.add("lens_tolerance", tolerance, 0.0, 1.0);
+    t.add("lens_max_gain", max_gain, 1.0, 256.0);
+}
+
+void LensShadingOptions::check(common::OptionsCheck& c) const {
+    c.require(tolerance < 1 - dirty_transmission, "lens_tolerance",
+              "< 1 - lens_dirty_transmission");
+}
+
 void LensShading::add(const cv::Mat& image, cv::Point2d drive_direction) {
     if (!options_.enabled || image.empty()) return;
     const double norm = std::hypot(drive_direction.x, drive_direction.y);
@@ -60,8 +81,8 @@ void LensShading::add(const cv::Mat& image, cv::Point2d drive_direction) {
         least_ = 1;
     }
     cv::Mat small;
-    cv::resize(greyFloat(image), small, cv::Size(), 1.0 / kDownscale, 1.0 / kDownscale,
-               cv::INTER_AREA);
+    const double scale = 1.0 / std::max(1, (image.cols + kMeanWidth / 2) / kMeanWidth);
+    cv::resize(greyFloat(image), small, cv::Size(), scale, scale, cv::INTER_AREA);
     ++added_;
     if (mean_.empty()) {
         mean_ = small;

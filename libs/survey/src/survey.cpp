@@ -24,6 +24,7 @@
 #include "lookup/common/pose_files.h"
 #include "lookup/common/rawlog_io.h"
 #include "lookup/database/database_writer.h"
+#include "lookup/refine/lens_shading.h"
 #include "lookup/survey/keyframes.h"
 #include "lookup/survey/mrpt_sections.h"
 #include "lookup/survey/scan_deskew.h"
@@ -165,6 +166,16 @@ std::vector<std::string> traverseWarnings(const TraverseReport& r, const std::st
         out.push_back(rawlog + ": refused " + std::to_string(r.rejected_image) + " ceiling and " +
                       std::to_string(r.rejected_forward) +
                       " forward images (first: " + r.first_image_problem + ")");
+    }
+    if (r.lens.corrected) {
+        out.push_back(rawlog + mrpt::format(": the ceiling camera's lens is dirty: %.1f %% of "
+                                            "the image lets less than %.0f %% of the light "
+                                            "through (the least %.0f %%); divided out of the "
+                                            "references, but matching behind dirt is at its "
+                                            "noise: clean the lens",
+                                            100 * r.lens.dirty_share,
+                                            100 * o.lens.dirty_transmission,
+                                            100 * r.lens.least_transmission));
     }
     const ImageQuality& q = r.ceiling_images;
     const bool dim = q.mean_intensity < o.warn_dim_mean_intensity;
@@ -320,6 +331,10 @@ nlohmann::ordered_json traverseJson(const TraverseReport& t) {
                       {"rejected_audit", t.rejected_audit},
                       {"without_forward", t.without_forward},
                       {"scans_deskewed", t.scans_deskewed}};
+    j["lens"] = {{"images", t.lens.images},
+                 {"dirty_share", t.lens.dirty_share},
+                 {"least_transmission", t.lens.least_transmission},
+                 {"corrected", t.lens.corrected}};
     j["ceiling_images"] = {{"median_mean_grey", t.ceiling_images.mean_intensity},
                            {"median_clipped_share", t.ceiling_images.clipped_fraction},
                            {"median_sharpness", t.ceiling_images.sharpness}};
@@ -993,6 +1008,36 @@ struct ReferenceErrors {
     }
 };
 
+/// The survey camera's lens judged over the traverse's kept references, in travel order (they
+/// lie keyframe_spacing_m apart, the ceiling moved on between them); said in `rep.lens`.
+refine::LensShading judgeLens(const TraverseData& d, const PosedFrames& frames,
+                              const KeyframeSelection& selection, const SurveyOptions& o,
+                              TraverseReport& rep) {
+    refine::LensShading lens(o.lens);
+    double last_m = -1e9;
+    for (std::size_t k = 0; k < selection.kept.size(); ++k) {
+        if (selection.kept_travelled_m[k] - last_m < o.lens.min_travel_m) continue;
+        const auto& ceiling = *d.ceiling[frames.frame_of[selection.kept[k]]];
+        const cv::Mat image = loadPixels(ceiling, cv::IMREAD_UNCHANGED);
+        if (image.empty()) continue;
+        lens.add(image, refine::driveInImage(ceiling.cameraPose, ceiling.cameraParams));
+        last_m = selection.kept_travelled_m[k];
+    }
+    rep.lens = {lens.imagesAdded(), lens.dirtyShare(), lens.leastTransmission(), lens.dirty()};
+    return lens;
+}
+
+/// `ceiling` with its image divided by the lens's transmission, where the lens is dirty.
+mrpt::obs::CObservationImage::Ptr withoutDirt(const mrpt::obs::CObservationImage::Ptr& ceiling,
+                                              const refine::LensShading& lens) {
+    if (!lens.dirty()) return ceiling;
+    const cv::Mat image = loadPixels(*ceiling, cv::IMREAD_UNCHANGED);
+    if (image.empty()) return ceiling;  // refused downstream, naming the file
+    auto clean = mrpt::obs::CObservationImage::Create(*ceiling);
+    clean->image = mrpt::img::CImage(lens.correct(image), mrpt::img::DEEP_COPY);
+    return clean;
+}
+
 /// Writes the selected references of one traverse (pose, covariance, quality, forward image);
 /// returns their errors against `gt`.
 ReferenceErrors writeReferences(const TraverseSpec& spec, const TraverseData& d,
@@ -1002,12 +1047,13 @@ ReferenceErrors writeReferences(const TraverseSpec& spec, const TraverseData& d,
                                 const SurveyOptions& o, Cameras& cameras,
                                 database::DatabaseWriter& writer, TraverseReport& rep) {
     ForwardImages forward(d);
+    const refine::LensShading lens = judgeLens(d, frames, selection, o, rep);
     ReferenceErrors errors;
     for (std::size_t k = 0; k < selection.kept.size(); ++k) {
         const KeyframeCandidate& candidate = frames.candidates[selection.kept[k]];
         database::ReferenceInput ref;
         ref.traverse = spec.name;
-        ref.ceiling = d.ceiling[frames.frame_of[selection.kept[k]]];
+        ref.ceiling = withoutDirt(d.ceiling[frames.frame_of[selection.kept[k]]], lens);
         ref.vehicle_pose = candidate.vehicle_pose;
         ref.vehicle_cov = poses.covarianceAt(candidate.time_s);
         ref.sharpness = selection.kept_quality[k].sharpness;

@@ -48,6 +48,7 @@ void SurveyOptions::declareKeys(common::OptionsTable& t) {
     t.add("floor_return_margin_m", floor_return_margin_m, 0.0, 5.0);
     t.add("roof_return_margin_m", roof_return_margin_m, 0.0, 20.0);
     t.add("keyframe_spacing_m", keyframe_spacing_m, common::kPositive);
+    lens.declareKeys(t);
     t.add("min_sharpness", min_sharpness, 0.0);
     t.add("min_mean_intensity", min_mean_intensity);
     t.add("max_mean_intensity", max_mean_intensity);
@@ -118,6 +119,7 @@ void SurveyOptions::check() const {
     common::OptionsCheck c("survey");
     checkRanges(c);
     c.require(!ceiling_camera_label.empty(), "ceiling_camera_label", "not empty");
+    lens.check(c);
     c.require(min_mean_intensity >= 0 && min_mean_intensity < max_mean_intensity,
               "min_mean_intensity", ">= 0 and < max_mean_intensity");
     c.require(max_mean_intensity <= 255, "max_mean_intensity", "<= 255");

@@ -12,9 +12,15 @@
 // A clean lens leaves images untouched, bit for bit. Drops (which defocus rather than darken)
 // are not corrected.
 
+#include <mrpt/img/TCamera.h>
+#include <mrpt/poses/CPose3D.h>
+
 #include <opencv2/core.hpp>
 
 #include <cstddef>
+
+#include "lookup/common/config.h"
+#include "lookup/common/options_table.h"
 
 namespace lookup::refine {
 
@@ -33,7 +39,17 @@ struct LensShadingOptions {
     double tolerance = 0.05;
     /// At most this gain: a nearly opaque speck is not stretched into noise.
     double max_gain = 4.0;
+
+    /// The lens_* keys (lens_correction, lens_frames, ...) of the section that holds them.
+    void declareKeys(common::OptionsTable& t);
+    /// What the ranges of declareKeys do not say: the tolerance under what counts as dirt.
+    void check(common::OptionsCheck& c) const;
 };
+
+/// The way the ceiling moves through a camera's image as the vehicle drives: the vehicle's x
+/// axis in the camera's frame, projected.
+cv::Point2d driveInImage(const mrpt::poses::CPose3D& camera_on_vehicle,
+                         const mrpt::img::TCamera& camera);
 
 class LensShading {
   public:
@@ -53,7 +69,7 @@ class LensShading {
     /// The least transmission found (1 for a lens not judged yet).
     double leastTransmission() const { return least_; }
     const LensShadingOptions& options() const { return options_; }
-    /// The lens's transmission at a quarter of the images' resolution (CV_32F, 0-1; empty
+    /// The lens's transmission about 80 pixels wide (CV_32F, 0-1; empty
     /// before the lens is judged).
     const cv::Mat& transmission() const { return transmission_; }
 
@@ -65,7 +81,7 @@ class LensShading {
     static constexpr double kSameDirection = 0.999;
 
     LensShadingOptions options_;
-    cv::Mat mean_;  ///< the images' running mean, CV_32F, at a quarter of their resolution
+    cv::Mat mean_;  ///< the images' running mean, CV_32F, about kMeanWidth pixels wide
     cv::Mat transmission_;
     cv::Mat gain_;  ///< full resolution CV_32F, once dirty
     cv::Size size_;

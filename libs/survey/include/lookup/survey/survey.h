@@ -84,10 +84,18 @@ struct TraverseReport {
     LevellingReport levelling;         ///< odometry and scans projected onto the horizontal
     std::string first_image_problem;   ///< the first refused image: file and reason
     ImageQuality ceiling_images;       ///< medians over the references' ceiling images
-    double localisation_time_s = 0;    ///< MCL (or ICP-SLAM) wall time for this traverse
-    std::string start_source;          ///< "map origin", "ground truth" or "scan match"
-    mrpt::poses::CPose2D start;        ///< first scan's pose in the map frame
-    double start_goodness = 0;         ///< ICP goodness of the scan-matched start
+    /// The survey camera's lens as judged over the references (LensShading): images the mean
+    /// took, the share of the image behind dirt, the least transmission, and whether the
+    /// references were corrected.
+    struct Lens {
+        std::size_t images = 0;
+        double dirty_share = 0, least_transmission = 1;
+        bool corrected = false;
+    } lens;
+    double localisation_time_s = 0;     ///< MCL (or ICP-SLAM) wall time for this traverse
+    std::string start_source;           ///< "map origin", "ground truth" or "scan match"
+    mrpt::poses::CPose2D start;         ///< first scan's pose in the map frame
+    double start_goodness = 0;          ///< ICP goodness of the scan-matched start
     std::size_t start_tied_places = 0;  ///< other places its start's fit tied with
     std::string start_ceiling;          ///< what the ceiling made of the tie (StartFix::ceiling)
     bool has_ground_truth = false;

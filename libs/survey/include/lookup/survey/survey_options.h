@@ -16,6 +16,7 @@
 #include "lookup/common/options_table.h"
 #include "lookup/common/stamp_row.h"
 #include "lookup/database/refresh_bridge.h"
+#include "lookup/refine/lens_shading.h"
 
 namespace lookup::survey {
 
@@ -38,7 +39,12 @@ struct SurveyOptions : public common::TableOptions<SurveyOptions> {
     double roof_return_margin_m = 1.0;
 
     // --- keyframes (paper Sec. III-A: references sampled along the survey) ---------------
-    double keyframe_spacing_m = 0.25;    ///< travel between kept references [m]
+    double keyframe_spacing_m = 0.25;  ///< travel between kept references [m]
+    /// Dirt on the survey camera's lens, found in the mean of each traverse's references and
+    /// divided out of them before they are stored (lens_shading.h; the lens_* keys, as the
+    /// localiser's): the references show the ceiling, not the blotches, as the vehicle's
+    /// corrected images do.
+    refine::LensShadingOptions lens;
     double min_sharpness = 10.0;         ///< min variance of Laplacian [grey^2]; below = blurred
     double min_mean_intensity = 3.0;     ///< darker mean grey level = no light [0..255]
     double max_mean_intensity = 250.0;   ///< brighter mean grey level = washed out [0..255]
