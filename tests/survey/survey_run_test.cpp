@@ -140,6 +140,7 @@ TEST(SurveyRun, DirtOnTheSurveyCamerasLensIsDividedOutOfTheReferences) {
     for (std::size_t i = 0; i < db.size(); ++i) stored.push_back(db.ceilingImage(i));
     EXPECT_LT(blotchShare(dirty_images), 0.7);
     EXPECT_NEAR(blotchShare(stored), 1.0, 0.12);
+}
 
     TEST(SurveyRun, DeskewedScansAreCountedInTheReport) {
         const auto dir = lookup::test::freshDir("lookup_survey_deskew_count");
