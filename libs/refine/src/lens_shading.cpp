@@ -73,7 +73,6 @@ void LensShading::add(const cv::Mat& image, cv::Point2d drive_direction) {
         size_ = image.size();
         direction_ = drive_direction;
         mean_.release();
-        transmission_.release();
         gain_.release();
         added_ = 0;
         dirty_ = false;
@@ -102,21 +101,23 @@ void LensShading::judge() {
     // than the light along its line is dirt.
     cv::Mat log_mean;
     cv::log(cv::max(mean_, 1.0f), log_mean);
+    // What the camera never sees (a rectified image's black border) is neither light nor dirt.
+    const cv::Mat seen = mean_ >= 1.0f;
     int side = 0;
     const cv::Mat turn = turnToColumns(mean_.size(), direction_, &side);
     cv::Mat turned, inside;
     cv::warpAffine(log_mean, turned, turn, cv::Size(side, side), cv::INTER_LINEAR,
                    cv::BORDER_REPLICATE);
-    cv::warpAffine(cv::Mat(mean_.size(), CV_8U, cv::Scalar(255)), inside, turn,
-                   cv::Size(side, side), cv::INTER_NEAREST, cv::BORDER_CONSTANT, 0);
+    cv::warpAffine(seen, inside, turn, cv::Size(side, side), cv::INTER_NEAREST, cv::BORDER_CONSTANT,
+                   0);
     cv::Mat light;
     cv::warpAffine(lightAlongColumns(turned, inside), light, turn, mean_.size(),
                    cv::INTER_LINEAR | cv::WARP_INVERSE_MAP, cv::BORDER_REPLICATE);
     cv::Mat transmission;
     cv::exp(cv::min(log_mean - light, 0.0f), transmission);
+    transmission.setTo(1.0, ~seen);
     cv::GaussianBlur(transmission, transmission, cv::Size(), 1.0);
     transmission = cv::min(transmission / (1.0 - options_.tolerance), 1.0);
-    transmission_ = transmission;
     double least = 1.0;
     cv::minMaxLoc(transmission, &least);
     const cv::Mat below = transmission < options_.dirty_transmission;

@@ -69,9 +69,6 @@ class LensShading {
     /// The least transmission found (1 for a lens not judged yet).
     double leastTransmission() const { return least_; }
     const LensShadingOptions& options() const { return options_; }
-    /// The lens's transmission about 80 pixels wide (CV_32F, 0-1; empty
-    /// before the lens is judged).
-    const cv::Mat& transmission() const { return transmission_; }
 
   private:
     void judge();
@@ -81,8 +78,7 @@ class LensShading {
     static constexpr double kSameDirection = 0.999;
 
     LensShadingOptions options_;
-    cv::Mat mean_;  ///< the images' running mean, CV_32F, about kMeanWidth pixels wide
-    cv::Mat transmission_;
+    cv::Mat mean_;  ///< the images' running mean, CV_32F, about 80 pixels wide
     cv::Mat gain_;  ///< full resolution CV_32F, once dirty
     cv::Size size_;
     cv::Point2d direction_;  ///< unit, in the image
