@@ -64,7 +64,8 @@ void LensShadingOptions::check(common::OptionsCheck& c) const {
 }
 
 void LensShading::add(const cv::Mat& image, cv::Point2d drive_direction) {
-    if (!options_.enabled || image.empty()) return;
+    if (!options_.enabled || image.empty() || (image.channels() != 1 && image.channels() != 3))
+        return;
     const double norm = std::hypot(drive_direction.x, drive_direction.y);
     if (!(norm > 0)) return;
     drive_direction *= 1.0 / norm;
@@ -176,7 +177,10 @@ cv::Mat LensShading::lightAlongColumns(const cv::Mat& log_mean, const cv::Mat& i
 }
 
 cv::Mat LensShading::correct(const cv::Mat& image) const {
-    if (!dirty_ || image.size() != size_ || image.depth() != CV_8U) return image;
+    if (!dirty_ || image.size() != size_ || image.depth() != CV_8U ||
+        (image.channels() != 1 && image.channels() != 3)) {
+        return image;
+    }
     cv::Mat gain = gain_;
     if (image.channels() == 3) cv::merge(std::vector<cv::Mat>{gain_, gain_, gain_}, gain);
     cv::Mat out;

@@ -55,7 +55,7 @@ class LensShading {
   public:
     explicit LensShading(LensShadingOptions options = {}) : options_(options) {}
 
-    /// One image (grey or BGR, 8 bit) taken `min_travel_m` on from the last added;
+    /// One image (grey or BGR; others are left out) taken `min_travel_m` on from the last added;
     /// `drive_direction`: the way the ceiling moves through the image as the vehicle drives
     /// (any length, either sign). Another image size or direction starts the mean over.
     void add(const cv::Mat& image, cv::Point2d drive_direction);
