@@ -567,13 +567,10 @@ class Session {
                         {"least_transmission", lens.leastTransmission()},
                         {"corrected", lens.dirty() ? 1.0 : 0.0}};
         if (!lens.dirty()) return;
-        std::cerr << "lookup-localize: the ceiling camera's lens is dirty: "
-                  << std::round(1e3 * lens.dirtyShare()) / 10 << " % of the image lets less than "
-                  << std::round(1e2 * lens.options().dirty_transmission)
-                  << " % of the light through (the least "
-                  << std::round(1e2 * lens.leastTransmission())
-                  << " %); divided out of each image, but matching behind dirt is at its noise: "
-                     "clean the lens\n";
+        std::cerr << "lookup-localize: "
+                  << refine::dirtyLensWarning(lens.dirtyShare(), lens.leastTransmission(),
+                                              lens.options(), "each image")
+                  << "\n";
     }
 
     void reportReadout() {

@@ -3,8 +3,11 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <opencv2/imgproc.hpp>
 #include <vector>
+
+#include "lookup/common/grey.h"
 
 namespace lookup::refine {
 
@@ -21,10 +24,8 @@ constexpr std::size_t kJudgeEvery = 10;
 constexpr int kMinColumn = 5;
 
 cv::Mat greyFloat(const cv::Mat& image) {
-    cv::Mat grey = image;
-    if (image.channels() == 3) cv::cvtColor(image, grey, cv::COLOR_BGR2GRAY);
     cv::Mat out;
-    grey.convertTo(out, CV_32F);
+    common::greyOf(image).convertTo(out, CV_32F);
     return out;
 }
 
@@ -46,6 +47,18 @@ cv::Point2d driveInImage(const mrpt::poses::CPose3D& camera_on_vehicle,
                          const mrpt::img::TCamera& camera) {
     const auto r = camera_on_vehicle.getRotationMatrix();  // its first row: the x axis
     return {camera.fx() * r(0, 0), camera.fy() * r(0, 1)};
+}
+
+std::string dirtyLensWarning(double dirty_share, double least_transmission,
+                             const LensShadingOptions& options, const std::string& corrected) {
+    char text[256];
+    std::snprintf(text, sizeof text,
+                  "the ceiling camera's lens is dirty: %.1f %% of the image lets less than %.0f %% "
+                  "of the light through (the least %.0f %%); divided out of %s, but matching "
+                  "behind dirt is at its noise: clean the lens",
+                  100 * dirty_share, 100 * options.dirty_transmission, 100 * least_transmission,
+                  corrected.c_str());
+    return text;
 }
 
 void LensShadingOptions::declareKeys(common::OptionsTable& t) {
@@ -149,9 +162,9 @@ cv::Mat LensShading::lightAlongColumns(const cv::Mat& log_mean, const cv::Mat& i
         if (static_cast<int>(rows.size()) < kMinColumn) continue;
         const double middle = 0.5 * (rows.front() + rows.back());
         const double half = std::max(1.0, 0.5 * (rows.back() - rows.front()));
-        auto fitted = [&](const Eigen::Vector3d& c, int v) {
+        auto basis = [&](int v) {
             const double x = (v - middle) / half;
-            return c[0] + c[1] * x + c[2] * x * x;
+            return Eigen::Vector3d(1.0, x, x * x);
         };
         used.assign(rows.size(), 1);
         Eigen::Vector3d c = Eigen::Vector3d::Zero();
@@ -160,18 +173,17 @@ cv::Mat LensShading::lightAlongColumns(const cv::Mat& log_mean, const cv::Mat& i
             Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
             for (std::size_t i = 0; i < rows.size(); ++i) {
                 if (!used[i]) continue;
-                const double x = (rows[i] - middle) / half;
-                const Eigen::Vector3d basis(1.0, x, x * x);
-                normal += basis * basis.transpose();
-                rhs += basis * log_mean.at<float>(rows[i], u);
+                const Eigen::Vector3d b = basis(rows[i]);
+                normal += b * b.transpose();
+                rhs += b * log_mean.at<float>(rows[i], u);
             }
             if (normal.determinant() < 1e-9) break;
             c = normal.ldlt().solve(rhs);
             for (std::size_t i = 0; i < rows.size(); ++i) {
-                used[i] = log_mean.at<float>(rows[i], u) - fitted(c, rows[i]) > drop;
+                used[i] = log_mean.at<float>(rows[i], u) - c.dot(basis(rows[i])) > drop;
             }
         }
-        for (int v : rows) light.at<float>(v, u) = static_cast<float>(fitted(c, v));
+        for (int v : rows) light.at<float>(v, u) = static_cast<float>(c.dot(basis(v)));
     }
     return light;
 }

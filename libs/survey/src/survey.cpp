@@ -168,14 +168,9 @@ std::vector<std::string> traverseWarnings(const TraverseReport& r, const std::st
                       " forward images (first: " + r.first_image_problem + ")");
     }
     if (r.lens.corrected) {
-        out.push_back(rawlog + mrpt::format(": the ceiling camera's lens is dirty: %.1f %% of "
-                                            "the image lets less than %.0f %% of the light "
-                                            "through (the least %.0f %%); divided out of the "
-                                            "references, but matching behind dirt is at its "
-                                            "noise: clean the lens",
-                                            100 * r.lens.dirty_share,
-                                            100 * o.lens.dirty_transmission,
-                                            100 * r.lens.least_transmission));
+        out.push_back(rawlog + ": " +
+                      refine::dirtyLensWarning(r.lens.dirty_share, r.lens.least_transmission,
+                                               o.lens, "the references"));
     }
     const ImageQuality& q = r.ceiling_images;
     const bool dim = q.mean_intensity < o.warn_dim_mean_intensity;

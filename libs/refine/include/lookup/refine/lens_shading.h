@@ -18,6 +18,7 @@
 #include <opencv2/core.hpp>
 
 #include <cstddef>
+#include <string>
 
 #include "lookup/common/config.h"
 #include "lookup/common/options_table.h"
@@ -50,6 +51,11 @@ struct LensShadingOptions {
 /// axis in the camera's frame, projected.
 cv::Point2d driveInImage(const mrpt::poses::CPose3D& camera_on_vehicle,
                          const mrpt::img::TCamera& camera);
+
+/// The warning for a dirty lens: how much of the image lies behind dirt and how dark, that it
+/// was divided out of `corrected` ("each image", "the references"), and to clean it.
+std::string dirtyLensWarning(double dirty_share, double least_transmission,
+                             const LensShadingOptions& options, const std::string& corrected);
 
 class LensShading {
   public:
